@@ -1,0 +1,473 @@
+"""Tests of valve_gym.diagnosis.recording: shipped data and every bad-input case."""
+
+from __future__ import annotations
+
+import csv
+import doctest
+
+import numpy as np
+import pytest
+
+from valve_gym.diagnosis import recording as recmod
+from valve_gym.diagnosis.recording import (
+    MIN_SAMPLES,
+    Recording,
+    RecordingError,
+    data_path,
+    load_recording,
+    parse_columns,
+    parse_range,
+)
+
+# --------------------------------------------------------------------------
+# helpers
+# --------------------------------------------------------------------------
+
+
+def signals(n=200, dt=1.0):
+    """A plausible loop: op in percent (square wave), pv first-order response."""
+    t = np.arange(n) * dt
+    op = 40 + 10 * np.sign(np.sin(2 * np.pi * t / (40 * dt)))
+    pv = np.zeros(n)
+    for k in range(1, n):
+        pv[k] = 0.9 * pv[k - 1] + 0.1 * op[k - 1]
+    return t, op, pv
+
+
+def write_csv(path, header, rows):
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        w.writerows(rows)
+    return path
+
+
+def write_loop(tmp_path, t=None, op=None, pv=None, name="loop.csv", **kw):
+    t0, op0, pv0 = signals(**kw)
+    t = t0 if t is None else t
+    op = op0 if op is None else op
+    pv = pv0 if pv is None else pv
+    rows = [[a, b, c] for a, b, c in zip(t, op, pv)]
+    return write_csv(tmp_path / name, ["t", "op", "pv"], rows)
+
+
+# --------------------------------------------------------------------------
+# shipped data
+# --------------------------------------------------------------------------
+
+
+def test_cascaded_tanks():
+    rec = load_recording(
+        data_path("cascaded_tanks/estimation.csv"),
+        columns={"t": "t_s", "op": "u_V", "pv": "y_V"},
+        op_range=(0, 10),
+    )
+    assert len(rec) == 1024
+    assert rec.dt == 4.0
+    assert rec.repairs == ()
+    assert rec.sp is None and rec.mv is None
+    assert rec.op_range == (0.0, 10.0)
+    assert rec.columns == {"t": "t_s", "op": "u_V", "pv": "y_V"}
+    assert rec.t.dtype == np.float64 and rec.op.shape == (1024,)
+    assert 0.04 < rec.op.min() < rec.op.max() < 0.65
+    assert rec.pv.max() == pytest.approx(10.0)  # sensor saturation at 10 V
+    # default column names find the same columns
+    rec2 = load_recording(data_path("cascaded_tanks/estimation.csv"), op_range=(0, 10))
+    assert rec2.columns == rec.columns
+    np.testing.assert_array_equal(rec2.op, rec.op)
+
+
+def test_stictiongpt_record():
+    path = data_path("stictiongpt_plant_loops/csv/stiction__2411FIC20102_0609_0957.csv")
+    rec = load_recording(
+        path, columns={"t": "t_s", "op": "OP", "pv": "PV", "sp": "SP"}, op_range=(0, 100)
+    )
+    assert len(rec) == 751 and rec.dt == 10.0 and rec.repairs == ()
+    assert rec.sp is not None and rec.sp.shape == (751,)
+    assert 0 < rec.op.min() < rec.op.max() < 1
+    assert rec.name == "stiction__2411FIC20102_0609_0957"
+
+
+def test_stictiongpt_all_records_match_index():
+    import pandas as pd
+
+    root = data_path("stictiongpt_plant_loops")
+    index = pd.read_csv(root / "index.csv")
+    assert len(index) == 49
+    assert sorted(index["expert_label"].unique()) == ["no_stiction", "stiction"]
+    for row in index.itertuples():
+        rec = load_recording(root / row.csv_file, op_range=(0, 100))
+        assert len(rec) == row.n_samples
+        assert rec.dt == row.Ts_s
+        assert rec.columns == {"t": "t_s", "op": "OP", "pv": "PV", "sp": "SP"}
+
+
+def test_npokhappy_iso_timestamps():
+    rec = load_recording(
+        data_path("npokhappy_factory/LIC-106_sorted.csv"),
+        columns={"t": "timestamp", "op": "OP_level_valve_LV106", "pv": "flow_FT115"},
+        op_range=(0, 100),
+    )
+    assert len(rec) == 10080 and rec.dt == 60.0
+    assert rec.t[0] == 0.0 and rec.t[-1] == 60.0 * 10079
+    assert rec.start == "2024-11-21 00:00:00"
+
+
+def test_npokhappy_long_gap_and_longest():
+    path = data_path("npokhappy_factory/FIC-211_sorted.csv")
+    cols = {"t": "timestamp", "op": "OP_valve_FV211", "pv": "PV_flow_FT211"}
+    with pytest.raises(RecordingError, match=r"gap.*64 missing samples.*PV_flow_FT211"):
+        load_recording(path, columns=cols, op_range=(0, 100))
+    rec = load_recording(path, columns=cols, op_range=(0, 100), gaps="longest")
+    assert len(rec) == 6585
+    assert any("longest stretch" in r for r in rec.repairs)
+    assert any("filled 3 missing" in r for r in rec.repairs)
+
+
+def test_data_path_missing():
+    with pytest.raises(FileNotFoundError, match="no shipped data file.*cascaded_tanks"):
+        data_path("no_such_dataset/x.csv")
+    with pytest.raises(FileNotFoundError, match="estimation.csv"):
+        data_path("cascaded_tanks/nope.csv")
+
+
+def test_doctests():
+    res = doctest.testmod(recmod)
+    assert res.attempted > 0 and res.failed == 0
+
+
+# --------------------------------------------------------------------------
+# Recording object
+# --------------------------------------------------------------------------
+
+
+def test_recording_methods(tmp_path):
+    rec = load_recording(write_loop(tmp_path), op_range=(0, 100), name="demo")
+    assert len(rec) == 200 and rec.name == "demo"
+    part = rec.slice(10, 60)
+    assert isinstance(part, Recording) and len(part) == 50
+    assert part.t[0] == rec.t[10] and part.dt == rec.dt
+    assert len(rec.slice(-20, None)) == 20
+    with pytest.raises(ValueError, match="empty"):
+        rec.slice(5, 5)
+    df = rec.to_dataframe()
+    assert list(df.columns) == ["t", "op", "pv"] and len(df) == 200
+    assert df.attrs["dt"] == 1.0
+    with pytest.raises(ValueError):
+        rec.op[0] = 0.5  # read-only
+    with pytest.raises(AttributeError):
+        rec.dt = 2.0  # frozen
+    assert "demo" in repr(rec)
+
+
+def test_recording_validates():
+    t = np.arange(10.0)
+    with pytest.raises(ValueError, match="normalised"):
+        Recording(t=t, op=np.full(10, 2.0), pv=t)
+    with pytest.raises(ValueError, match="NaN"):
+        Recording(t=t, op=np.full(10, np.nan), pv=t)
+    with pytest.raises(ValueError, match="uniformly"):
+        Recording(t=t**2, op=np.zeros(10), pv=t)
+    assert Recording(t=t, op=np.zeros(10), pv=t).dt == 1.0
+
+
+# --------------------------------------------------------------------------
+# CLI helpers
+# --------------------------------------------------------------------------
+
+
+def test_parse_columns():
+    assert parse_columns("t=t_s,op=OP,pv=PV") == {"t": "t_s", "op": "OP", "pv": "PV"}
+    assert parse_columns(" sp = ,mv=Stem ") == {"sp": None, "mv": "Stem"}
+    with pytest.raises(RecordingError, match="no '='"):
+        parse_columns("t_s,OP")
+    with pytest.raises(RecordingError, match="unknown role 'xx'"):
+        parse_columns("xx=a")
+    with pytest.raises(RecordingError, match="given twice"):
+        parse_columns("t=a,t=b")
+    with pytest.raises(RecordingError, match="needs a column name"):
+        parse_columns("pv=")
+    with pytest.raises(RecordingError, match="empty"):
+        parse_columns("  ")
+
+
+def test_parse_range():
+    assert parse_range("0,100") == (0.0, 100.0)
+    assert parse_range(" -1.5 , 2 ") == (-1.5, 2.0)
+    for bad, msg in [("0", "not two"), ("0,1,2", "not two"), ("a,1", "non-number"),
+                     ("0,inf", "finite"), ("5,5", "LO >= HI")]:
+        with pytest.raises(RecordingError, match=msg):
+            parse_range(bad)
+
+
+# --------------------------------------------------------------------------
+# bad inputs
+# --------------------------------------------------------------------------
+
+
+def test_file_missing(tmp_path):
+    with pytest.raises(RecordingError, match="nope.csv: file not found"):
+        load_recording(tmp_path / "nope.csv")
+
+
+def test_path_is_folder(tmp_path):
+    with pytest.raises(RecordingError, match="is a folder"):
+        load_recording(tmp_path)
+
+
+def test_empty_file(tmp_path):
+    (tmp_path / "e.csv").write_text("")
+    with pytest.raises(RecordingError, match="e.csv: file is empty"):
+        load_recording(tmp_path / "e.csv")
+
+
+def test_binary_file(tmp_path):
+    (tmp_path / "b.xlsx").write_bytes(b"PK\x03\x04\x00\x00binary")
+    with pytest.raises(RecordingError, match="not a text CSV file"):
+        load_recording(tmp_path / "b.xlsx")
+
+
+def test_not_csv_one_column(tmp_path):
+    (tmp_path / "x.txt").write_text("hello world\nthis is prose\n")
+    with pytest.raises(RecordingError, match="only one column"):
+        load_recording(tmp_path / "x.txt")
+
+
+def test_ragged_rows(tmp_path):
+    p = write_loop(tmp_path)
+    with open(p, "a") as f:
+        f.write("1000,50\n")
+    with pytest.raises(RecordingError, match=r"lines 202 have a different number of fields"):
+        load_recording(p, op_range=(0, 100))
+
+
+def test_named_column_absent(tmp_path):
+    p = write_loop(tmp_path)
+    with pytest.raises(RecordingError, match=r"column 'PV_X' given for the process variable \(pv\) "
+                                             r"is not in the file; available columns: 't', 'op', 'pv'"):
+        load_recording(p, columns={"pv": "PV_X"}, op_range=(0, 100))
+
+
+def test_default_column_not_found(tmp_path):
+    t, op, pv = signals()
+    p = write_csv(tmp_path / "odd.csv", ["time", "valve_cmd", "pv"], zip(t, op, pv))
+    with pytest.raises(RecordingError, match=r"no column for the controller output \(op\).*--columns op=NAME"):
+        load_recording(p, op_range=(0, 100))
+    rec = load_recording(p, columns={"op": "VALVE_CMD"}, op_range=(0, 100))  # case-insensitive
+    assert rec.columns["op"] == "valve_cmd"
+
+
+def test_unknown_role(tmp_path):
+    with pytest.raises(RecordingError, match="unknown role 'flow'"):
+        load_recording(write_loop(tmp_path), columns={"flow": "pv"})
+
+
+def test_non_numeric_cells(tmp_path):
+    t, op, pv = signals()
+    pv = pv.astype(object)
+    pv[3] = "bad"
+    pv[7] = "1,5"
+    p = write_csv(tmp_path / "n.csv", ["t", "op", "pv"], zip(t, op, pv))
+    with pytest.raises(RecordingError, match=r"n.csv: column 'pv' \(pv\): 2 non-numeric cell\(s\) "
+                                             r"at line\(s\) 5, 9 \(e.g. 'bad'\)"):
+        load_recording(p, op_range=(0, 100))
+
+
+def test_short_gap_repaired(tmp_path):
+    t, op, pv = signals()
+    pv_bad = pv.astype(object)
+    pv_bad[50:53] = ""
+    p = write_csv(tmp_path / "g.csv", ["t", "op", "pv"], zip(t, op, pv_bad))
+    rec = load_recording(p, op_range=(0, 100))
+    assert len(rec) == 200
+    assert np.all(np.isfinite(rec.pv))
+    np.testing.assert_allclose(rec.pv[50:53], np.interp([50, 51, 52], [49, 53], pv[[49, 53]]))
+    assert any("filled 3 missing value(s) in 'pv'" in r for r in rec.repairs)
+
+
+def test_long_gap_error_and_longest(tmp_path):
+    t, op, pv = signals()
+    pv = pv.astype(object)
+    pv[60:70] = "nan"
+    p = write_csv(tmp_path / "g.csv", ["t", "op", "pv"], zip(t, op, pv))
+    with pytest.raises(RecordingError, match=r"longer than max_gap=5.*10 missing samples between "
+                                             r"t=59 s and t=70 s in 'pv'"):
+        load_recording(p, op_range=(0, 100))
+    rec = load_recording(p, op_range=(0, 100), max_gap=10)
+    assert len(rec) == 200
+    rec = load_recording(p, op_range=(0, 100), gaps="longest")
+    assert len(rec) == 130 and rec.t[0] == 70.0
+    assert any("longest stretch" in r for r in rec.repairs)
+
+
+def test_edge_missing_trimmed(tmp_path):
+    t, op, pv = signals()
+    op = op.astype(object)
+    op[:4] = ""
+    p = write_csv(tmp_path / "e.csv", ["t", "op", "pv"], zip(t, op, pv))
+    rec = load_recording(p, op_range=(0, 100))
+    assert len(rec) == 196 and rec.t[0] == 4.0
+    assert any("dropped 4 leading" in r for r in rec.repairs)
+
+
+def test_constant_op(tmp_path):
+    p = write_loop(tmp_path, op=np.full(200, 42.0))
+    with pytest.raises(RecordingError, match=r"column 'op' \(op\): the controller output is constant"):
+        load_recording(p, op_range=(0, 100))
+
+
+def test_constant_pv(tmp_path):
+    p = write_loop(tmp_path, pv=np.full(200, 3.0))
+    with pytest.raises(RecordingError, match=r"column 'pv' \(pv\): the process variable is constant"):
+        load_recording(p, op_range=(0, 100))
+
+
+def test_too_short(tmp_path):
+    p = write_loop(tmp_path, n=MIN_SAMPLES - 1)
+    with pytest.raises(RecordingError, match=r"only 49 data rows.*at least 50"):
+        load_recording(p, op_range=(0, 100))
+
+
+def test_decreasing_time(tmp_path):
+    t, op, pv = signals()
+    t = t.copy()
+    t[[100, 101]] = t[[101, 100]]
+    p = write_loop(tmp_path, t=t)
+    with pytest.raises(RecordingError, match=r"column 't' \(t\): time stamps decrease 1 time\(s\), first at line 103"):
+        load_recording(p, op_range=(0, 100))
+
+
+def test_descending_file(tmp_path):
+    t, op, pv = signals()
+    p = write_loop(tmp_path, t=t[::-1].copy())
+    with pytest.raises(RecordingError, match="descending time order; sort it"):
+        load_recording(p, op_range=(0, 100))
+
+
+def test_duplicate_time_different_values(tmp_path):
+    t, op, pv = signals()
+    rows = [[a, b, c] for a, b, c in zip(t, op, pv)]
+    rows.insert(51, [t[50], op[50], pv[50] + 1.0])
+    p = write_csv(tmp_path / "d.csv", ["t", "op", "pv"], rows)
+    with pytest.raises(RecordingError, match=r"duplicate time stamp\(s\) with different values \(lines 52 and 53\)"):
+        load_recording(p, op_range=(0, 100))
+
+
+def test_exact_duplicate_rows_dropped(tmp_path):
+    t, op, pv = signals()
+    rows = [[a, b, c] for a, b, c in zip(t, op, pv)]
+    rows.insert(51, list(rows[50]))
+    p = write_csv(tmp_path / "d.csv", ["t", "op", "pv"], rows)
+    rec = load_recording(p, op_range=(0, 100))
+    assert len(rec) == 200
+    assert any("dropped 1 exact duplicate row" in r for r in rec.repairs)
+
+
+def test_missing_time_stamp(tmp_path):
+    t, op, pv = signals()
+    t = t.astype(object)
+    t[10] = ""
+    p = write_loop(tmp_path, t=t)
+    with pytest.raises(RecordingError, match=r"1 missing time stamp\(s\) at line\(s\) 12"):
+        load_recording(p, op_range=(0, 100))
+
+
+def test_small_jitter_resampled(tmp_path):
+    t, op, pv = signals()
+    rng = np.random.default_rng(0)
+    tj = t + rng.uniform(-0.04, 0.04, t.size)
+    tj[0], tj[-1] = 0.0, t[-1]
+    p = write_loop(tmp_path, t=tj)
+    rec = load_recording(p, op_range=(0, 100))
+    assert rec.dt == pytest.approx(1.0, abs=0.02)
+    assert np.allclose(np.diff(rec.t), rec.dt)
+    assert any("small time-stamp jitter" in r and "zero-order hold" in r for r in rec.repairs)
+    # op is held, so it only takes values present in the file
+    assert set(np.round(rec.op * 100, 9)) <= set(np.round(op, 9))
+    # still resampled with resample=False: jitter < 10 %
+    assert load_recording(p, op_range=(0, 100), resample=False).repairs == rec.repairs
+
+
+def test_large_irregular_sampling(tmp_path):
+    t, op, pv = signals()
+    rng = np.random.default_rng(1)
+    tj = np.cumsum(rng.uniform(0.6, 1.4, t.size))
+    p = write_loop(tmp_path, t=tj)
+    with pytest.raises(RecordingError, match=r"irregular sampling.*resample='auto'"):
+        load_recording(p, op_range=(0, 100), resample=False)
+    rec = load_recording(p, op_range=(0, 100))
+    assert any("irregular sampling" in r for r in rec.repairs)
+    assert np.allclose(np.diff(rec.t), rec.dt)
+
+
+def test_missing_rows_short_and_long(tmp_path):
+    t, op, pv = signals()
+    keep = np.ones(t.size, bool)
+    keep[80:83] = False  # three rows absent: time jumps 79 -> 83
+    p = write_loop(tmp_path, t=t[keep], op=op[keep], pv=pv[keep])
+    rec = load_recording(p, op_range=(0, 100))
+    assert len(rec) == 200 and rec.dt == 1.0
+    assert any("3 missing sample(s) inserted" in r for r in rec.repairs)
+    keep[80:100] = False
+    p = write_loop(tmp_path, t=t[keep], op=op[keep], pv=pv[keep], name="long.csv")
+    with pytest.raises(RecordingError, match=r"20 missing samples between t=79 s and t=100 s: no rows in the file"):
+        load_recording(p, op_range=(0, 100))
+
+
+def test_op_range_required(tmp_path):
+    with pytest.raises(RecordingError, match=r"column 'op' \(op\): values span 30\.\.50, outside 0\.\.1.*"
+                                             r"pass --op-range LO,HI"):
+        load_recording(write_loop(tmp_path))
+
+
+def test_op_slightly_outside_clipped(tmp_path):
+    t, op, pv = signals()
+    op = op.copy()
+    op[5] = 101.0
+    op[6] = -2.0
+    rec = load_recording(write_loop(tmp_path, op=op), op_range=(0, 100))
+    assert rec.op.max() == 1.0 and rec.op.min() == 0.0
+    assert any("clipped 2 value(s) of 'op'" in r for r in rec.repairs)
+
+
+def test_op_far_outside_range(tmp_path):
+    with pytest.raises(RecordingError, match=r"more than 5 % of the span outside the range 0\.\.10"):
+        load_recording(write_loop(tmp_path), op_range=(0, 10))
+
+
+def test_bad_options(tmp_path):
+    p = write_loop(tmp_path)
+    with pytest.raises(RecordingError, match="max_gap"):
+        load_recording(p, op_range=(0, 100), max_gap=-1)
+    with pytest.raises(RecordingError, match="gaps must be"):
+        load_recording(p, op_range=(0, 100), gaps="split")
+    with pytest.raises(RecordingError, match="op_range must be"):
+        load_recording(p, op_range=(100, 0))
+
+
+def test_sp_mv_and_semicolon_bom(tmp_path):
+    t, op, pv = signals()
+    stem = op * 0.98
+    text = "\ufeffTime;CO;PV;Setpoint;Stem\n" + "".join(
+        f"{a};{b};{c};20;{d}\n" for a, b, c, d in zip(t, op, pv, stem)
+    )
+    (tmp_path / "s.csv").write_text(text, encoding="utf-8")
+    rec = load_recording(tmp_path / "s.csv", op_range="0,100")
+    assert rec.columns == {"t": "Time", "op": "CO", "pv": "PV", "sp": "Setpoint", "mv": "Stem"}
+    np.testing.assert_allclose(rec.mv, stem / 100)
+    assert np.all(rec.sp == 20)
+    rec = load_recording(tmp_path / "s.csv", op_range=(0, 100), columns={"sp": None, "mv": None})
+    assert rec.sp is None and rec.mv is None
+
+
+def test_iso_timestamps(tmp_path):
+    t, op, pv = signals()
+    stamps = [f"2024-03-01T10:{int(s) // 60:02d}:{int(s) % 60:02d}" for s in t]
+    p = write_csv(tmp_path / "iso.csv", ["timestamp", "op", "pv"], zip(stamps, op, pv))
+    rec = load_recording(p, op_range=(0, 100))
+    np.testing.assert_array_equal(rec.t, t)
+    assert rec.start == "2024-03-01T10:00:00"
+    stamps[7] = "yesterday"
+    p = write_csv(tmp_path / "iso2.csv", ["timestamp", "op", "pv"], zip(stamps, op, pv))
+    with pytest.raises(RecordingError, match=r"neither numbers \(seconds\) nor ISO date strings, at line\(s\) 9"):
+        load_recording(p, op_range=(0, 100))

@@ -1,0 +1,49 @@
+"""``valve-gym`` command line: one entry point, one sub-command per job.
+
+Sub-commands (each module's ``main(argv)`` does the work)::
+
+    valve-gym benchmark  [--quick] [--out DIR]      compensator benchmark (the main job)
+    valve-gym train      --config configs/ppo_residual.yaml [--out DIR] [--resume ZIP]
+    valve-gym figures    --out DIR                  teaching figures of valve friction
+    valve-gym diagnose   REC.csv [options]          model-mismatch diagnosis of a recording
+"""
+from __future__ import annotations
+
+import importlib
+import sys
+
+_COMMANDS = {
+    "benchmark": ("agents.benchmark", "compare PI, PI + knocker and PPO on randomised sticky valves"),
+    "train": ("agents.train", "train a PPO policy from a YAML config"),
+    "figures": ("valve_gym.figures", "write the teaching figures (PNG)"),
+    "diagnose": ("valve_gym.diagnosis.cli", "diagnose a recording: locate the mismatch, name the missing physics"),
+}
+
+
+def _usage() -> str:
+    lines = ["usage: valve-gym COMMAND [options]", "", "commands:"]
+    lines += [f"  {k:<10} {v[1]}" for k, v in _COMMANDS.items()]
+    lines += ["", "valve-gym COMMAND --help shows the options of a command."]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help"):
+        print(_usage())
+        return 0
+    cmd, rest = argv[0], argv[1:]
+    if cmd not in _COMMANDS:
+        print(f"valve-gym: unknown command {cmd!r}\n\n{_usage()}", file=sys.stderr)
+        return 2
+    mod = importlib.import_module(_COMMANDS[cmd][0])
+    try:
+        rc = mod.main(rest)
+    except KeyboardInterrupt:
+        print("valve-gym: interrupted", file=sys.stderr)
+        return 130
+    return int(rc or 0)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

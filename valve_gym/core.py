@@ -1,0 +1,646 @@
+"""The one physics core: a pure, batched, fixed-step explicit-Euler simulator.
+
+Everything that simulates in valve_gym (the Gymnasium env, the native vector
+env, the diagnosis fitter, the benchmarks and the teaching figures) calls
+:func:`simulate` / :func:`step`, or, for the lowest call overhead, the same
+compiled kernel through :class:`Packed` and :func:`run_packed`. Nothing else
+re-implements a line of physics.
+
+Conventions
+-----------
+* Batch axis: ``n`` parallel systems. Every state field is an ``(n,)`` array;
+  parameters are floats or ``(n,)`` arrays (see :mod:`valve_gym.params`).
+* Inputs ``u`` are the valve input (controller output) normalised to 0..1,
+  held constant over one controller sample of ``n_sub`` Euler steps (zero-order
+  hold); values outside [0, 1] saturate.
+* ``d`` is an extra inflow (load disturbance) in the process' flow units
+  (m^3/s for tanks; output units for ``first_order``), negative for an offtake.
+* No random numbers are drawn here: noise is added by the callers, which get
+  their randomness through ``reset(seed=...)``.
+
+The controller sample is ``n_sub * dt`` seconds.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple, Optional
+
+import numpy as np
+
+from .params import ModelParams, ParameterError
+
+try:  # numba is a declared dependency; the fallback keeps the code importable.
+    from numba import njit
+    HAVE_NUMBA = True
+except ImportError:  # pragma: no cover
+    HAVE_NUMBA = False
+
+    def njit(*a, **k):
+        def deco(f):
+            f.py_func = f
+            return f
+        return deco if not (a and callable(a[0])) else deco(a[0])
+
+__all__ = ["State", "Trajectory", "Packed", "pack", "initial_state", "steady_input",
+           "step", "simulate", "run_packed", "check_dt", "HAVE_NUMBA"]
+
+# ---------------------------------------------------------------- layouts
+# parameter rows of the packed (NP, n) array
+TAU, VMAX, EDEAD, ZMAX, SJ_S, SJ_J, SJ_TAU, CH_R, CH_H0, P_A, P_Q, P_OUT, A2, K2, \
+    LMAX, L2MAX, SPILL, QLEAK, DELAY, TAU_S, DIST_A, DIST_P, DIST_PHI = range(23)
+NP = 23
+# flag slots
+F_FRIC, F_CHAR, F_ACT, F_PROC, F_DEAD, F_OVER, F_LEAK, F_SENS, F_DIST = range(9)
+NF = 9
+# state rows of the packed (NS, n) array
+S_Z, S_H, S_X, S_US, S_STUCK, S_SDIR, S_UPREV, S_L1, S_L2, S_Y, S_T, S_BIDX = range(12)
+NS = 12
+_PROC_CODE = {"tank": 0, "integrating": 1, "first_order": 2, "cascade": 3}
+
+
+class State(NamedTuple):
+    """Simulator state, each field an ``(n,)`` float64 array (``delay_buf`` ``(n, B)``).
+
+    Fields
+    ------
+    z : friction / time-delay state of the paper's valve [s]
+    h : stem position (integrator state; the output is ``clip(h, 0, 1)``) [-]
+    x : output of the slip-jump friction block (its positioner target) [-]
+    u_s : input at which the slip-jump valve stuck [-]
+    stuck : 1.0 while the slip-jump valve is stuck, else 0.0
+    s_dir : last direction of motion of the slip-jump input (-1, 0, 1)
+    u_prev : input of the previous controller sample [-]
+    level : level of the (upper) tank [m], or process output for ``first_order``
+    level2 : level of the lower tank (``cascade``) [m]
+    y : lagged measurement (``sensor_lag``), else equal to the measured level
+    t : time [s]
+    buf_idx : write position of the dead-time ring buffer
+    delay_buf : ``(n, B)`` past flow fractions for ``dead_time``
+    """
+
+    z: np.ndarray
+    h: np.ndarray
+    x: np.ndarray
+    u_s: np.ndarray
+    stuck: np.ndarray
+    s_dir: np.ndarray
+    u_prev: np.ndarray
+    level: np.ndarray
+    level2: np.ndarray
+    y: np.ndarray
+    t: np.ndarray
+    buf_idx: np.ndarray
+    delay_buf: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return self.z.shape[0]
+
+    def measured(self) -> np.ndarray:
+        """Noise-free measured process variable ``(n,)``."""
+        return self.y.copy()
+
+
+class Trajectory(NamedTuple):
+    """Result of :func:`simulate`, time axis first.
+
+    t : (T,) s, time at the end of each controller sample
+    u : (T, n) input applied during each sample (after saturation to 0..1)
+    y : (T, n) noise-free measured process variable at the end of each sample
+    h : (T, n) stem position (clipped to 0..1) at the end of each sample
+    level : (T, n) level of the measured tank (lower tank for ``cascade``)
+    final : State at the end
+    """
+
+    t: np.ndarray
+    u: np.ndarray
+    y: np.ndarray
+    h: np.ndarray
+    level: np.ndarray
+    final: State
+
+
+# ---------------------------------------------------------------- kernel
+@njit(cache=True)
+def _kernel(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV):  # pragma: no cover - compiled
+    T = U.shape[0]
+    n = S.shape[1]
+    pb = P.shape[1] > 1
+    ub = U.shape[1] > 1
+    db = D.shape[1] > 1
+    fric = flags[F_FRIC]
+    char = flags[F_CHAR]
+    act = flags[F_ACT]
+    proc = flags[F_PROC]
+    dead = flags[F_DEAD]
+    over = flags[F_OVER]
+    leak = flags[F_LEAK]
+    sens = flags[F_SENS]
+    dist = flags[F_DIST]
+    B = buf.shape[1]
+    for i in range(n):
+        j = i if pb else 0
+        tau = P[TAU, j]
+        vmax = P[VMAX, j]
+        ed = P[EDEAD, j]
+        zmax = P[ZMAX, j]
+        sjS = P[SJ_S, j]
+        sjJ = P[SJ_J, j]
+        taup = P[SJ_TAU, j]
+        R = P[CH_R, j]
+        h0 = P[CH_H0, j]
+        pa = P[P_A, j]
+        pq = P[P_Q, j]
+        pout = P[P_OUT, j]
+        a2 = P[A2, j]
+        k2 = P[K2, j]
+        lmax = P[LMAX, j]
+        l2max = P[L2MAX, j]
+        spill_f = P[SPILL, j]
+        qleak = P[QLEAK, j] if leak == 1 else 0.0
+        kdel = int(P[DELAY, j])
+        taus = P[TAU_S, j]
+        da = P[DIST_A, j]
+        dw = 2.0 * np.pi / P[DIST_P, j]
+        dphi = P[DIST_PHI, j]
+        z = S[S_Z, i]
+        h = S[S_H, i]
+        x = S[S_X, i]
+        us = S[S_US, i]
+        stuck = S[S_STUCK, i]
+        sdir = S[S_SDIR, i]
+        uprev = S[S_UPREV, i]
+        L1 = S[S_L1, i]
+        L2 = S[S_L2, i]
+        y = S[S_Y, i]
+        t = S[S_T, i]
+        bidx = int(S[S_BIDX, i])
+        for k in range(T):
+            u = U[k, i if ub else 0]
+            if u < 0.0:
+                u = 0.0
+            elif u > 1.0:
+                u = 1.0
+            dk = D[k, i if db else 0]
+            if act == 0 and fric == 1:
+                # Choudhury slip-jump block, once per controller sample
+                du = u - uprev
+                dsg = 0.0
+                if du > 0.0:
+                    dsg = 1.0
+                elif du < 0.0:
+                    dsg = -1.0
+                if dsg == 0.0:
+                    if stuck == 0.0:
+                        stuck = 1.0
+                        us = uprev
+                else:
+                    reversed_ = (sdir != 0.0) and (dsg != sdir)
+                    if stuck == 0.0 and reversed_:
+                        stuck = 1.0
+                        us = uprev
+                    if stuck == 1.0:
+                        thr = sjS if reversed_ else sjJ
+                        if abs(u - us) > thr:
+                            stuck = 0.0
+                            x = u - dsg * (sjS - sjJ) / 2.0
+                    else:
+                        x = u - dsg * (sjS - sjJ) / 2.0
+                    sdir = dsg
+                if x < 0.0:
+                    x = 0.0
+                elif x > 1.0:
+                    x = 1.0
+            uprev = u
+            for s in range(n_sub):
+                # ---- actuator
+                if act == 1:
+                    hc = u
+                    f = u
+                else:
+                    if fric == 0:
+                        e = u - h
+                        if e > ed:
+                            e = e - ed
+                        elif e < -ed:
+                            e = e + ed
+                        else:
+                            e = 0.0
+                        if z < -zmax:
+                            dz = e if e > 0.0 else 0.0
+                        elif z > zmax:
+                            dz = e if e < 0.0 else 0.0
+                        else:
+                            dz = e
+                        v = 0.0
+                        if abs(z) > zmax and e != 0.0:
+                            v = abs(e) / tau
+                            if v > vmax:
+                                v = vmax
+                            if e < 0.0:
+                                v = -v
+                        z += dt * dz
+                        h += dt * v
+                    else:
+                        h += dt * (x - h) / taup
+                    hc = h
+                    if hc < 0.0:
+                        hc = 0.0
+                    elif hc > 1.0:
+                        hc = 1.0
+                    # ---- installed characteristic
+                    if char == 0 and h0 == 0.0:
+                        f = hc
+                    else:
+                        if hc <= h0:
+                            f = 0.0
+                        else:
+                            r = (hc - h0) / (1.0 - h0)
+                            if char == 0:
+                                f = r
+                            elif char == 1:
+                                f = R ** (r - 1.0)
+                            else:
+                                f = np.sqrt(r)
+                # ---- dead time
+                if dead == 1:
+                    buf[i, bidx] = f
+                    f = buf[i, (bidx - kdel) % B]
+                    bidx = (bidx + 1) % B
+                qin = f * pq + dk
+                if dist == 1:
+                    qin += da * np.sin(dw * t + dphi)
+                # ---- process
+                if proc == 0 or proc == 3:
+                    q1 = pout * np.sqrt(L1) if L1 > 0.0 else 0.0
+                    if proc == 0:
+                        L1 = L1 + dt * (qin - q1 - qleak) / pa
+                    else:
+                        L1 = L1 + dt * (qin - q1) / pa
+                    if L1 < 0.0:
+                        L1 = 0.0
+                    spill = 0.0
+                    if over == 1 and L1 > lmax:
+                        spill = (L1 - lmax) * pa / dt
+                        L1 = lmax
+                    if proc == 3:
+                        q2 = k2 * np.sqrt(L2) if L2 > 0.0 else 0.0
+                        L2 = L2 + dt * (q1 + spill_f * spill - q2 - qleak) / a2
+                        if L2 < 0.0:
+                            L2 = 0.0
+                        if over == 1 and L2 > l2max:
+                            L2 = l2max
+                        lm = L2
+                    else:
+                        lm = L1
+                elif proc == 1:
+                    L1 = L1 + dt * (qin - pout - qleak) / pa
+                    if over == 1 and L1 > lmax:
+                        L1 = lmax
+                    lm = L1
+                else:
+                    L1 = L1 + dt * (qin + pout - qleak - L1) / pa
+                    if over == 1 and L1 > lmax:
+                        L1 = lmax
+                    lm = L1
+                # ---- sensor
+                if sens == 1:
+                    y = y + dt * (lm - y) / taus
+                else:
+                    y = lm
+                t += dt
+            Y[k, i] = y
+            H[k, i] = hc if act == 0 else u
+            LV[k, i] = lm
+        S[S_Z, i] = z
+        S[S_H, i] = h
+        S[S_X, i] = x
+        S[S_US, i] = us
+        S[S_STUCK, i] = stuck
+        S[S_SDIR, i] = sdir
+        S[S_UPREV, i] = uprev
+        S[S_L1, i] = L1
+        S[S_L2, i] = L2
+        S[S_Y, i] = y
+        S[S_T, i] = t
+        S[S_BIDX, i] = bidx
+
+
+# ---------------------------------------------------------------- packing
+@dataclass(frozen=True)
+class Packed:
+    """Parameters packed for the kernel: ``P`` (NP, n or 1), ``flags`` (NF,), ``buf_len``."""
+
+    P: np.ndarray
+    flags: np.ndarray
+    buf_len: int
+    dt: float
+    params: ModelParams
+
+    @property
+    def n(self) -> int:
+        return self.P.shape[1]
+
+
+def _col(v, n):
+    a = np.asarray(v, dtype=np.float64)
+    if a.ndim == 0:
+        return np.full(n, float(a))
+    a = a.reshape(-1)
+    if a.shape[0] == 1:
+        return np.full(n, float(a[0]))
+    if a.shape[0] != n:
+        raise ParameterError(f"a parameter array has length {a.shape[0]}, expected {n} (the batch size)")
+    return a
+
+
+def check_dt(params: ModelParams) -> None:
+    """Raise :class:`ParameterError` if ``params.dt`` is too large for stable Euler.
+
+    Explicit Euler on ``dx/dt = -x/T`` is oscillation-free for ``dt <= T``;
+    we require it for every first-order time constant of the model: the valve
+    ``tau`` (paper model), the positioner ``tau_p`` (slip-jump), the sensor
+    ``tau_s``, the ``first_order`` process ``T``, and for the tank the
+    linearised outflow time constant ``2 A sqrt(L)/k`` at the level where the
+    inflow is 10 % of ``q_max``.
+    """
+    dt = params.dt
+    checks = []
+    act_pump = params.actuator is not None and params.actuator.kind == "pump"
+    if not act_pump:
+        if params.slip_jump is None:
+            checks.append(("valve tau", params.valve.tau))
+        else:
+            checks.append(("slip_jump tau_p", params.slip_jump.tau_p))
+    if params.sensor_lag is not None:
+        checks.append(("sensor_lag tau_s", params.sensor_lag.tau_s))
+    pr = params.process
+    if params.process_kind == "first_order":
+        checks.append(("first_order T", pr.T))
+    elif params.process_kind in ("tank", "cascade"):
+        k = np.maximum(np.asarray(pr.k_out, float), 1e-300)
+        checks.append(("tank outflow time constant 2*A*sqrt(L)/k at 10 % inflow",
+                       np.asarray(pr.area) * 0.2 * np.asarray(pr.q_max) / k ** 2))
+        if params.cascade is not None:
+            k2 = np.maximum(np.asarray(params.cascade.k_out2, float), 1e-300)
+            checks.append(("lower tank outflow time constant",
+                           np.asarray(params.cascade.area2) * 0.2 * np.asarray(pr.q_max) / k2 ** 2))
+    for what, T in checks:
+        tmin = float(np.min(T))
+        if dt > tmin * (1 + 1e-9):
+            raise ParameterError(
+                f"dt = {dt} s is too large to integrate the model stably: the {what} is {tmin:.4g} s "
+                f"and explicit Euler needs dt <= that; use dt <= {tmin:.4g} s (more sub-steps per "
+                f"controller sample) or a slower model")
+
+
+def pack(params: ModelParams, n: Optional[int] = None, check: bool = True) -> Packed:
+    """Pack ``params`` for the kernel, broadcasting to batch size ``n``."""
+    nb = params.batch_size()
+    if n is None:
+        n = nb
+    elif nb not in (1, n):
+        raise ParameterError(f"parameters have batch size {nb} but n = {n} was asked for")
+    if check:
+        check_dt(params)
+    P = np.zeros((NP, n))
+    flags = np.zeros(NF, dtype=np.int64)
+    v = params.valve
+    P[TAU], P[VMAX], P[EDEAD], P[ZMAX] = _col(v.tau, n), _col(v.v_max, n), _col(v.e_dead, n), _col(v.z_max, n)
+    P[SJ_TAU] = 1.0
+    P[CH_R] = 1.0 + 1e-9
+    P[LMAX] = np.inf
+    P[L2MAX] = np.inf
+    P[DIST_P] = 1.0
+    P[TAU_S] = 1.0
+    P[A2] = 1.0
+    if params.slip_jump is not None:
+        sj = params.slip_jump
+        flags[F_FRIC] = 1
+        P[SJ_S], P[SJ_J], P[SJ_TAU] = _col(sj.S, n), _col(sj.J, n), _col(sj.tau_p, n)
+    if params.valve_characteristic is not None:
+        c = params.valve_characteristic
+        flags[F_CHAR] = c.code
+        P[CH_R], P[CH_H0] = _col(c.R, n), _col(c.h0, n)
+    if params.actuator is not None and params.actuator.kind == "pump":
+        flags[F_ACT] = 1
+    kind = params.process_kind
+    flags[F_PROC] = _PROC_CODE[kind]
+    pr = params.process
+    if kind in ("tank", "cascade"):
+        P[P_A], P[P_Q], P[P_OUT] = _col(pr.area, n), _col(pr.q_max, n), _col(pr.k_out, n)
+    elif kind == "integrating":
+        P[P_A], P[P_Q], P[P_OUT] = _col(pr.area, n), _col(pr.q_max, n), _col(pr.q_out, n)
+    else:
+        P[P_A], P[P_Q], P[P_OUT] = _col(pr.T, n), _col(pr.K, n), _col(pr.b, n)
+    if params.cascade is not None:
+        P[A2], P[K2] = _col(params.cascade.area2, n), _col(params.cascade.k_out2, n)
+    buf_len = 1
+    if params.dead_time is not None:
+        flags[F_DEAD] = 1
+        kdel = np.rint(_col(params.dead_time.theta, n) / params.dt)
+        P[DELAY] = kdel
+        buf_len = int(kdel.max()) + 1
+    if params.overflow is not None:
+        o = params.overflow
+        flags[F_OVER] = 1
+        P[LMAX], P[L2MAX], P[SPILL] = _col(o.L_max, n), _col(o.L2_max, n), _col(o.spill_to_lower, n)
+    if params.leak is not None:
+        flags[F_LEAK] = 1
+        P[QLEAK] = _col(params.leak.q_leak, n)
+    if params.sensor_lag is not None:
+        flags[F_SENS] = 1
+        P[TAU_S] = _col(params.sensor_lag.tau_s, n)
+    if params.oscillating_disturbance is not None:
+        d = params.oscillating_disturbance
+        flags[F_DIST] = 1
+        P[DIST_A], P[DIST_P], P[DIST_PHI] = _col(d.amplitude, n), _col(d.period, n), _col(d.phase, n)
+    return Packed(P=P, flags=flags, buf_len=buf_len, dt=float(params.dt), params=params)
+
+
+def _flow_fraction(params: ModelParams, h):
+    """Installed characteristic ``f(h)`` (numpy; used for steady states only)."""
+    h = np.clip(np.asarray(h, float), 0.0, 1.0)
+    c = params.valve_characteristic
+    if c is None or (params.actuator is not None and params.actuator.kind == "pump"):
+        return h
+    h0 = np.asarray(c.h0, float)
+    r = np.clip((h - h0) / (1.0 - h0), 0.0, 1.0)
+    if c.kind == "linear":
+        f = r
+    elif c.kind == "equal_percentage":
+        f = np.asarray(c.R, float) ** (r - 1.0)
+    else:
+        f = np.sqrt(r)
+    return np.where(h <= h0, 0.0, f)
+
+
+def steady_input(params: ModelParams, level, n: Optional[int] = None) -> np.ndarray:
+    """Stem position that holds the measured level steady (no friction offset).
+
+    For a tank ``q_max f(h) = k sqrt(L)``; inverted on a fine grid for
+    non-linear characteristics. Returns ``(n,)`` values in [0, 1].
+    """
+    if n is None:
+        n = max(params.batch_size(), np.size(level))
+    level = _col(level, n)
+    pr = params.process
+    if params.process_kind in ("tank", "cascade"):
+        k = params.cascade.k_out2 if params.process_kind == "cascade" else pr.k_out
+        f = _col(k, n) * np.sqrt(np.maximum(level, 0)) / _col(pr.q_max, n)
+    elif params.process_kind == "integrating":
+        f = _col(pr.q_out, n) / _col(pr.q_max, n)
+    else:
+        f = (level - _col(pr.b, n)) / _col(pr.K, n)
+    if params.leak is not None:
+        f = f + _col(params.leak.q_leak, n) / _col(pr.q_max if params.process_kind != "first_order"
+                                                   else pr.K, n)
+    grid = np.linspace(0.0, 1.0, 2001)
+    fg = _flow_fraction(params, grid[:, None] * np.ones(n))
+    idx = np.argmin(np.abs(fg - np.clip(f, 0, 1)[None, :]), axis=0)
+    return grid[idx]
+
+
+def initial_state(params: ModelParams, n: Optional[int] = None, level=None, h=None,
+                  level2=None, buf_len: Optional[int] = None) -> State:
+    """State at rest: ``z = 0`` (as in the paper), stem at ``h``, levels given.
+
+    Parameters
+    ----------
+    params : ModelParams
+    n : int, batch size (default: from the parameters)
+    level : float or (n,), initial level of the (upper) tank / process output;
+        default ``params.process.level0``
+    h : float or (n,), initial stem position; default the steady input for
+        the level, so the model starts near equilibrium
+    level2 : float or (n,), lower-tank level (cascade); default ``cascade.level2_0``
+    """
+    if n is None:
+        n = params.batch_size()
+    lv = _col(params.process.level0 if level is None else level, n)
+    lv2 = _col((params.cascade.level2_0 if params.cascade is not None else 0.0)
+               if level2 is None else level2, n)
+    meas = lv2 if params.process_kind == "cascade" else lv
+    hh = steady_input(params, meas, n) if h is None else _col(h, n)
+    if buf_len is None:
+        buf_len = pack(params, n, check=False).buf_len
+    z = np.zeros(n)
+    f0 = _flow_fraction(params, hh)
+    buf = np.repeat(np.asarray(f0, float).reshape(n, 1), buf_len, axis=1)
+    return State(z=z, h=hh.copy(), x=hh.copy(), u_s=hh.copy(), stuck=np.ones(n), s_dir=np.zeros(n),
+                 u_prev=hh.copy(), level=lv.copy(), level2=lv2.copy(), y=meas.copy(),
+                 t=np.zeros(n), buf_idx=np.zeros(n), delay_buf=buf)
+
+
+def state_to_array(state: State) -> np.ndarray:
+    """Pack a :class:`State` into the kernel's ``(NS, n)`` array (a copy)."""
+    return np.ascontiguousarray(np.stack([np.asarray(a, float) for a in state[:NS]]))
+
+
+def array_to_state(S: np.ndarray, buf: np.ndarray) -> State:
+    """Named views of the kernel's state array (no copy)."""
+    return State(*S, delay_buf=buf)
+
+
+def _as_2d(a, T_expected=None, name="u"):
+    a = np.asarray(a, dtype=np.float64)
+    if a.ndim == 1:
+        a = a[:, None]
+    if a.ndim != 2:
+        raise ValueError(f"{name} must have shape (T,) or (T, n), got {a.shape}")
+    if a.shape[0] == 0:
+        raise ValueError(f"{name} is empty; pass at least one sample")
+    if not np.isfinite(a).all():
+        raise ValueError(f"{name} contains NaN or inf values; pass finite numbers")
+    return np.ascontiguousarray(a)
+
+
+def run_packed(pk: Packed, S: np.ndarray, buf: np.ndarray, U: np.ndarray, D: np.ndarray,
+               n_sub: int, Y: np.ndarray, H: np.ndarray, LV: np.ndarray) -> None:
+    """Advance the packed state ``S`` in place over the inputs ``U`` (T, n|1).
+
+    The low-overhead path used by the environments; ``Y``, ``H``, ``LV`` (T, n)
+    receive the measured output, stem position and level after each sample.
+    """
+    _kernel(S, pk.P, U, D, pk.flags, buf, n_sub, pk.dt, Y, H, LV)
+
+
+def simulate(params: ModelParams, u, state: Optional[State] = None, d=None, n_sub: int = 1,
+             n: Optional[int] = None) -> Trajectory:
+    """Simulate ``params`` over the input sequence ``u``; pure (inputs untouched).
+
+    Parameters
+    ----------
+    params : ModelParams, with floats or ``(n,)`` arrays
+    u : (T,) or (T, n) array, valve input 0..1 per controller sample
+    state : State, initial state (default :func:`initial_state`)
+    d : (T,) or (T, n) array, load disturbance inflow (default 0)
+    n_sub : int, Euler steps of ``params.dt`` per controller sample
+    n : int, batch size (default from params, u and state)
+
+    Returns
+    -------
+    Trajectory
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from valve_gym.params import ModelParams
+    >>> tr = simulate(ModelParams(), np.full(100, 0.6), n_sub=50)
+    >>> tr.y.shape
+    (100, 1)
+    >>> bool(tr.y[-1, 0] > 1.0)  # more inflow, the level rises
+    True
+    """
+    U = _as_2d(u, name="u")
+    if n is None:
+        n = max(params.batch_size(), U.shape[1], state.n if state is not None else 1)
+    if U.shape[1] not in (1, n):
+        raise ValueError(f"u has {U.shape[1]} columns, expected 1 or n = {n}")
+    if not isinstance(n_sub, (int, np.integer)) or n_sub < 1:
+        raise ValueError(f"n_sub must be a positive integer, got {n_sub!r}")
+    pk = pack(params, n)
+    if state is None:
+        state = initial_state(params, n, buf_len=pk.buf_len)
+    if state.n != n:
+        raise ValueError(f"state has batch size {state.n}, expected {n}")
+    S = state_to_array(state)
+    buf = np.array(state.delay_buf, dtype=np.float64, copy=True)
+    if buf.shape != (n, pk.buf_len):
+        b2 = np.repeat(buf[:, -1:], pk.buf_len, axis=1) if buf.shape[0] == n else None
+        if b2 is None:
+            raise ValueError("state.delay_buf does not match the batch size")
+        buf = b2
+        S[S_BIDX] = 0.0
+    D = np.zeros((1, 1)) if d is None else _as_2d(d, name="d")
+    T = U.shape[0]
+    if D.shape[0] == 1 and T > 1:
+        D = np.ascontiguousarray(np.repeat(D, T, axis=0))
+    if D.shape[0] != T:
+        raise ValueError(f"d has {D.shape[0]} rows, expected {T} (one per sample of u)")
+    Y = np.empty((T, n))
+    H = np.empty((T, n))
+    LV = np.empty((T, n))
+    run_packed(pk, S, buf, U, D, int(n_sub), Y, H, LV)
+    t = state.t.reshape(-1)[0] + np.arange(1, T + 1) * n_sub * params.dt
+    Ucl = np.clip(np.broadcast_to(U, (T, n)), 0.0, 1.0)
+    return Trajectory(t=t, u=Ucl, y=Y, h=H, level=LV, final=array_to_state(S, buf))
+
+
+def step(state: State, u, params: ModelParams, d=None, n_sub: int = 1):
+    """One controller sample: ``(state, u (n,)) -> (new_state, y (n,))``; pure.
+
+    Examples
+    --------
+    >>> from valve_gym.params import ModelParams
+    >>> p = ModelParams()
+    >>> s0 = initial_state(p, n=3)
+    >>> s1, y = step(s0, [0.5, 0.6, 0.7], p, n_sub=10)
+    >>> y.shape
+    (3,)
+    """
+    u = np.atleast_1d(np.asarray(u, dtype=np.float64))
+    tr = simulate(params, u[None, :], state=state,
+                  d=None if d is None else np.atleast_1d(np.asarray(d, float))[None, :],
+                  n_sub=n_sub, n=state.n)
+    return tr.final, tr.y[0]
