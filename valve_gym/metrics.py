@@ -48,7 +48,10 @@ _FLAT_RTOL = 1e-12
 
 # Thornhill et al. (2003): the oscillation is regular when r > 1.
 _REGULARITY_MIN = 1.0
+# Amplitude smoothing: moving average over period/_SMOOTH_DIV samples, applied
+# when the noise std exceeds _NOISE_FRAC of the robust range.
 _SMOOTH_DIV = 20.0
+_NOISE_FRAC = 0.002
 
 
 # --------------------------------------------------------------------------- #
@@ -316,9 +319,20 @@ def _band(y: np.ndarray, eta: float) -> float:
     R = float(p99 - p1)
     if R <= 0.0:
         R = float(np.ptp(y))
-    d = np.diff(y)
-    sigma_n = 1.4826 * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(2.0)
-    return min(max(eta * R, 3.0 * sigma_n), 0.25 * R)
+    return min(max(eta * R, 3.0 * _noise_sigma(y)), 0.25 * R)
+
+
+def _noise_sigma(y: np.ndarray) -> float:
+    """Robust std of white noise on a smooth signal, from second differences.
+
+    ``var(y[k+1] - 2 y[k] + y[k-1]) = 6 sigma**2`` for white noise, while the
+    second differences of a well-sampled oscillation are small except at its
+    corners, which the median ignores.
+    """
+    if y.size < 3:
+        return 0.0
+    d2 = np.diff(y, 2)
+    return 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
 
 
 def _cycle_mean_trend(x: np.ndarray, pos: np.ndarray) -> np.ndarray:
@@ -377,12 +391,10 @@ def limit_cycle(e: ArrayLike, dt: float, min_cycles: int = 2, *,
     min_cycles : int, optional
         Whole cycles needed to report an oscillation (>= 1, default 2).
     detrend : {'linear', 'mean', 'none'}, optional
-        Removed before looking for crossings. Default ``'linear'``: the
-        least-squares straight line (which also removes the mean), so that a
-        slow drift of the load or set point does not shift the crossings. Over
-        a whole number of cycles the fitted slope of a pure oscillation is
-        small (its end values are at most about ``0.95*A/n_cycles``) and it
-        changes each cycle's peak-to-peak by only ``O(A/n_cycles**2)``.
+        Removed before looking for crossings. Default ``'linear'``: a straight
+        line (which also removes the mean), so that a slow drift of the load
+        or set point does not shift the crossings; see Notes. ``'mean'``
+        removes the mean only, ``'none'`` uses ``e`` as it is.
     hysteresis : float, optional
         Half width ``h`` of the crossing dead band as a fraction of the robust
         range ``R`` (1st to 99th percentile) of the detrended signal, default
@@ -409,10 +421,11 @@ def limit_cycle(e: ArrayLike, dt: float, min_cycles: int = 2, *,
     trigger), with
 
     .. math:: h = \min\bigl(\max(\eta R,\; 3\hat\sigma_n),\; R/4\bigr),
-              \qquad \hat\sigma_n = \frac{1.4826\,\mathrm{MAD}(\Delta y)}{\sqrt 2}
+              \qquad \hat\sigma_n = \frac{1.4826\,\mathrm{MAD}(\Delta^2 y)}{\sqrt 6}
 
     ``eta`` = ``hysteresis`` and ``sigma_n`` a robust estimate of white sensor
-    noise from the first differences. Sensor noise therefore needs a
+    noise from the second differences (which are near zero for a
+    well-sampled oscillation except at its corners). Sensor noise therefore needs a
     three-sigma excursion against the trend to create a false crossing; the
     cap ``R/4`` keeps a genuine oscillation crossing the band. The crossing
     time is the linearly interpolated zero crossing of ``y`` just before the
@@ -421,19 +434,35 @@ def limit_cycle(e: ArrayLike, dt: float, min_cycles: int = 2, *,
     *Period and regularity.* With crossing times ``c_0 < ... < c_m`` (``m``
     half cycles, ``n_cycles = m // 2``) the period is
     ``2 (c_m - c_0) / m`` and the cycle periods are ``T_i = c_{i+2} - c_i``.
-    Following Thornhill et al. (2003) the regularity is
+    Following Thornhill et al. (2003), who apply it to the zero crossings of
+    the autocorrelation function, the regularity is
 
     .. math:: r = \frac{\overline{T}}{3\,\sigma_T}
 
     (population std). An oscillation is present when
-    ``n_cycles >= min_cycles`` and ``r > regularity_min``; white noise gives
-    ``r`` of about 0.4.
+    ``n_cycles >= min_cycles`` and ``r > regularity_min``; white or
+    low-pass-filtered noise gives ``r`` of about 0.5 (below 0.75 in 400
+    trials).
+
+    *Detrending.* With ``detrend='linear'`` a least-squares line is removed
+    first to find the crossings; then, because a least-squares line through
+    a pure oscillation is not zero (its ends reach about ``0.95 A /
+    n_cycles``) and would bias the period, the trend is re-estimated as the
+    line through the means of ``e`` over each whole cycle (exact for a
+    linear drift, ~0 for a pure oscillation) and the crossings are found
+    again.
 
     *Amplitude.* For every whole cycle ``[c_i, c_{i+2}]`` half of
-    ``max - min`` of ``y``, averaged over the cycles. To keep noise peaks out
-    of the estimate ``y`` is first smoothed by a centred moving average over
-    about ``period/20`` samples, which attenuates a sine by less than 0.5 %
-    (``sinc(1/20)``) and leaves a square wave's plateaus unchanged.
+    ``max - min`` of ``y`` (re-detrended, see ``detrend``), averaged over the
+    cycles. To keep noise peaks out of the estimate, when ``sigma_n > 0.002 R``
+    ``y`` is first smoothed by a centred moving average of
+    ``floor(period / (20 dt))`` samples. That attenuates a sine by less than
+    0.5 % (``1 - sinc(1/20)``), leaves a square wave's plateaus unchanged and
+    lowers a triangle's corners by up to 5 %; clean signals are not smoothed
+    and their amplitude is exact to within the sampling of the peaks. Noise
+    still biases the peak-to-peak upwards: for a sine with 100 samples per
+    period and white noise of std 0.05 A the estimate is about 1 % high
+    (3.5 % at 0.1 A).
 
     References
     ----------
@@ -457,8 +486,12 @@ def limit_cycle(e: ArrayLike, dt: float, min_cycles: int = 2, *,
     """
     x = _as_signal(e, "e")
     dt = _check_dt(dt)
-    if isinstance(min_cycles, (bool, np.bool_)) or int(min_cycles) != min_cycles \
-            or min_cycles < 1:
+    try:
+        ok = (not isinstance(min_cycles, (bool, np.bool_))
+              and int(min_cycles) == min_cycles and min_cycles >= 1)
+    except (TypeError, ValueError, OverflowError):
+        ok = False
+    if not ok:
         raise ValueError(f"`min_cycles` must be an integer >= 1, got {min_cycles!r}")
     min_cycles = int(min_cycles)
     eta = _nonnegative(hysteresis, "hysteresis")
@@ -493,7 +526,11 @@ def limit_cycle(e: ArrayLike, dt: float, min_cycles: int = 2, *,
         return LimitCycle(False, 0.0, math.inf, n_cycles, float(regularity))
 
     period = 2.0 * float(pos[-1] - pos[0]) * dt / m
-    w = max(1, int(period / dt / _SMOOTH_DIV))
+    # Smooth only when there is noise to remove: the moving average flattens
+    # the corners of a triangle (by w/period), so it is skipped on clean data.
+    p1, p99 = np.percentile(y, [1.0, 99.0])
+    noisy = _noise_sigma(y) > _NOISE_FRAC * float(p99 - p1)
+    w = max(1, int(period / dt / _SMOOTH_DIV)) if noisy else 1
     ys = _moving_average(y, w)
     amps = np.empty(m - 1)
     for i in range(m - 1):
@@ -1042,8 +1079,8 @@ def loop_metrics(t_or_dt, sp, pv, op, mv=None, span: float = 1.0, *,
     >>> m = loop_metrics(t, 50.0, pv, op, span=100.0)
     >>> m["lc_present"], round(m["lc_amplitude"], 2), round(m["lc_period"], 1)
     (1.0, 2.0, 60.0)
-    >>> round(m["op_reversals_per_hour"])
-    120
+    >>> round(m["op_reversals_per_hour"])    # 19 extremes in 599.5 s
+    114
     """
     pv = _as_signal(pv, "pv")
     dt = _dt_from(t_or_dt, pv.size)
