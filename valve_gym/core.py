@@ -195,6 +195,8 @@ def _kernel(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV):  # pragma: no cover - 
                         stuck = 1.0
                         us = uprev
                 else:
+                    # sdir: direction of the last *motion* of the valve, kept
+                    # while it is stuck, so a reversal is remembered until it slips
                     reversed_ = (sdir != 0.0) and (dsg != sdir)
                     if stuck == 0.0 and reversed_:
                         stuck = 1.0
@@ -204,9 +206,10 @@ def _kernel(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV):  # pragma: no cover - 
                         if abs(u - us) > thr:
                             stuck = 0.0
                             x = u - dsg * (sjS - sjJ) / 2.0
+                            sdir = dsg
                     else:
                         x = u - dsg * (sjS - sjJ) / 2.0
-                    sdir = dsg
+                        sdir = dsg
                 if x < 0.0:
                     x = 0.0
                 elif x > 1.0:
@@ -226,20 +229,22 @@ def _kernel(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV):  # pragma: no cover - 
                             e = e + ed
                         else:
                             e = 0.0
-                        if z < -zmax:
-                            dz = e if e > 0.0 else 0.0
-                        elif z > zmax:
-                            dz = e if e < 0.0 else 0.0
-                        else:
-                            dz = e
+                        # z is held at the edge of its band while outside it
+                        # (continuous-time dz/dt = 0 there): the stem slips while z
+                        # is at an edge and e pushes outwards, else it is stuck.
                         v = 0.0
-                        if abs(z) > zmax and e != 0.0:
+                        if (z >= zmax and e > 0.0) or (z <= -zmax and e < 0.0):
                             v = abs(e) / tau
                             if v > vmax:
                                 v = vmax
                             if e < 0.0:
                                 v = -v
-                        z += dt * dz
+                        else:
+                            z += dt * e
+                            if z > zmax:
+                                z = zmax
+                            elif z < -zmax:
+                                z = -zmax
                         h += dt * v
                     else:
                         h += dt * (x - h) / taup
@@ -378,13 +383,16 @@ def check_dt(params: ModelParams) -> None:
     if params.process_kind == "first_order":
         checks.append(("first_order T", pr.T))
     elif params.process_kind in ("tank", "cascade"):
-        k = np.maximum(np.asarray(pr.k_out, float), 1e-300)
-        checks.append(("tank outflow time constant 2*A*sqrt(L)/k at 10 % inflow",
-                       np.asarray(pr.area) * 0.2 * np.asarray(pr.q_max) / k ** 2))
+        k = np.asarray(pr.k_out, float)
+        with np.errstate(divide="ignore"):
+            checks.append(("tank outflow time constant 2*A*sqrt(L)/k at 10 % inflow",
+                           np.asarray(pr.area) * 0.2 * np.asarray(pr.q_max) / k ** 2))
         if params.cascade is not None:
-            k2 = np.maximum(np.asarray(params.cascade.k_out2, float), 1e-300)
-            checks.append(("lower tank outflow time constant",
-                           np.asarray(params.cascade.area2) * 0.2 * np.asarray(pr.q_max) / k2 ** 2))
+            k2 = np.asarray(params.cascade.k_out2, float)
+            with np.errstate(divide="ignore"):
+                checks.append(("lower tank outflow time constant",
+                               np.asarray(params.cascade.area2) * 0.2 * np.asarray(pr.q_max)
+                               / k2 ** 2))
     for what, T in checks:
         tmin = float(np.min(T))
         if dt > tmin * (1 + 1e-9):

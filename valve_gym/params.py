@@ -88,7 +88,15 @@ class ValveParams(_Block):
         dh/dt = sign(e)*min(|e|/tau, v_max) if |z| > z_max  else 0
 
     The state starts at ``z = 0`` (stuck) and only the output ``h`` is clipped
-    to [0, 1] (the integrator state is not). The "healthy" valve of the paper
+    to [0, 1] (the integrator state is not).
+
+    Discretisation: in continuous time ``z`` stays on the edge of its band
+    while the stem moves (``dz/dt = 0`` once ``|z| > z_max`` and ``e`` pushes
+    outwards). The Euler core keeps exactly that: ``z`` is held at
+    ``+-z_max`` and the stem moves while ``z`` is on an edge and ``e`` pushes
+    outwards. A plain Euler step would let ``z`` overshoot the edge by
+    ``dt*e`` and turn that overshoot into a spurious free stem travel of about
+    ``dt*e/tau`` at the next reversal (a whole dead band at dt = 0.02 s). The "healthy" valve of the paper
     is ``tau = 0.1 s, z_max = 0.005 s`` and a backlash of about 1 %
     (``e_dead = 0.005``).
 
