@@ -82,5 +82,6 @@ def pi_step(state: PIState, e, p: PIParams):
     """
     e = np.asarray(e, float)
     u = state.u + p.Kc * (e - state.e) + (p.Kc * p.Ts / p.Ti) * e
-    u = np.clip(u, p.u_lo, p.u_hi)
-    return PIState(u=u, e=np.broadcast_to(e, u.shape).copy()), u
+    u = np.minimum(np.maximum(u, p.u_lo), p.u_hi)
+    e_new = e.copy() if e.shape == u.shape else np.full(u.shape, e)
+    return PIState(u=u, e=e_new), u

@@ -503,10 +503,25 @@ def steady_input(params: ModelParams, level, n: Optional[int] = None) -> np.ndar
     if params.leak is not None:
         f = f + _col(params.leak.q_leak, n) / _col(pr.q_max if params.process_kind != "first_order"
                                                    else pr.K, n)
-    grid = np.linspace(0.0, 1.0, 2001)
-    fg = _flow_fraction(params, grid[:, None] * np.ones(n))
-    idx = np.argmin(np.abs(fg - np.clip(f, 0, 1)[None, :]), axis=0)
-    return grid[idx]
+    return _inverse_flow_fraction(params, np.clip(f, 0.0, 1.0), n)
+
+
+def _inverse_flow_fraction(params: ModelParams, f, n):
+    """Smallest stem position ``h`` with ``f(h) = f`` (analytic inverse, O(n))."""
+    c = params.valve_characteristic
+    if c is None or (params.actuator is not None and params.actuator.kind == "pump"):
+        return f.copy()
+    h0 = _col(c.h0, n)
+    if c.kind == "linear":
+        r = f
+    elif c.kind == "equal_percentage":
+        R = _col(c.R, n)
+        with np.errstate(divide="ignore"):
+            r = np.where(f > 0, 1.0 + np.log(np.maximum(f, 1e-300)) / np.log(R), 0.0)
+    else:
+        r = f ** 2
+    r = np.clip(r, 0.0, 1.0)
+    return np.where(f > 0, h0 + r * (1.0 - h0), 0.0)
 
 
 def initial_state(params: ModelParams, n: Optional[int] = None, level=None, h=None,
@@ -567,8 +582,11 @@ def run_packed(pk: Packed, S: np.ndarray, buf: np.ndarray, U: np.ndarray, D: np.
                n_sub: int, Y: np.ndarray, H: np.ndarray, LV: np.ndarray) -> None:
     """Advance the packed state ``S`` in place over the inputs ``U`` (T, n|1).
 
-    The low-overhead path used by the environments; ``Y``, ``H``, ``LV`` (T, n)
-    receive the measured output, stem position and level after each sample.
+    The low-overhead path used by the environments. ``U`` and ``D`` must be
+    C-contiguous float64 with ``T`` rows (``D`` is read as ``D[k]``; pass
+    zeros for no disturbance) and 1 or ``n`` columns; ``Y``, ``H``, ``LV``
+    (T, n) receive the measured output, stem position and level after each
+    sample. No checks are made here: use :func:`simulate` for checked calls.
     """
     _kernel(S, pk.P, U, D, pk.flags, buf, n_sub, pk.dt, Y, H, LV)
 

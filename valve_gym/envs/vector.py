@@ -1,0 +1,518 @@
+"""Natively vectorised level-control environment: N valve-tank loops in one kernel call.
+
+Every :meth:`ValveTankVectorEnv.step` makes one call of the physics core
+(:func:`valve_gym.core.run_packed`) for all ``N`` sub-environments, followed by
+one compiled bookkeeping pass (:func:`_finish_step`: noise, set-point and load
+schedules, reward, observation); there is no per-environment Python loop in a
+step. Only the per-episode draws at a reset
+loop over the resetting sub-environments, each drawing from its own generator
+with the same rule as :class:`~valve_gym.envs.ValveTankEnv`
+(:func:`~valve_gym.envs.valve_tank.draw_episodes`), so that sub-environment
+``i`` seeded with ``s_i`` is step-for-step equal to a single env reset with
+``seed=s_i``.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Mapping, Optional, Sequence, Union
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from .. import core
+from ..config import EnvConfig
+from ..control import PIParams, pi_init, pi_step
+from ..params import ValveParams
+from .valve_tank import (NEVER, VALVE_KEYS, _check_pins, _observation_space, _parse_pins, _Plan,
+                         draw_episodes, make_config, render_frame)
+
+try:
+    from numba import njit
+except ImportError:  # pragma: no cover - numba is a dependency of the core
+    def njit(*a, **k):
+        return (lambda f: f) if not (a and callable(a[0])) else a[0]
+
+__all__ = ["ValveTankVectorEnv"]
+
+_MODES = {m.value: m for m in AutoresetMode}
+_MODES.update({m.name: m for m in AutoresetMode})
+_MODES.update({m.name.lower(): m for m in AutoresetMode})
+
+
+@njit(cache=True)
+def _direct_input(a, u):  # pragma: no cover - compiled
+    """``u = (clip(a, -1, 1) + 1)/2`` for actions ``a`` (N, 1); returns the number of non-finite actions."""
+    bad = 0
+    for i in range(u.shape[0]):
+        x = float(a[i, 0])
+        if not (x > -np.inf and x < np.inf):
+            bad += 1
+            u[i] = 0.5
+            continue
+        if x > 1.0:
+            x = 1.0
+        elif x < -1.0:
+            x = -1.0
+        u[i] = (x + 1.0) * 0.5
+    return bad
+
+
+@njit(cache=True)
+def _finish_step(Y, Hs, LV, NOISE, k, H, sp_next, sp_ptr, sp_ev, sp_val, ld_next, ld_ptr, ld_ev,
+                 ld_val, h_prev, u, u_prev, ce, wt, wu, obs, reward, ym, sp, load):  # pragma: no cover
+    """Bookkeeping after the plant step, one pass over the batch (no physics here).
+
+    Advances the step counters ``k`` and the set-point/load event pointers,
+    adds the measurement noise, and writes the observations, the rewards and
+    the new set point, measured level and load (for the next step). The
+    arithmetic is that of ``ValveTankEnv.step``, operation for operation.
+    """
+    n = k.shape[0]
+    stem = obs.shape[1] == 5
+    for i in range(n):
+        ki = k[i] + 1
+        k[i] = ki
+        kk = ki if ki < H else H
+        while sp_next[i] <= kk:
+            p = sp_ptr[i] + 1
+            sp_ptr[i] = p
+            sp_next[i] = sp_ev[i, p]
+        while ld_next[i] <= kk:
+            p = ld_ptr[i] + 1
+            ld_ptr[i] = p
+            ld_next[i] = ld_ev[i, p]
+        s = sp_val[i, sp_ptr[i]]
+        load[i] = ld_val[i, ld_ptr[i]]
+        kn = ki if ki <= H else ki % (H + 1)
+        y = Y[0, i] + NOISE[kn, i]
+        h = Hs[0, i]
+        ui = u[i]
+        r = ce * abs(s - LV[0, i]) + wt * abs(h - h_prev[i])
+        if wu != 0.0:
+            r += wu * abs(ui - u_prev[i])
+        reward[i] = -r
+        ym[i] = y
+        sp[i] = s
+        obs[i, 0] = y
+        obs[i, 1] = s
+        obs[i, 2] = s - y
+        obs[i, 3] = ui
+        if stem:
+            obs[i, 4] = h
+
+
+def _transpose_into(dst, src, idx=None, block=256):
+    """``dst[:, idx] = src.T`` in cache-sized blocks (much faster for large arrays)."""
+    n = src.shape[0]
+    for j0 in range(0, n, block):
+        cols = slice(j0, j0 + block) if idx is None else idx[j0:j0 + block]
+        dst[:, cols] = src[j0:j0 + block].T
+
+
+class ValveTankVectorEnv(VectorEnv):
+    """``num_envs`` copies of :class:`~valve_gym.envs.ValveTankEnv`, simulated as one batch.
+
+    Observations, actions, rewards, the reward rule, the episode draws and
+    the info keys are those of the single environment (see its docstring),
+    batched along the first axis: observations ``(N, 4)`` (``(N, 5)`` with
+    ``measure_stem``) float32, actions ``(N, 1)`` float32 in [-1, 1], rewards
+    ``(N,)`` float64, ``info`` a dict of ``(N,)`` arrays, each key ``k`` with
+    Gymnasium's mask ``_k`` (all True: every key is always present).
+
+    Parameters
+    ----------
+    num_envs : int
+        Number of sub-environments ``N``.
+    config : EnvConfig, mapping, str or path, optional
+        As for :class:`~valve_gym.envs.ValveTankEnv`.
+    preset : {'default', 'fixed'}
+    max_episode_steps : int, optional
+        Truncation after this many steps (default ``config.episode_steps``;
+        ``gymnasium.make_vec`` passes the registered limit).
+    autoreset_mode : gymnasium.vector.AutoresetMode or str
+        ``NEXT_STEP`` (default, as Gymnasium's own vector envs): the step
+        after a truncation resets that sub-environment, ignores its action and
+        returns its first observation with reward 0. ``SAME_STEP``: the
+        sub-environment is reset within the truncating step; its final
+        observation is ``info['final_obs'][i]`` and the step's info
+        ``info['final_info']`` (with masks ``_final_obs``, ``_final_info``),
+        while the returned observation and the top-level info are those of
+        the new episode. ``DISABLED``: no autoreset; reset chosen
+        sub-environments with ``reset(options={'reset_mask': mask})``.
+    render_mode : {None, 'rgb_array'}
+        ``render()`` returns a tuple of N frames.
+
+    Notes
+    -----
+    **Seeding.** Each sub-environment owns a :class:`numpy.random.Generator`
+    made like ``gymnasium.Env.reset(seed=...)`` makes its ``np_random``.
+    ``reset(seed=s)`` seeds sub-environment ``i`` with ``s + i`` (as
+    :class:`gymnasium.vector.SyncVectorEnv`); ``reset(seed=[s_0, ..., s_N-1])``
+    seeds each (``None`` keeps a generator running); autoresets continue each
+    generator. Sub-environment ``i`` then follows the trajectory of
+    ``ValveTankEnv`` reset with ``seed=s_i`` and reset again without a seed at
+    each episode end, step for step and bit for bit.
+
+    **Options.** ``reset(options=...)`` pins valve parameters of the episodes
+    starting now: ``{'z_max': 0.2}`` for all, or an ``(N,)`` array per
+    sub-environment where NaN entries are drawn. ``'reset_mask'`` (``(N,)``
+    bool) resets only the marked sub-environments.
+
+    Attributes
+    ----------
+    config : EnvConfig
+    substeps : int
+        Euler steps per action.
+    max_episode_steps : int
+    model : ModelParams
+        The physics of the current episodes, valve fields ``(N,)`` arrays.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from valve_gym.envs import ValveTankVectorEnv
+    >>> envs = ValveTankVectorEnv(num_envs=3)
+    >>> obs, info = envs.reset(seed=0, options={"z_max": [0.1, np.nan, 0.3]})
+    >>> obs.shape, info["z_max"][[0, 2]].tolist()
+    ((3, 4), [0.1, 0.3])
+    >>> obs, rew, term, trunc, info = envs.step(np.zeros((3, 1), np.float32))
+    >>> rew.shape, envs.substeps
+    ((3,), 50)
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10,
+                "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs: int = 1, config: Union[EnvConfig, Mapping, str, None] = None, *,
+                 preset: str = "default", max_episode_steps: Optional[int] = None,
+                 autoreset_mode: Union[AutoresetMode, str] = AutoresetMode.NEXT_STEP,
+                 render_mode: Optional[str] = None):
+        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        N = int(num_envs)
+        cfg = make_config(config, preset)
+        if isinstance(autoreset_mode, str):
+            if autoreset_mode not in _MODES:
+                raise ValueError(f"autoreset_mode must be one of {[m.value for m in AutoresetMode]}, "
+                                 f"got {autoreset_mode!r}")
+            autoreset_mode = _MODES[autoreset_mode]
+        if not isinstance(autoreset_mode, AutoresetMode):
+            raise ValueError(f"autoreset_mode must be a gymnasium.vector.AutoresetMode, got {autoreset_mode!r}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        if max_episode_steps is None:
+            max_episode_steps = cfg.episode_steps
+        if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) \
+                or max_episode_steps < 1:
+            raise ValueError(f"max_episode_steps must be a positive integer, got {max_episode_steps!r}")
+        self.num_envs = N
+        self.config = cfg
+        self.max_episode_steps = int(max_episode_steps)
+        self.autoreset_mode = autoreset_mode
+        self.metadata = {**type(self).metadata, "autoreset_mode": autoreset_mode}
+        self.render_mode = render_mode
+        self._plan = _Plan(cfg)
+        self.substeps = cfg.substeps
+        self.episode_steps = cfg.episode_steps
+        self.model = cfg.model
+        self.residual = cfg.action_mode == "residual"
+        self.single_action_space = gym.spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
+        self.action_space = batch_space(self.single_action_space, N)
+        self.single_observation_space = _observation_space(cfg)
+        self.observation_space = batch_space(self.single_observation_space, N)
+        self._nobs = self.single_observation_space.shape[0]
+        st = core.initial_state(cfg.model, 1)
+        self._S0 = core.state_to_array(st)[:, 0]
+        self._buf0 = np.asarray(st.delay_buf, dtype=np.float64)[0]
+        self._h0 = float(st.h[0])
+        self._stem0 = min(max(self._h0, 0.0), 1.0)
+        self._level0 = float(st.level2[0] if cfg.model.process_kind == "cascade" else st.level[0])
+        self._y0 = float(st.y[0])
+        self._S = np.ascontiguousarray(np.repeat(self._S0[:, None], N, axis=1))
+        self._buf = np.ascontiguousarray(np.repeat(self._buf0[None, :], N, axis=0))
+        self._pi_params = PIParams(Kc=cfg.pi.Kc, Ti=cfg.pi.Ti, Ts=cfg.control_period)
+        rw = cfg.reward
+        self._ce = float(rw.error) / float(rw.error_scale)
+        self._wt = float(rw.travel)
+        self._wu = float(rw.du)
+        self._scale = float(cfg.residual_scale)
+        H1 = self._plan.H + 1
+        self._NOISE = np.zeros((H1, N))  # time-major: one row per step
+        # piecewise-constant schedules: event steps (last column NEVER), values
+        # (first column the initial value), number of events passed, next event step
+        E = self._plan.E_sp
+        self._sp_ev = np.full((N, E + 1), NEVER, dtype=np.int64)
+        self._sp_val = np.zeros((N, E + 1))
+        self._sp_ptr = np.zeros(N, dtype=np.int64)
+        self._sp_next = np.full(N, NEVER, dtype=np.int64)
+        E = self._plan.E_ld
+        self._ld_ev = np.full((N, E + 1), NEVER, dtype=np.int64)
+        self._ld_val = np.zeros((N, E + 1))
+        self._ld_ptr = np.zeros(N, dtype=np.int64)
+        self._ld_next = np.full(N, NEVER, dtype=np.int64)
+        self._rngs: list = [None] * N
+        self._valve = {k: np.zeros(N) for k in VALVE_KEYS}
+        self._pk = None
+        self._k = np.zeros(N, dtype=np.int64)
+        self._sp = np.zeros(N)
+        self._ym = np.zeros(N)
+        self._lv = np.zeros(N)
+        self._h = np.zeros(N)
+        self._u = np.zeros(N)
+        self._upi = np.zeros(N)
+        self._load = np.zeros(N)
+        self._pi = pi_init(np.full(N, self._h0), 0.0)
+        self._autoreset = np.zeros(N, dtype=bool)
+        self._level_max = 1.25 * cfg.setpoint.limits[1]
+
+    # ----------------------------------------------------------------- seeding
+    @property
+    def np_randoms(self) -> list:
+        """The generators of the sub-environments (``None`` before the first reset)."""
+        return list(self._rngs)
+
+    def _seed(self, seed, idx):
+        N = self.num_envs
+        if seed is None:
+            seeds = [None] * N
+        elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+            seeds = [int(seed) + i for i in range(N)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != N:
+                raise ValueError(f"seed must be None, an int or a sequence of {N} seeds (one per "
+                                 f"sub-environment), got {len(seeds)} seeds")
+        for i in idx:
+            s = seeds[i]
+            if s is not None or self._rngs[i] is None:
+                self._rngs[i], _ = seeding.np_random(None if s is None else int(s))
+
+    # ------------------------------------------------------------------ reset
+    def reset(self, *, seed: Union[int, Sequence[Optional[int]], None] = None,
+              options: Optional[dict] = None):
+        """Reset all (or, with ``options['reset_mask']``, some) sub-environments.
+
+        Returns
+        -------
+        obs : (N, 4|5) float32
+        info : dict of (N,) arrays (see the class docstring)
+        """
+        N = self.num_envs
+        options = dict(options) if options else {}
+        mask = options.pop("reset_mask", None)
+        if mask is None:
+            idx = np.arange(N)
+        else:
+            mask = np.asarray(mask)
+            if mask.shape != (N,) or mask.dtype != np.bool_:
+                raise ValueError(f"options['reset_mask'] must be a bool array of shape ({N},), got "
+                                 f"{mask.dtype} {mask.shape}")
+            if self._pk is None and not mask.all():
+                raise ValueError("the first reset must reset every sub-environment (no reset_mask)")
+            idx = np.flatnonzero(mask)
+        pins = _parse_pins(options, N, allow_nan=True)
+        if pins:
+            _check_pins({k: (v if v.ndim == 0 else v[idx]) for k, v in pins.items()}, self.config.model)
+        super().reset(seed=seed if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool)
+                      else None)
+        self._seed(seed, idx)
+        if idx.size:
+            self._reset_envs(idx, pins)
+        return self._obs_now(), self._info_now()
+
+    def _reset_envs(self, idx: np.ndarray, pins=None):
+        """Start new episodes in sub-environments ``idx``: draws, state at rest."""
+        N = self.num_envs
+        all_ = idx.size == N
+        sub = None if not pins else {k: (v if v.ndim == 0 else v[idx]) for k, v in pins.items()}
+        d = draw_episodes([self._rngs[i] for i in idx], self._plan, sub)
+        for key in VALVE_KEYS:  # copy on write; read-only, so info can share them
+            new = self._valve[key].copy()
+            new[idx] = getattr(d, key)
+            new.flags.writeable = False
+            self._valve[key] = new
+        self.model = replace(self.config.model, valve=ValveParams(**self._valve))
+        self._pk = core.pack(self.model, N)
+        if all_:
+            self._S[:] = self._S0[:, None]
+            self._buf[:] = self._buf0[None, :]
+            _transpose_into(self._NOISE, d.noise)
+        else:
+            self._S[:, idx] = self._S0[:, None]
+            self._buf[idx] = self._buf0[None, :]
+            _transpose_into(self._NOISE, d.noise, idx)
+        E = d.sp_steps.shape[1]
+        self._sp_ev[idx, :E] = d.sp_steps
+        self._sp_val[idx, 0] = d.sp_0
+        self._sp_val[idx, 1:] = d.sp_vals
+        self._sp_ptr[idx] = 0
+        self._sp_next[idx] = d.sp_steps[:, 0]
+        E = d.load_steps.shape[1]
+        self._ld_ev[idx, :E] = d.load_steps
+        self._ld_val[idx, 0] = 0.0
+        self._ld_val[idx, 1:] = d.load_vals
+        self._ld_ptr[idx] = 0
+        self._ld_next[idx] = d.load_steps[:, 0]
+        for nxt, ptr, ev in ((self._sp_next, self._sp_ptr, self._sp_ev),
+                             (self._ld_next, self._ld_ptr, self._ld_ev)):
+            while True:  # events due at step 0 (only with intervals below the control period)
+                due = idx[nxt[idx] <= 0]
+                if not due.size:
+                    break
+                ptr[due] += 1
+                nxt[due] = ev[due, ptr[due]]
+        self._k[idx] = 0
+        self._autoreset[idx] = False
+        # copy on write: arrays handed out in an info stay as they were
+        ym = self._y0 + d.noise[:, 0]
+        for name, val in (("_sp", self._sp_val[idx, self._sp_ptr[idx]]),
+                          ("_load", self._ld_val[idx, self._ld_ptr[idx]]),
+                          ("_ym", ym), ("_u", self._h0), ("_upi", self._h0),
+                          ("_h", self._stem0), ("_lv", self._level0)):
+            arr = getattr(self, name).copy()
+            arr[idx] = val
+            setattr(self, name, arr)
+        if self.residual:
+            u, e = self._pi.u.copy(), self._pi.e.copy()
+            u[idx] = self._h0
+            e[idx] = self._sp[idx] - ym
+            self._pi = pi_init(u, e)
+
+    def _obs_now(self):
+        cols = (self._ym, self._sp, self._sp - self._ym, self._u)
+        if self._nobs == 5:
+            cols += (self._h,)
+        return np.stack(cols, axis=1).astype(np.float32)
+
+    def _info_now(self, load=None):
+        """The info of the current state; ``load`` that of the step just taken.
+
+        The arrays are never written to after they are handed out (the env
+        replaces, rather than modifies, its arrays), so they need no copy.
+        """
+        info = {"setpoint": self._sp, "level": self._lv, "stem": self._h, "u": self._u,
+                "t": self._k * self._plan.Tc, "load": self._load if load is None else load}
+        if self.residual:
+            info["u_pi"] = self._upi
+        for key in VALVE_KEYS:
+            info[key] = self._valve[key]
+        mask = np.ones(self.num_envs, dtype=bool)
+        for key in list(info):
+            info["_" + key] = mask
+        return info
+
+    # ------------------------------------------------------------------- step
+    def step(self, actions):
+        """Step all sub-environments with ``actions`` (N, 1) in [-1, 1] (clipped).
+
+        Returns
+        -------
+        obs : (N, 4|5) float32
+        rewards : (N,) float64
+        terminated : (N,) bool, always False
+        truncated : (N,) bool, True at ``max_episode_steps``
+        info : dict of (N,) arrays (see the class docstring)
+        """
+        if self._pk is None:
+            raise RuntimeError("call reset() before step()")
+        N = self.num_envs
+        a = np.asarray(actions)
+        if a.dtype != np.float32 and a.dtype != np.float64:
+            try:
+                a = a.astype(np.float64)
+            except (TypeError, ValueError):
+                raise ValueError(f"actions must be numbers, got an array of {a.dtype}") from None
+        if a.shape != (N, 1):
+            if a.shape != (N,):
+                raise ValueError(f"actions must have shape ({N}, 1) (one valve per sub-environment), "
+                                 f"got {a.shape}")
+            a = a.reshape(N, 1)
+        if not a.flags.c_contiguous:
+            a = np.ascontiguousarray(a)
+        H = self._plan.H
+        upi = None
+        if self.residual:
+            a = a.reshape(N).astype(np.float64)
+            bad = np.count_nonzero(~np.isfinite(a))
+            if not bad:
+                a = np.clip(a, -1.0, 1.0)
+                self._pi, upi = pi_step(self._pi, self._sp - self._ym, self._pi_params)
+                u = np.clip(upi + self._scale * a, 0.0, 1.0)
+        else:
+            u = np.empty(N)
+            bad = _direct_input(a, u)
+        if bad:
+            flat = np.asarray(actions, dtype=np.float64).reshape(-1)
+            idx = np.flatnonzero(~np.isfinite(flat))
+            raise ValueError(
+                f"actions of sub-environments {idx[:10].tolist()} are not finite "
+                f"({flat[idx[:10]].tolist()}); pass numbers in [-1, 1] (check the policy for NaN "
+                f"outputs, e.g. from diverging training)")
+        load = self._load
+        Y = np.empty((1, N))
+        Hs = np.empty((1, N))
+        LV = np.empty((1, N))
+        core.run_packed(self._pk, self._S, self._buf, u.reshape(1, N), load.reshape(1, N),
+                        self.substeps, Y, Hs, LV)
+        obs = np.empty((N, self._nobs), dtype=np.float32)
+        reward = np.empty(N)
+        ym = np.empty(N)
+        sp = np.empty(N)
+        new_load = np.empty(N)
+        _finish_step(Y, Hs, LV, self._NOISE, self._k, H, self._sp_next, self._sp_ptr, self._sp_ev,
+                     self._sp_val, self._ld_next, self._ld_ptr, self._ld_ev, self._ld_val, self._h, u,
+                     self._u, self._ce, self._wt, self._wu, obs, reward, ym, sp, new_load)
+        k = self._k
+        terminated = np.zeros(N, dtype=bool)
+        truncated = k >= self.max_episode_steps
+        self._ym, self._sp, self._load, self._lv, self._h, self._u = ym, sp, new_load, LV[0], Hs[0], u
+        if upi is not None:
+            self._upi = upi
+        mode = self.autoreset_mode
+        final = None
+        reset_idx = None
+        if mode is AutoresetMode.NEXT_STEP:
+            if self._autoreset.any():
+                reset_idx = np.flatnonzero(self._autoreset)
+                self._reset_envs(reset_idx)
+                reward[reset_idx] = 0.0
+                truncated[reset_idx] = False
+            self._autoreset = truncated.copy()
+        elif mode is AutoresetMode.SAME_STEP:
+            if truncated.any():
+                reset_idx = np.flatnonzero(truncated)
+                final = (obs, self._info_now(load), truncated.copy())
+                self._reset_envs(reset_idx)
+        if reset_idx is not None:
+            obs = self._obs_now()
+            # the sub-environments that were reset report their new episode
+            load = load.copy()
+            load[reset_idx] = self._load[reset_idx]
+        info = self._info_now(load)
+        if final is not None:
+            fobs, finfo, done = final
+            arr = np.full(N, None, dtype=object)
+            for i in np.flatnonzero(done):
+                arr[i] = fobs[i]
+            for key in [k_ for k_ in finfo if not k_.startswith("_")]:
+                finfo["_" + key] = done.copy()
+            info["final_obs"] = arr
+            info["_final_obs"] = done.copy()
+            info["final_info"] = finfo
+            info["_final_info"] = done.copy()
+        return obs, reward, terminated, truncated, info
+
+    # ----------------------------------------------------------------- render
+    def render(self):
+        """A tuple of N RGB frames (200, 160, 3) (``render_mode='rgb_array'``)."""
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; create the env with "
+                            "render_mode='rgb_array'")
+            return None
+        if self._pk is None:
+            raise RuntimeError("call reset() before render()")
+        return tuple(render_frame(float(self._lv[i]), float(self._sp[i]), float(self._h[i]),
+                                  float(self._u[i]), self._level_max) for i in range(self.num_envs))
