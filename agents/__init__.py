@@ -1,0 +1,50 @@
+"""Controllers for sticky-valve level loops and the compensator benchmark.
+
+All controllers answer Stable-Baselines3's batched
+``predict(obs, state, episode_start, deterministic) -> (actions, state)``
+(:class:`Controller`), so PI, PI + knocker and PPO policies are evaluated by
+the same code (:func:`rollout`, :func:`run_benchmark`).
+
+==========================  ================================================
+:class:`PIController`       the plant's PI (SIMC tuning, anti-windup, bumpless)
+:class:`KnockerController`  PI + Hägglund's knocker pulses
+:class:`PPOController`      a trained SB3 policy with its observation transform
+:func:`load_policy`         load a policy zip written by ``valve-gym train``
+:func:`rollout`             one batched episode of any controller on many valves
+:func:`run_benchmark`       the compensator benchmark (``valve-gym benchmark``)
+==========================  ================================================
+
+Per-valve scores: :func:`agents.evaluate.evaluate`; PPO training:
+:func:`agents.train.train` (``valve-gym train``); both are modules of the
+same name, so they are not re-exported here.
+
+The PPO, training and benchmark parts import stable-baselines3/torch on first
+use only.
+"""
+from .base import Controller
+from .knocker import KNOCKER_DEFAULTS, KnockerController
+from .pi import PIController, default_tuning
+
+__all__ = ["Controller", "PIController", "default_tuning", "KnockerController", "KNOCKER_DEFAULTS",
+           "PPOController", "ObsTransform", "load_policy", "rollout", "Rollout",
+           "run_benchmark", "load_benchmark_config", "load_train_config"]
+
+_LAZY = {
+    "PPOController": "ppo", "ObsTransform": "ppo", "load_policy": "ppo",
+    "rollout": "evaluate", "Rollout": "evaluate",
+    "run_benchmark": "benchmark", "load_benchmark_config": "benchmark",
+    "load_train_config": "train",
+}
+
+
+def __getattr__(name):
+    if name in _LAZY:
+        import importlib
+
+        mod = importlib.import_module(f".{_LAZY[name]}", __name__)
+        return getattr(mod, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))

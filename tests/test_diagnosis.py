@@ -1,0 +1,153 @@
+"""Tests of the diagnosis fitter and selection on synthetic recordings with known truth.
+
+Tolerances: process parameters (q_max/A, k_out/A, K, T) within 5 %, the dead
+band within 0.001 of stroke, slip-jump S and J within 15 %; every fit is the
+free-run fit of :class:`ModelFitter` with the default search.
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from valve_gym.core import initial_state, simulate
+from valve_gym.diagnosis import ModelFitter, Recording, diagnose
+from valve_gym.diagnosis.diagnose import JSON_SCHEMA_KEYS
+from valve_gym.diagnosis.fit import effective_n, fit_percent, information_criterion
+from valve_gym.diagnosis.model import DataScales, ModelStructure
+from valve_gym.diagnosis.synthetic import make_case, make_recording
+from valve_gym.params import FirstOrderParams, ModelParams, ValveParams
+
+
+def rel(a, b):
+    return abs(a - b) / abs(b)
+
+
+# --------------------------------------------------------------------------- fitting
+def test_tank_and_dead_band_recovered():
+    case = make_case("none", seed=12, n=600)
+    f = ModelFitter(plant="tank", seed=0).fit(case.recording)
+    t, p = case.truth, f.physical_
+    assert rel(p["process.q_max"], t["process.q_max"] / t["process.area"]) < 0.05
+    assert rel(p["process.k_out"], t["process.k_out"] / t["process.area"]) < 0.05
+    assert abs(p["valve.e_dead"] - t["valve.e_dead"]) < 0.001
+    assert f.rmse_ < 1.2 * 0.004            # the measurement noise
+    assert f.fit_percent_ > 95
+    assert f.y_sim_.shape == (600,)
+    assert f.params_.process_kind == "tank"
+    assert np.isfinite(f.cost_) and f.cost_ > 0
+
+
+def test_slip_jump_recovered():
+    case = make_case("slip_jump", seed=12, n=800)
+    f = ModelFitter(plant="tank", effects=("slip_jump",), seed=0).fit(case.recording)
+    t, p = case.truth, f.physical_
+    assert rel(p["slip_jump.S"], t["slip_jump.S"]) < 0.15
+    assert rel(p["slip_jump.J"], t["slip_jump.J"]) < 0.15
+
+
+def test_first_order_with_friction_recovered():
+    rng = np.random.default_rng(0)
+    T, dt = 800, 2.0
+    u = np.repeat(rng.uniform(0.3, 0.7, T // 40), 40) + 0.003 * rng.normal(size=T)
+    p = ModelParams(valve=ValveParams(tau=0.1, v_max=np.inf, e_dead=0.01, z_max=0.05),
+                    process=FirstOrderParams(K=2.0, T=15.0, b=1.0), process_kind="first_order",
+                    dt=0.1)
+    y = simulate(p, u, state=initial_state(p, 1, level=2.0, h=u[0]), n_sub=20).y[:, 0]
+    y = y + 0.01 * rng.normal(size=T)
+    rec = Recording(t=np.arange(T) * dt, op=u, pv=y, dt=dt)
+    f = ModelFitter(plant="first_order").fit(rec)
+    q = f.physical_
+    assert rel(q["process.K"], 2.0) < 0.05
+    assert rel(q["process.T"], 15.0) < 0.05
+    assert abs(q["process.b"] - 1.0) < 0.05
+    assert abs(q["valve.e_dead"] - 0.01) < 0.001
+    assert abs(q["init.level"] - 2.0) < 0.05
+
+
+def test_holdout_and_predict():
+    rec = make_recording("none", seed=13, n=500)
+    f = ModelFitter(plant="tank", holdout=0.3, effort="fast").fit(rec)
+    assert f.result_.n_fit == 350
+    assert np.isfinite(f.holdout_rmse_) and f.holdout_rmse_ < 0.01
+    y = f.predict(rec)
+    assert y.shape == (500,) and fit_percent(rec.pv, y) > 90
+    with pytest.raises(ValueError, match="holdout"):
+        ModelFitter(holdout=1.5).fit(rec)
+    with pytest.raises(RuntimeError, match="not fitted"):
+        ModelFitter().predict(rec)
+
+
+def test_structure_rejects_unidentifiable_effects():
+    sc = DataScales.from_signals(np.linspace(0.2, 0.6, 100), np.linspace(1, 2, 100), 1.0)
+    with pytest.raises(ValueError, match="leak"):
+        ModelStructure("integrating", "valve", ("leak",), sc)
+    with pytest.raises(ValueError, match="valve"):
+        ModelStructure("tank", "pump", ("slip_jump",), sc)
+    with pytest.raises(ValueError, match="positive level"):
+        ModelStructure("tank", "valve", (), DataScales.from_signals(np.ones(5) * .5 + np.arange(5) * .01,
+                                                                    np.arange(5) - 2.0, 1.0))
+
+
+def test_information_criterion_and_effective_n():
+    rng = np.random.default_rng(0)
+    white = rng.normal(size=2000)
+    assert effective_n(white) > 1500
+    smooth = np.convolve(white, np.ones(50) / 50, mode="same")
+    assert effective_n(smooth) < 200
+    a = information_criterion(1.0, 100, 3, 1000)
+    b = information_criterion(1.0, 100, 4, 1000)
+    assert b - a == pytest.approx(np.log(100))
+
+
+# --------------------------------------------------------------------------- selection
+@pytest.fixture(scope="module")
+def overflow_result():
+    rec = make_recording("overflow", seed=32, n=600)
+    return diagnose(rec, plant="tank", candidates=("overflow", "leak", "sensor_lag"),
+                    validate=rec, effort="fast")
+
+
+def test_overflow_is_named(overflow_result):
+    res = overflow_result
+    assert res.effects == ["overflow"]
+    assert res.final.rmse_all < 0.5 * res.base.rmse_all
+    assert res.final_split.holdout_rmse < 0.5 * res.base_split.holdout_rmse
+    assert res.explanation[0].startswith("Overflow")
+    top = res.final.physical["overflow.L_max_pv"]
+    assert abs(top - make_case("overflow", seed=32, n=600).truth["overflow.L_max"]) < 0.01
+
+
+def test_dead_time_is_named():
+    rec = make_recording("dead_time", seed=22, n=600)
+    res = diagnose(rec, plant="tank", candidates=("dead_time", "leak", "overflow"), effort="fast")
+    assert res.effects == ["dead_time"]
+    theta = res.final.physical["dead_time.theta"]
+    assert abs(theta - make_case("dead_time", seed=22, n=600).truth["dead_time.theta"]) < 1.0
+
+
+def test_none_on_a_base_model_recording():
+    rec = make_recording("none", seed=22, n=600)
+    res = diagnose(rec, plant="tank", candidates=("overflow", "leak", "dead_time"),
+                   effort="fast")
+    assert res.effects == []
+    assert "No candidate effect pays" in res.explanation[0]
+
+
+def test_result_json_schema_and_validation(overflow_result):
+    d = json.loads(overflow_result.to_json())
+    assert set(JSON_SCHEMA_KEYS) <= set(d)
+    assert d["effects"] == ["overflow"]
+    for key in ("base", "final"):
+        assert {"rmse", "fit_percent", "params"} <= set(d[key])
+        assert d[key]["rmse"] > 0
+    assert d["final"]["rmse"] < d["base"]["rmse"]
+    assert isinstance(d["mismatch"], list) and d["mismatch"]
+    for r in d["mismatch"]:
+        assert {"t_start", "t_end", "conditions"} <= set(r) and r["t_end"] > r["t_start"]
+    assert {"present", "parameters"} <= set(d["stiction"])
+    assert isinstance(d["stiction"]["present"], bool)
+    assert {"base_rmse", "final_rmse"} <= set(d["validation"])
+    assert d["validation"]["final_rmse"] < d["validation"]["base_rmse"]
+    assert d["holdout"]["final_rmse"] <= d["holdout"]["base_rmse"]

@@ -1,0 +1,117 @@
+"""Tests of ``valve-gym diagnose``: end to end on a small CSV, and every bad input."""
+from __future__ import annotations
+
+import csv
+import json
+import os
+
+import numpy as np
+import pytest
+
+from valve_gym.diagnosis.cli import main
+from valve_gym.diagnosis.synthetic import make_recording, write_csv
+
+
+@pytest.fixture(scope="module")
+def small_csv(tmp_path_factory):
+    d = tmp_path_factory.mktemp("cli")
+    p = d / "loop.csv"
+    write_csv(make_recording("overflow", seed=31, n=400), p)
+    return str(p)
+
+
+def run(argv, capsys):
+    rc = main(argv)
+    out, err = capsys.readouterr()
+    assert "Traceback" not in err and "Traceback" not in out
+    return rc, out, err
+
+
+def test_end_to_end(small_csv, tmp_path, capsys):
+    js = tmp_path / "out.json"
+    rep = tmp_path / "rep"
+    rc, out, err = run([small_csv, "--op-range", "0,100", "--plant", "tank",
+                        "--effects", "overflow,leak", "--effort", "fast", "--jobs", "1",
+                        "--json", str(js), "--report", str(rep), "--validate", small_csv,
+                        "--quiet"], capsys)
+    assert rc == 0, err
+    assert "effects:" in out
+    d = json.loads(js.read_text())
+    for k in ("effects", "base", "final", "mismatch", "stiction", "validation"):
+        assert k in d
+    assert {"rmse", "fit_percent", "params"} <= set(d["base"])
+    assert {"base_rmse", "final_rmse"} <= set(d["validation"])
+    assert {"report.md", "overlay.png", "residuals.png", "acf.png", "diagnosis.json",
+            "validation.png"} <= set(os.listdir(rep))
+    assert not [f for f in os.listdir(rep) if f.endswith(".tmp")]
+
+
+def test_folder(small_csv, tmp_path, capsys):
+    folder = tmp_path / "recs"
+    folder.mkdir()
+    for i in range(2):
+        write_csv(make_recording("none", seed=40 + i, n=300), folder / f"r{i}.csv")
+    js = tmp_path / "all.json"
+    rc, out, err = run([str(folder), "--op-range", "0,100", "--effects", "none",
+                        "--effort", "fast", "--jobs", "2", "--json", str(js)], capsys)
+    assert rc == 0, err
+    assert "| r0 |" in out and "| r1 |" in out
+    assert "[2/2]" in err
+    d = json.loads(js.read_text())
+    assert len(d["recordings"]) == 2 and d["errors"] == []
+
+
+def test_help(capsys):
+    rc = main(["--help"])
+    out, _ = capsys.readouterr()
+    assert rc == 0 and "--op-range" in out
+
+
+def _write(path, header, rows):
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(header)
+        w.writerows(rows)
+    return str(path)
+
+
+def _rows(n=200, const_pv=False, nan_block=None):
+    t = np.arange(n)
+    op = 50 + 10 * np.sign(np.sin(t / 15))
+    pv = np.full(n, 1.0) if const_pv else 1 + 0.01 * np.cumsum(op - 50) / 50
+    rows = [[f"{a}", f"{b}", f"{c}"] for a, b, c in zip(t, op, pv)]
+    if nan_block:
+        for i in range(*nan_block):
+            rows[i][2] = "nan"
+    return rows
+
+
+@pytest.mark.parametrize("case, argv_extra, message", [
+    ("missing", [], "no such file"),
+    ("columns", ["--columns", "t=time_s,op=OUT,pv=LEVEL"], "column"),
+    ("oprange", ["--op-range", "100,0"], "LO >= HI"),
+    ("oprange_text", ["--op-range", "zero,100"], "non-number"),
+    ("short", [], "samples"),
+    ("constant", [], "constant"),
+    ("nan", [], "missing"),
+    ("effects", ["--effects", "friction"], "unknown effect"),
+    ("holdout", ["--holdout", "0.95"], "--holdout"),
+    ("plant", ["--plant", "boiler"], "invalid choice"),
+    ("jobs", ["--jobs", "two"], "--jobs"),
+    ("json_dir", ["--json", "/nonexistent_dir_xyz/out.json"], "does not exist"),
+])
+def test_bad_input_exit_2(tmp_path, capsys, case, argv_extra, message):
+    good = _write(tmp_path / "good.csv", ["t", "OP", "PV"], _rows())
+    path = {
+        "missing": str(tmp_path / "nope.csv"),
+        "short": _write(tmp_path / "short.csv", ["t", "OP", "PV"], _rows(20)),
+        "constant": _write(tmp_path / "const.csv", ["t", "OP", "PV"], _rows(const_pv=True)),
+        "nan": _write(tmp_path / "nan.csv", ["t", "OP", "PV"], _rows(nan_block=(50, 80))),
+    }.get(case, good)
+    extra = list(argv_extra)
+    if "--op-range" not in extra:
+        extra += ["--op-range", "0,100"]
+    rc, out, err = run([path, *extra, "--quiet"], capsys)
+    assert rc == 2
+    assert "error" in err.lower()
+    assert message.lower() in err.lower(), err

@@ -1,0 +1,224 @@
+"""``valve-gym diagnose``: command line of the diagnosis tool.
+
+Usage::
+
+    valve-gym diagnose REC.csv|DIR [--columns t=COL,op=COL,pv=COL,sp=COL,mv=COL]
+        [--op-range LO,HI] [--plant tank|integrating|first_order|cascade]
+        [--actuator valve|pump] [--validate OTHER.csv] [--holdout FRAC]
+        [--json OUT.json] [--report DIR] [--effects LIST] [--jobs N]
+        [--effort fast|normal|thorough] [--seed N] [--quiet]
+
+A folder is diagnosed file by file (``*.csv``, sorted) in ``--jobs`` worker
+processes, with a progress line per file on stderr and a summary table on
+stdout.  Exit status: 0 on success, 2 for bad input (the message says what
+is wrong and how to fix it; no traceback), 1 for an internal error.
+"""
+from __future__ import annotations
+
+import argparse
+import glob
+import json
+import os
+import sys
+import time
+from typing import List, Optional
+
+from .model import ACTUATORS, CANDIDATE_EFFECTS, PLANTS
+from .recording import RecordingError, load_recording, parse_columns, parse_range
+
+__all__ = ["main", "build_parser"]
+
+
+class _UsageError(Exception):
+    pass
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # noqa: D102 - argparse hook
+        raise _UsageError(message)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``valve-gym diagnose``."""
+    p = _Parser(prog="valve-gym diagnose",
+                description="Fit the valve/process simulator to a recorded loop by free-run "
+                            "simulation error, locate where it misses, name the missing physics "
+                            "and judge whether the valve sticks.")
+    p.add_argument("path", help="recording CSV file, or a folder of them")
+    p.add_argument("--columns", help="column mapping, e.g. t=t_s,op=OP,pv=PV,sp=SP "
+                                     "(default: common names are recognised)")
+    p.add_argument("--op-range", help="raw controller-output range LO,HI that maps to 0..1, "
+                                      "e.g. 0,100 for percent")
+    p.add_argument("--plant", default="tank", choices=PLANTS, help="process model (default tank)")
+    p.add_argument("--actuator", default="valve", choices=ACTUATORS,
+                   help="valve (with friction) or pump (default valve)")
+    p.add_argument("--validate", metavar="OTHER.csv",
+                   help="another recording of the same loop to validate the fitted models on")
+    p.add_argument("--holdout", default="0.3",
+                   help="fraction at the end of the record held out of the fit (default 0.3)")
+    p.add_argument("--json", metavar="OUT.json", help="write the result as JSON")
+    p.add_argument("--report", metavar="DIR", help="write figures and a markdown report")
+    p.add_argument("--effects", default="all",
+                   help="candidate effects, comma-separated, 'all' (default) or 'none'; known: "
+                        + ", ".join(CANDIDATE_EFFECTS))
+    p.add_argument("--jobs", default="2",
+                   help="worker processes (default 2): recordings in parallel for a folder, "
+                        "candidate fits in parallel for one file")
+    p.add_argument("--effort", default="normal", choices=("fast", "normal", "thorough"),
+                   help="search budget (default normal)")
+    p.add_argument("--seed", default="0", help="seed of the search (default 0)")
+    p.add_argument("--quiet", action="store_true", help="no progress messages")
+    return p
+
+
+def _parse_effects(text: str) -> tuple:
+    t = text.strip().lower()
+    if t in ("all", ""):
+        return tuple(CANDIDATE_EFFECTS)
+    if t == "none":
+        return ()
+    out = []
+    for e in (s.strip() for s in t.split(",")):
+        if not e:
+            continue
+        if e not in CANDIDATE_EFFECTS:
+            raise _UsageError(f"--effects: unknown effect {e!r}; known effects: "
+                              f"{', '.join(CANDIDATE_EFFECTS)} (or 'all', 'none')")
+        if e not in out:
+            out.append(e)
+    return tuple(out)
+
+
+def _number(text, name, kind=float, lo=None, hi=None):
+    try:
+        v = kind(text)
+    except (TypeError, ValueError):
+        raise _UsageError(f"{name} must be a {'whole ' if kind is int else ''}number, "
+                          f"got {text!r}") from None
+    if (lo is not None and v < lo) or (hi is not None and v > hi):
+        raise _UsageError(f"{name} must be between {lo} and {hi}, got {text!r}")
+    return v
+
+
+def _check_out(path: Optional[str], what: str, is_dir: bool):
+    if not path:
+        return
+    parent = os.path.dirname(os.path.abspath(path)) if not is_dir else os.path.abspath(path)
+    if is_dir and os.path.exists(parent) and not os.path.isdir(parent):
+        raise _UsageError(f"{what} {path!r} exists and is not a folder")
+    if not is_dir:
+        if os.path.isdir(path):
+            raise _UsageError(f"{what} {path!r} is a folder; give a file name such as out.json")
+        if not os.path.isdir(parent):
+            raise _UsageError(f"{what}: folder {parent!r} does not exist; create it first")
+
+
+def main(argv: Optional[List[str]] = None) -> int:
+    """Run ``valve-gym diagnose`` with ``argv``; returns the exit status."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    try:
+        return _main(argv)
+    except _UsageError as e:
+        print(f"valve-gym diagnose: error: {e}\n(run 'valve-gym diagnose --help' for the options)",
+              file=sys.stderr)
+        return 2
+    except RecordingError as e:
+        print(f"valve-gym diagnose: error: {e}", file=sys.stderr)
+        return 2
+    except (ValueError, TypeError) as e:
+        print(f"valve-gym diagnose: error: {e}", file=sys.stderr)
+        return 2
+    except SystemExit as e:  # --help
+        return int(e.code or 0)
+    except Exception as e:  # pragma: no cover - internal error
+        if os.environ.get("VALVE_GYM_DEBUG"):
+            raise
+        print(f"valve-gym diagnose: internal error: {type(e).__name__}: {e} "
+              f"(set VALVE_GYM_DEBUG=1 for the traceback)", file=sys.stderr)
+        return 1
+
+
+def _main(argv: List[str]) -> int:
+    from .diagnose import diagnose, diagnose_many
+    from .select import SelectionRule
+
+    a = build_parser().parse_args(argv)
+    columns = parse_columns(a.columns) if a.columns else None
+    op_range = parse_range(a.op_range) if a.op_range else None
+    holdout = _number(a.holdout, "--holdout", float, 0.0, 0.6)
+    jobs = _number(a.jobs, "--jobs", int, 1, 64)
+    seed = _number(a.seed, "--seed", int, 0, 2 ** 31 - 1)
+    cands = _parse_effects(a.effects)
+    _check_out(a.json, "--json", False)
+    _check_out(a.report, "--report", True)
+    say = (lambda s: None) if a.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
+    load_kw = {"columns": columns, "op_range": op_range}
+    diag_kw = {"plant": a.plant, "actuator": a.actuator, "candidates": cands,
+               "holdout": holdout, "effort": a.effort, "seed": seed}
+    path = a.path
+    if os.path.isdir(path):
+        if a.validate:
+            raise _UsageError("--validate works with a single recording, not a folder")
+        files = sorted(glob.glob(os.path.join(path, "*.csv")))
+        if not files:
+            raise _UsageError(f"folder {path!r} holds no .csv files")
+        say(f"diagnosing {len(files)} recordings with {jobs} worker(s)")
+        t0 = time.perf_counter()
+        rep_dir = a.report
+        out = diagnose_many(files, jobs=jobs, load_kw=load_kw, diag_kw=diag_kw,
+                            report_dir=rep_dir, progress=say)
+        from .report import summary_table, write_json, write_text
+        rows = [r["row"] if r["ok"] else {"recording": os.path.basename(r["path"]),
+                                          "error": r["error"]} for r in out]
+        table = summary_table(rows)
+        print(table)
+        errors = [{"path": r["path"], "error": r["error"]} for r in out if not r["ok"]]
+        if a.json:
+            write_json({"recordings": [r["result"] for r in out if r["ok"]],
+                        "summary": [r for r in rows if "error" not in r], "errors": errors,
+                        "seconds": time.perf_counter() - t0}, a.json)
+        if rep_dir:
+            write_text(f"# Diagnosis of {len(files)} recordings\n\n{table}", os.path.join(
+                rep_dir, "summary.md"))
+        say(f"done in {time.perf_counter() - t0:.1f} s; {len(errors)} failed")
+        return 2 if errors else 0
+    if not os.path.exists(path):
+        raise RecordingError(f"{path}: no such file or folder")
+    rec = load_recording(path, **load_kw)
+    other = load_recording(a.validate, **load_kw) if a.validate else None
+    res = diagnose(rec, validate=other, jobs=jobs, progress=say, **diag_kw)
+    _print_summary(res)
+    if a.json:
+        from .report import write_json
+        write_json(res, a.json)
+    if a.report:
+        from .report import write_report
+        paths = write_report(res, a.report)
+        say(f"report written to {a.report} ({len(paths)} files)")
+    return 0
+
+
+def _print_summary(res) -> None:
+    d = res.to_dict()
+    print(f"{d['recording']['name']}: plant {res.plant}, actuator {res.actuator}")
+    print(f"  effects: {', '.join(d['effects']) or 'none'}")
+    print(f"  RMSE base {d['base']['rmse']:.4g} -> final {d['final']['rmse']:.4g} "
+          f"(fit {d['base']['fit_percent']:.1f} % -> {d['final']['fit_percent']:.1f} %)")
+    h = d["holdout"]
+    if h["base_rmse"] is not None:
+        print(f"  held-out RMSE base {h['base_rmse']:.4g} -> final {h['final_rmse']:.4g}")
+    if d["validation"]:
+        v = d["validation"]
+        print(f"  validation on {v['recording']}: RMSE base {v['base_rmse']:.4g} -> final "
+              f"{v['final_rmse']:.4g}")
+    s = d["stiction"]
+    print(f"  valve friction: {'present' if s.get('present') else 'not significant'}"
+          + (f" ({s['model']}: " + ", ".join(f"{k} = {v:.4g}" for k, v in s['parameters'].items()
+                                          if isinstance(v, float)) + ")" if s.get("tested") else
+             " (not tested)"))
+    if d["mismatch"]:
+        r = d["mismatch"][0]
+        print(f"  largest mismatch: {r['t_start']:g}-{r['t_end']:g} s "
+              f"({100 * r['share_sse']:.0f} % of the squared error); {len(d['mismatch'])} region(s)")
+    for p in d["explanation"]:
+        print("  - " + p)

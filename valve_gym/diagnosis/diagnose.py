@@ -1,0 +1,546 @@
+"""The diagnosis: fit, locate the mismatch, name the missing physics, judge the valve.
+
+:func:`diagnose` runs the whole chain on one recording and returns a
+:class:`DiagnosisResult`; :func:`diagnose_many` runs it on many recordings in
+parallel worker processes.  Plots and the markdown report are separate
+(:mod:`valve_gym.diagnosis.report`).
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field
+from typing import Callable, Dict, List, Optional, Sequence
+
+import numpy as np
+
+from .explain import explain_effect, explain_none, explain_stiction
+from .fit import (FitResult, fit_initial_state, fit_percent, fit_structure, fit_with_friction,
+                  rmse, transfer)
+from .locate import MismatchReport, locate_mismatch
+from .model import ACTUATORS, CANDIDATE_EFFECTS, PLANTS, DataScales, ModelStructure
+from .recording import Recording, RecordingError
+from .select import Selection, SelectionRule, compare, select_effects
+
+__all__ = ["DiagnosisResult", "diagnose", "diagnose_many", "validate_on", "JSON_SCHEMA_KEYS"]
+
+#: Top-level keys every diagnosis JSON has.
+JSON_SCHEMA_KEYS = ("recording", "settings", "effects", "base", "final", "holdout", "mismatch",
+                    "mismatch_conditions", "residual_tests", "candidates", "skipped",
+                    "explanation", "stiction", "validation", "timing")
+
+
+def _f(x):
+    if x is None:
+        return None
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _clean(o):
+    """Make ``o`` JSON-safe (numpy scalars, nan -> None)."""
+    if isinstance(o, dict):
+        return {str(k): _clean(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_clean(v) for v in o]
+    if isinstance(o, (np.floating, float)):
+        return _f(o)
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    if isinstance(o, np.bool_):
+        return bool(o)
+    if isinstance(o, np.ndarray):
+        return _clean(o.tolist())
+    return o
+
+
+@dataclass
+class DiagnosisResult:
+    """Everything a diagnosis found (compute only; plotting is in :mod:`.report`).
+
+    Attributes
+    ----------
+    recording : Recording
+    plant, actuator : str
+    effects : list of str, effects added (empty: the base model is enough)
+    base, final : FitResult, base and selected model fitted on the whole record
+    base_split, final_split : FitResult, the same fitted on the fit part only
+        (their ``holdout_rmse`` is the error on the held-out end)
+    selection : Selection, every candidate tried
+    mismatch : MismatchReport of the base model (whole record)
+    mismatch_final : MismatchReport of the selected model
+    explanation : list of str, one paragraph per added effect (or why none)
+    stiction : dict, friction verdict (see :meth:`to_dict`)
+    validation : dict or None, results on another recording
+    timing : dict, seconds per stage
+    settings : dict
+    """
+
+    recording: Recording
+    plant: str
+    actuator: str
+    effects: List[str]
+    base: FitResult
+    final: FitResult
+    base_split: FitResult
+    final_split: FitResult
+    selection: Selection
+    mismatch: MismatchReport
+    mismatch_final: MismatchReport
+    explanation: List[str]
+    stiction: dict
+    validation: Optional[dict]
+    timing: dict
+    settings: dict
+    frictionless: Optional[FitResult] = None
+
+    # ------------------------------------------------------------------ output
+    def to_dict(self) -> dict:
+        """JSON-ready dict; top-level keys :data:`JSON_SCHEMA_KEYS`."""
+        rec = self.recording
+        n_fit = self.base_split.n_fit
+        hold = {"fraction": _f(1 - n_fit / len(rec)), "n_fit": int(n_fit),
+                "t_split": _f(rec.t[n_fit]) if n_fit < len(rec) else None,
+                "base_rmse": _f(self.base_split.holdout_rmse),
+                "final_rmse": _f(self.final_split.holdout_rmse),
+                "base_fit_percent": _f(self.base_split.holdout_fit_percent),
+                "final_fit_percent": _f(self.final_split.holdout_fit_percent)}
+        d = {
+            "recording": {"name": rec.name, "n": len(rec), "dt": rec.dt,
+                          "duration": rec.duration, "op_range": list(rec.op_range),
+                          "columns": dict(rec.columns), "repairs": list(rec.repairs),
+                          "start": rec.start},
+            "settings": self.settings,
+            "effects": list(self.effects),
+            "base": self.base.summary(),
+            "final": self.final.summary(),
+            "holdout": hold,
+            "mismatch": [_region(r) for r in self.mismatch.regions],
+            "mismatch_conditions": [c.__dict__ for c in self.mismatch.conditions],
+            "residual_tests": {"base": _tests(self.mismatch), "final": _tests(self.mismatch_final)},
+            "candidates": [c.summary() for c in self.selection.candidates],
+            "skipped": dict(self.selection.skipped),
+            "explanation": list(self.explanation),
+            "stiction": self.stiction,
+            "validation": self.validation,
+            "timing": self.timing,
+        }
+        return _clean(d)
+
+    def to_json(self, indent: int = 2) -> str:
+        """The result as a JSON string (see :meth:`to_dict`)."""
+        return json.dumps(self.to_dict(), indent=indent, allow_nan=False)
+
+    def summary_row(self) -> dict:
+        """One row for a summary table of many recordings."""
+        h = self.to_dict()["holdout"]
+        return {"recording": self.recording.name, "plant": self.plant, "actuator": self.actuator,
+                "n": len(self.recording), "effects": ",".join(self.effects) or "none",
+                "base_rmse": self.base.rmse_all, "final_rmse": self.final.rmse_all,
+                "base_fit_percent": self.base.fit_percent_all,
+                "final_fit_percent": self.final.fit_percent_all,
+                "holdout_base_rmse": h["base_rmse"], "holdout_final_rmse": h["final_rmse"],
+                "stiction": self.stiction.get("present"),
+                "regions": len(self.mismatch.regions),
+                "seconds": self.timing.get("total")}
+
+    def __repr__(self):
+        return (f"DiagnosisResult({self.recording.name!r}, plant={self.plant!r}, "
+                f"effects={self.effects}, rmse {self.base.rmse_all:.4g} -> "
+                f"{self.final.rmse_all:.4g}, stiction={self.stiction.get('present')})")
+
+
+def _region(r):
+    d = dict(r.__dict__)
+    return d
+
+
+def _tests(mm: MismatchReport) -> dict:
+    t = mm.tests
+    return {"rms": mm.rms, "noise_std": t.noise_std, "ljung_box_q": t.ljung_box_q,
+            "ljung_box_p": t.ljung_box_p, "white": t.white, "acf_bound": t.acf_bound,
+            "acf_outside": t.acf_outside, "acf": t.acf, "ccf_bound": t.ccf_bound,
+            "ccf_outside": t.ccf_outside, "ccf_peak_lag": t.ccf_peak_lag, "ccf_peak": t.ccf_peak,
+            "ccf_lags": t.ccf_lags, "ccf": t.ccf, "period": t.period, "n_eff": t.n_eff,
+            "threshold": mm.threshold, "window": mm.window}
+
+
+# search budgets of the stages per ``effort``
+_EFFORT_PLAN = {
+    "fast": {"base": "normal", "screen": "fast", "confirm": "normal", "n_confirm": 2,
+             "verdict": "fast"},
+    "normal": {"base": "thorough", "screen": "fast", "confirm": "thorough", "n_confirm": 3,
+               "verdict": "normal"},
+    "thorough": {"base": "thorough", "screen": "normal", "confirm": "thorough", "n_confirm": 4,
+                 "verdict": "thorough"},
+}
+
+
+# --------------------------------------------------------------------------- helpers
+def _refit_full(split: FitResult, rec: Recording, seed: int, effort: str) -> FitResult:
+    """Refit a split fit on the whole record (same structure and scales), warm-started."""
+    if split.n_fit >= len(rec):
+        return split
+    seeds = split.w[None, :]
+    return fit_structure(split.structure, rec.op, rec.pv, None, seeds=seeds, rng=seed,
+                         effort=effort)
+
+
+def _locate(rec: Recording, res: FitResult) -> MismatchReport:
+    sc = res.structure.scales
+    return locate_mismatch(rec.t, rec.op, rec.pv, res.y_sim, sp=rec.sp, dt=rec.dt,
+                           sat_hi=sc.sat_hi, sat_lo=sc.sat_lo)
+
+
+def validate_on(fitted: Sequence[FitResult], other: Recording, seed: int = 0) -> List[FitResult]:
+    """Simulate fitted models on another recording's input, initial state refitted.
+
+    Returns one :class:`FitResult` per model, on ``other`` (``rmse_all`` is
+    the validation RMSE).
+    """
+    return [fit_initial_state(f, other.op, other.pv, rng=seed) for f in fitted]
+
+
+def _friction_band(fit: FitResult) -> float:
+    """Size of the fitted friction, fraction of stroke: dead band 2 e_dead, or slip-jump S."""
+    p = fit.physical
+    if "slip_jump.S" in p:
+        return float(p["slip_jump.S"])
+    return float(2.0 * p.get("valve.e_dead", 0.0))
+
+
+def _friction_params(fit: FitResult) -> dict:
+    p = fit.physical
+    if "slip_jump.S" in p:
+        return {"model": "slip_jump", "S": p["slip_jump.S"], "J": p["slip_jump.J"],
+                "band": p["slip_jump.S"]}
+    return {"model": "valve", "z_max": p.get("valve.z_max"), "e_dead": p.get("valve.e_dead"),
+            "dead_band": 2 * p.get("valve.e_dead", 0.0), "band": 2 * p.get("valve.e_dead", 0.0)}
+
+
+def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, seed: int,
+                      effort: str, mm: MismatchReport):
+    """Does the valve stick?  Friction models against frictionless ones, whole record.
+
+    Friction (the paper's valve and the slip-jump valve, each with the final
+    model's other effects) is compared by the information criterion with the
+    best *frictionless* alternative: the final model with a frictionless valve,
+    and the same with a dead time or a sensor lag added (a sticky valve delays
+    the response, so friction must beat the other ways of delaying it).  The
+    valve sticks when the best friction model lowers the criterion by more
+    than ``rule.ic_margin`` and its band (dead band ``2 e_dead`` or slip-jump
+    ``S``) is at least ``rule.min_band`` of the stroke.
+    """
+    st = final.structure
+    if st.actuator != "valve":
+        return ({"present": False, "tested": False,
+                 "reason": "the actuator is a pump: there is no valve to stick",
+                 "model": None, "parameters": {}}, None, final)
+    u, y = rec.op, rec.pv
+    rng = np.random.default_rng(seed + 17)
+    base_eff = tuple(e for e in st.effects if e != "slip_jump")
+    st0 = st.with_effects(base_eff, friction=False)
+    seeds, _ = transfer(final, st0)
+    fr0 = fit_structure(st0, u, y, None, seeds=seeds, rng=rng, effort=effort)
+    frictionless = [fr0]
+    for lag in ("dead_time", "sensor_lag"):
+        if lag in base_eff or lag not in CANDIDATE_EFFECTS:
+            continue
+        stl = st0.with_effects(base_eff + (lag,))
+        sl, _ = transfer(fr0, stl)
+        frictionless.append(fit_structure(stl, u, y, None, seeds=sl, rng=rng, effort=effort))
+    # friction models: the final one (re-nested on the frictionless optimum) and the other form
+    fric = []
+    for form in ("valve", "slip_jump"):
+        eff = base_eff + (("slip_jump",) if form == "slip_jump" else ())
+        stf = st.with_effects(eff, friction=True)
+        sf, _ = transfer(fr0, stf)
+        for name in ("e_dead", "z_max", "S"):
+            if name in stf.names:
+                sf[0, stf.index(name)] = 0.0
+        if stf.effects == st.effects:
+            sf = np.vstack([sf, final.w[None, :]])
+        fric.append(fit_structure(stf, u, y, None, seeds=sf, rng=rng, effort=effort))
+    n = len(y)
+    from .fit import effective_n, information_criterion
+    best0 = min(frictionless, key=lambda f: information_criterion(
+        f.cost, effective_n(f.residual), f.k, n, rule.criterion))
+    n_eff = effective_n(best0.residual)
+    ic = lambda f: information_criterion(f.cost, n_eff, f.k, n, rule.criterion)  # noqa: E731
+    best1 = min(fric, key=ic)
+    d_ic = ic(best1) - ic(best0)
+    band = _friction_band(best1)
+    significant = d_ic < -rule.ic_margin
+    big = band >= rule.min_band
+    present = bool(significant and big)
+    params = _friction_params(best1)
+    lag_alt = [e for e in best0.structure.effects if e not in base_eff]
+    verdict = {"present": present, "tested": True, "model": params["model"],
+               "parameters": params,
+               "units": {"S": "fraction of stroke", "J": "fraction of stroke",
+                         "z_max": "s (integrated error)", "e_dead": "fraction of stroke",
+                         "dead_band": "fraction of stroke", "band": "fraction of stroke"},
+               "delta_ic": d_ic, "significant": bool(significant), "band": band,
+               "min_band": rule.min_band, "n_eff": n_eff,
+               "frictionless_model": best0.label, "frictionless_rmse": best0.rmse_all,
+               "friction_rmse": best1.rmse_all,
+               "compared": {f.label: f.rmse_all for f in frictionless + fric}}
+    verdict["explanation"] = explain_stiction(present, best1, best0, d_ic, float("nan"), mm,
+                                              significant=significant, band=band,
+                                              min_band=rule.min_band, lag_alt=lag_alt)
+    # keep the nested optimum as the final model when it is the same structure and better
+    new_final = final
+    for f in fric:
+        if f.structure.effects == st.effects and f.cost < final.cost:
+            new_final = f
+    return verdict, best0, new_final
+
+
+# --------------------------------------------------------------------------- main API
+def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve", *,
+             candidates: Optional[Sequence[str]] = None, holdout: float = 0.3,
+             validate: Optional[Recording] = None, rule: SelectionRule = SelectionRule(),
+             effort: str = "normal", seed: int = 0, jobs: int = 1, saturation="auto",
+             progress: Optional[Callable[[str], None]] = None) -> DiagnosisResult:
+    """Diagnose one recording: base fit, mismatch location, missing physics, friction verdict.
+
+    Parameters
+    ----------
+    recording : Recording
+        From :func:`~valve_gym.diagnosis.recording.load_recording`.
+    plant : {'tank', 'integrating', 'first_order', 'cascade'}
+    actuator : {'valve', 'pump'}
+    candidates : sequence of str, optional
+        Candidate effects (default all of
+        :data:`~valve_gym.diagnosis.model.CANDIDATE_EFFECTS` that apply);
+        an empty sequence only fits the base model.
+    holdout : float
+        Fraction at the end of the record left out of the selection fits
+        (0 disables the held-out test; the information criterion decides
+        alone).
+    validate : Recording, optional
+        Another recording of the same loop: the base and final models
+        (fitted on ``recording``) are simulated on its input with their
+        initial state refitted.
+    rule : SelectionRule
+    effort : {'fast', 'normal', 'thorough'}
+    seed : int
+    jobs : int
+        Worker processes for the candidate fits (1 = in this process).
+    saturation : 'auto', None or (lo, hi)
+        Sensor range of the PV.
+    progress : callable(str), optional
+
+    Returns
+    -------
+    DiagnosisResult
+
+    Examples
+    --------
+    >>> from valve_gym.diagnosis.synthetic import make_recording
+    >>> rec = make_recording("overflow", seed=2, n=600)
+    >>> res = diagnose(rec, plant="tank", candidates=("overflow", "leak"), effort="fast")
+    >>> res.effects
+    ['overflow']
+    """
+    t_all = time.perf_counter()
+    if not isinstance(recording, Recording):
+        raise TypeError("diagnose() needs a Recording (see load_recording)")
+    if plant not in PLANTS:
+        raise ValueError(f"unknown plant {plant!r}; choose one of {', '.join(PLANTS)}")
+    if actuator not in ACTUATORS:
+        raise ValueError(f"unknown actuator {actuator!r}; choose 'valve' or 'pump'")
+    if not 0.0 <= float(holdout) <= 0.6:
+        raise ValueError(f"holdout must be a fraction between 0 and 0.6, got {holdout!r}")
+    cands = tuple(CANDIDATE_EFFECTS if candidates is None else candidates)
+    for c in cands:
+        if c not in CANDIDATE_EFFECTS:
+            raise ValueError(f"unknown effect {c!r}; candidates are {', '.join(CANDIDATE_EFFECTS)}")
+    rec = recording
+    T = len(rec)
+    n_fit = T - int(round(float(holdout) * T))
+    if n_fit < 40:
+        raise ValueError(f"{rec.name}: only {n_fit} samples to fit after the holdout; need >= 40")
+    say = progress or (lambda s: None)
+    timing = {}
+    # ---- base fit on the fit part
+    t0 = time.perf_counter()
+    sc = DataScales.from_signals(rec.op[:n_fit], rec.pv[:n_fit], rec.dt, saturation=saturation)
+    if saturation == "auto":
+        full = DataScales.from_signals(rec.op, rec.pv, rec.dt, saturation="auto")
+        sc = DataScales(**{**sc.__dict__, "sat_hi": full.sat_hi, "sat_lo": full.sat_lo})
+    st = ModelStructure(plant, actuator, (), sc)
+    say(f"{rec.name}: fitting the base model ({st.label()}, {st.k} parameters)")
+    plan = _EFFORT_PLAN.get(effort)
+    if plan is None:
+        raise ValueError(f"effort must be one of {', '.join(_EFFORT_PLAN)}, got {effort!r}")
+    base_split, _ = fit_with_friction(st, rec.op, rec.pv, n_fit, rng=seed, effort=plan["base"])
+    timing["base_fit"] = time.perf_counter() - t0
+    # ---- selection
+    t0 = time.perf_counter()
+    sel = select_effects(base_split, rec.op, rec.pv, cands, rule=rule, seed=seed,
+                         effort=plan["confirm"], screen_effort=plan["screen"],
+                         n_confirm=plan["n_confirm"], jobs=jobs,
+                         progress=lambda s: say(f"{rec.name}: {s}"))
+    timing["selection"] = time.perf_counter() - t0
+    n_cand = max(len(sel.candidates), 1)
+    timing["per_candidate"] = timing["selection"] / n_cand
+    timing["candidate_fits"] = len(sel.candidates)
+    final_split = sel.final
+    # ---- whole-record refits
+    t0 = time.perf_counter()
+    base = _refit_full(base_split, rec, seed + 1, "fast")
+    final = base if final_split is base_split else _refit_full(final_split, rec, seed + 2, "fast")
+    timing["full_refit"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    mm = _locate(rec, base)
+    mm_final = mm if final is base else _locate(rec, final)
+    timing["locate"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    say(f"{rec.name}: friction verdict")
+    stiction, fr0, final_v = _friction_verdict(final, rec, rule, seed, plan["verdict"], mm)
+    if final_v is not final:
+        same = final is base
+        final = final_v
+        if same:
+            base = final
+            mm = _locate(rec, base)
+        mm_final = mm if final is base else _locate(rec, final)
+    timing["friction_verdict"] = time.perf_counter() - t0
+    # ---- explanation
+    expl: List[str] = []
+    prev = base
+    fits_by_effect = {c.effect: c for c in sel.candidates if c.accepted}
+    chain = [base]
+    for e in sel.effects:
+        chain.append(fits_by_effect[e].fit)
+    for i, e in enumerate(sel.effects):
+        before_split, after_split = chain[i], chain[i + 1]
+        after = final if i == len(sel.effects) - 1 else after_split
+        before = base if i == 0 else before_split
+        mm_i = mm if i == 0 else _locate(rec, before_split)
+        expl.append(explain_effect(e, before, after, mm_i))
+    if not sel.effects:
+        best = min(sel.candidates, key=lambda c: c.delta_ic).effect if sel.candidates else None
+        expl.append(explain_none(base, mm, best))
+    # ---- validation
+    validation = None
+    if validate is not None:
+        t0 = time.perf_counter()
+        say(f"{rec.name}: validating on {validate.name}")
+        vb, vf = validate_on([base, final], validate, seed=seed)
+        validation = {"recording": validate.name, "n": len(validate),
+                      "base_rmse": vb.rmse_all, "final_rmse": vf.rmse_all,
+                      "base_fit_percent": vb.fit_percent_all,
+                      "final_fit_percent": vf.fit_percent_all,
+                      "base_initial_state": {k: v for k, v in vb.physical.items()
+                                             if k.startswith("init.")},
+                      "final_initial_state": {k: v for k, v in vf.physical.items()
+                                              if k.startswith("init.")},
+                      "_y_base": vb.y_sim, "_y_final": vf.y_sim}
+        timing["validation"] = time.perf_counter() - t0
+    timing["total"] = time.perf_counter() - t_all
+    settings = {"plant": plant, "actuator": actuator, "candidates": list(cands),
+                "holdout": float(holdout), "effort": effort, "seed": seed,
+                "rule": dict(rule.__dict__), "n_sub_search": st.n_sub,
+                "sensor_range": {"lo": sc.sat_lo, "hi": sc.sat_hi},
+                "valve_model": ("quasi-static: tau = dt/n_sub, v_max = inf"
+                                if actuator == "valve" else None)}
+    res = DiagnosisResult(recording=rec, plant=plant, actuator=actuator, effects=list(sel.effects),
+                          base=base, final=final, base_split=base_split, final_split=final_split,
+                          selection=sel, mismatch=mm, mismatch_final=mm_final, explanation=expl,
+                          stiction=stiction, validation=None, timing=timing, settings=settings,
+                          frictionless=fr0)
+    if validation is not None:
+        res._validation_series = (validation.pop("_y_base"), validation.pop("_y_final"), validate)
+        res.validation = validation
+    return res
+
+
+# --------------------------------------------------------------------------- many
+def _diagnose_job(args):
+    path, load_kw, diag_kw, out_json, out_report = args
+    from .recording import load_recording
+    t0 = time.perf_counter()
+    try:
+        rec = load_recording(path, **load_kw)
+        res = diagnose(rec, **diag_kw)
+        d = res.to_dict()
+        if out_json:
+            from .report import write_json
+            write_json(d, out_json)
+        if out_report:
+            from .report import write_report
+            write_report(res, out_report)
+        return {"path": str(path), "ok": True, "row": res.summary_row(), "result": d,
+                "seconds": time.perf_counter() - t0}
+    except (RecordingError, ValueError) as e:
+        return {"path": str(path), "ok": False, "error": str(e),
+                "seconds": time.perf_counter() - t0}
+
+
+def diagnose_many(paths: Sequence[str], jobs: int = 2, load_kw: Optional[dict] = None,
+                  diag_kw: Optional[dict] = None, json_dir: Optional[str] = None,
+                  report_dir: Optional[str] = None,
+                  progress: Optional[Callable[[str], None]] = None) -> List[dict]:
+    """Diagnose many recording files in parallel worker processes.
+
+    Parameters
+    ----------
+    paths : sequence of CSV paths
+    jobs : int, worker processes (each diagnosis runs single-threaded)
+    load_kw : dict, keyword arguments of :func:`load_recording` (columns, op_range, ...)
+    diag_kw : dict, keyword arguments of :func:`diagnose` (plant, actuator, ...); may
+        be a callable ``path -> dict`` for per-file settings
+    json_dir, report_dir : str, optional, one JSON / report folder per recording
+    progress : callable(str), told ``[i/n] name: ...`` as each one finishes
+
+    Returns
+    -------
+    list of dict, in the order of ``paths``: ``path``, ``ok``, and either
+    ``row`` (summary row) and ``result`` (the JSON dict) or ``error``.
+    """
+    load_kw = dict(load_kw or {})
+    tasks = []
+    for p in paths:
+        dk = diag_kw(p) if callable(diag_kw) else dict(diag_kw or {})
+        dk.setdefault("jobs", 1)
+        stem = os.path.splitext(os.path.basename(str(p)))[0]
+        oj = os.path.join(json_dir, stem + ".json") if json_dir else None
+        orp = os.path.join(report_dir, stem) if report_dir else None
+        tasks.append((str(p), load_kw, dk, oj, orp))
+    out: List[Optional[dict]] = [None] * len(tasks)
+    n = len(tasks)
+    done = 0
+    t0 = time.perf_counter()
+
+    def note(i, r):
+        nonlocal done
+        done += 1
+        if progress:
+            name = os.path.basename(r["path"])
+            if r["ok"]:
+                row = r["row"]
+                msg = (f"[{done}/{n}] {name}: effects={row['effects']}, stiction={row['stiction']}, "
+                       f"RMSE {row['base_rmse']:.4g} -> {row['final_rmse']:.4g} "
+                       f"({r['seconds']:.1f} s; elapsed {time.perf_counter() - t0:.0f} s)")
+            else:
+                msg = f"[{done}/{n}] {name}: ERROR {r['error']}"
+            progress(msg)
+
+    if jobs <= 1 or n <= 1:
+        for i, t in enumerate(tasks):
+            out[i] = _diagnose_job(t)
+            note(i, out[i])
+    else:
+        with ProcessPoolExecutor(max_workers=jobs) as ex:
+            futs = {ex.submit(_diagnose_job, t): i for i, t in enumerate(tasks)}
+            for fu in as_completed(futs):
+                i = futs[fu]
+                out[i] = fu.result()
+                note(i, out[i])
+    return out  # type: ignore[return-value]

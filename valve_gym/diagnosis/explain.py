@@ -1,0 +1,205 @@
+"""Plain-language explanations of a diagnosis, tied to the located evidence.
+
+Every sentence names the evidence (which condition or test of the residual
+points at the effect, with its numbers), the physics, and the fitted
+parameters in the recording's units.
+"""
+from __future__ import annotations
+
+from typing import List, Optional
+
+import numpy as np
+
+from .fit import FitResult
+from .locate import MismatchReport
+
+__all__ = ["explain_effect", "explain_none", "explain_stiction", "derivative_correlation"]
+
+
+def _pct(x):
+    return f"{100 * x:.2g} %"
+
+
+def _num(x, unit=""):
+    if x is None or not np.isfinite(x):
+        return "n/a"
+    a = abs(x)
+    s = f"{x:.3g}" if (a >= 1e-3 and a < 1e5) or a == 0 else f"{x:.3e}"
+    return f"{s} {unit}".strip()
+
+
+def derivative_correlation(residual, y_sim) -> float:
+    """Correlation of the residual with the simulated PV's rate of change.
+
+    Strongly negative when the model leads the measurement (a delay or lag
+    is missing): ``r ~ -tau * dy/dt``.
+    """
+    d = np.gradient(np.asarray(y_sim, float))
+    r = np.asarray(residual, float)
+    if np.std(d) == 0 or np.std(r) == 0:
+        return 0.0
+    return float(np.corrcoef(r, d)[0, 1])
+
+
+def _cond(mm: MismatchReport, name: str) -> str:
+    c = mm.condition(name)
+    if c is None:
+        return ""
+    sig = "significant" if c.significant else "not significant alone"
+    return (f"residual RMS {_num(c.rms_in)} {c.description} against {_num(c.rms_out)} elsewhere "
+            f"({c.ratio:.2f} x, z = {c.z:.1f}, {sig})")
+
+
+def _improvement(before: FitResult, after: FitResult) -> str:
+    s = f"RMSE {_num(before.rmse_all)} -> {_num(after.rmse_all)} PV units"
+    if np.isfinite(before.holdout_rmse) and np.isfinite(after.holdout_rmse):
+        s += f", on the held-out end {_num(before.holdout_rmse)} -> {_num(after.holdout_rmse)}"
+    return s
+
+
+def explain_effect(effect: str, before: FitResult, after: FitResult, mm: MismatchReport,
+                   pv_unit: str = "PV units") -> str:
+    """One paragraph on why ``effect`` was added.
+
+    Parameters
+    ----------
+    effect : str, the effect added
+    before : FitResult, the model without it (whole record)
+    after : FitResult, the model with it (whole record)
+    mm : MismatchReport of ``before``
+    pv_unit : str, how to call the PV's unit
+    """
+    p = after.physical
+    dt = after.structure.scales.dt
+    imp = _improvement(before, after)
+    regions = mm.regions
+    where = ""
+    if regions:
+        top = regions[0]
+        where = (f" The largest mismatch region is {top.t_start:g}-{top.t_end:g} s "
+                 f"({_pct(top.share_sse)} of the squared error).")
+    if effect == "slip_jump":
+        S, J = p.get("slip_jump.S", float("nan")), p.get("slip_jump.J", float("nan"))
+        if J > 1.1 * S:
+            kind = "J > S: the stem overshoots the controller output after it breaks free"
+        elif J < 0.9 * S:
+            kind = "J < S: the stem stops short of the controller output (undershoot)"
+        else:
+            kind = "J ~ S: the stem jumps to the controller output"
+        ev = _cond(mm, "near_op_reversal")
+        return (f"Slip-jump valve friction. Evidence: {ev or 'the base model misses after reversals'}; "
+                f"the stem sticks when the controller output reverses and then jumps, which the "
+                f"paper's integral friction model cannot reproduce. Fitted stick band S = "
+                f"{_pct(S)} and slip jump J = {_pct(J)} of the stroke ({kind}). {imp}.{where}")
+    if effect == "overflow":
+        ev = _cond(mm, "pv_high")
+        if after.structure.plant == "cascade":
+            L1 = p.get("overflow.L_max", float("nan"))
+            L2 = p.get("overflow.L2_max_pv", float("nan"))
+            sp = p.get("overflow.spill_to_lower", float("nan"))
+            ev2 = _cond(mm, "pv_at_upper_range")
+            return (f"Overflow. Evidence: {ev}" + (f"; {ev2}" if ev2 else "") +
+                    f". The mismatch sits at the high-level episodes: the upper tank spills, so "
+                    f"the lower tank gets less water than the model predicts and its level falls "
+                    f"back sooner. Fitted upper-tank top at {_num(L1)} (upper-level units, the "
+                    f"mean-input level is {_num(after.structure.scales.y_mean)}), "
+                    f"{_pct(sp)} of the spill reaches the lower tank, lower-tank top at "
+                    f"{_num(L2, pv_unit)}. {imp}.{where}")
+        L = p.get("overflow.L_max_pv", float("nan"))
+        return (f"Overflow. Evidence: {ev}; the measured PV is flat-topped while the base model "
+                f"keeps rising: the vessel overflows at L_max = {_num(L, pv_unit)}. {imp}.{where}")
+    if effect == "dead_time":
+        th = p.get("dead_time.theta", float("nan"))
+        t = mm.tests
+        dc = derivative_correlation(before.residual, before.y_sim)
+        return (f"Dead time. Evidence: the residual follows the model's own rate of change "
+                f"(correlation {dc:+.2f}: the model responds too early) and correlates with the "
+                f"controller output up to lag {t.ccf_peak_lag} (peak {t.ccf_peak:+.2f}, 95 % band "
+                f"+-{t.ccf_bound:.2f}). A transport delay theta = {_num(th, 's')} "
+                f"({th / dt:.1f} samples) between the valve and the process fits. {imp}.{where}")
+    if effect == "sensor_lag":
+        ts = p.get("sensor_lag.tau_s", float("nan"))
+        dc = derivative_correlation(before.residual, before.y_sim)
+        return (f"Sensor lag. Evidence: the residual follows the model's own rate of change "
+                f"(correlation {dc:+.2f}): the measurement lags behind the process, smoothly "
+                f"rather than by a fixed delay. A first-order measurement lag tau_s = "
+                f"{_num(ts, 's')} fits. {imp}.{where}")
+    if effect == "oscillating_disturbance":
+        a = p.get("oscillating_disturbance.amplitude", float("nan"))
+        per = p.get("oscillating_disturbance.period", float("nan"))
+        t = mm.tests
+        pr = f"{t.period:.3g} s" if t.period else "n/a"
+        return (f"Oscillating disturbance. Evidence: the base residual oscillates (dominant "
+                f"period {pr}, Ljung-Box p = {t.ljung_box_p:.2g}) in a way the controller output "
+                f"does not explain: a periodic load enters the process. Fitted amplitude "
+                f"{_num(a)} ({after.units.get('oscillating_disturbance.amplitude', '')}), period "
+                f"{_num(per, 's')}. {imp}.{where}")
+    if effect == "leak":
+        q = p.get("leak.q_leak", float("nan"))
+        lo, hi = mm.condition("pv_low"), mm.condition("pv_high")
+        ev = ""
+        if lo is not None and hi is not None:
+            ev = (f"mean residual {_num(lo.mean_in)} at low PV and {_num(hi.mean_in)} at high PV: "
+                  f"the base model's outflow has the wrong dependence on the level")
+        return (f"Leak. Evidence: {ev or 'level-dependent residual'}; part of the outflow does not "
+                f"depend on the level. A constant extra outflow q_leak = {_num(q)} "
+                f"({after.units.get('leak.q_leak', '')}) fits. {imp}.{where}")
+    if effect == "valve_characteristic":
+        kind = after.structure.variants.get("valve_characteristic", "equal_percentage")
+        R = p.get("valve_characteristic.R")
+        lo, hi = mm.condition("op_low"), mm.condition("op_high")
+        ev = ""
+        if lo is not None and hi is not None:
+            ev = (f"mean residual {_num(lo.mean_in)} with the valve in its lowest third and "
+                  f"{_num(hi.mean_in)} in its highest third: the process gain changes with the "
+                  f"opening")
+        desc = (f"an equal-percentage installed characteristic with rangeability R = {_num(R)}"
+                if kind == "equal_percentage" else "a quick-opening (square-root) characteristic")
+        return (f"Valve characteristic. Evidence: {ev or 'opening-dependent residual'}. The flow is "
+                f"not proportional to the opening: {desc} fits. {imp}.{where}")
+    return f"{effect}: {imp}."
+
+
+def explain_none(base: FitResult, mm: MismatchReport, best_candidate: Optional[str] = None) -> str:
+    """Why no effect was added."""
+    t = mm.tests
+    s = (f"No candidate effect pays: the base model ({base.label}) explains the record, "
+         f"residual RMS {_num(mm.rms)} against a measurement-noise level of "
+         f"{_num(t.noise_std)}")
+    if t.white:
+        s += f"; the residual is white (Ljung-Box p = {t.ljung_box_p:.2g})."
+    else:
+        s += (f"; the residual is not white (Ljung-Box p = {t.ljung_box_p:.2g}, "
+              f"{_pct(t.acf_outside)} of the autocorrelations outside the 95 % band), but none of "
+              f"the candidate effects explains that structure"
+              + (f" (the closest was {best_candidate})" if best_candidate else "") + ".")
+    return s
+
+
+def explain_stiction(present: bool, with_fr: FitResult, without: FitResult, d_ic: float,
+                     h_change: float, mm: MismatchReport, significant: bool = None,
+                     band: float = None, min_band: float = None, lag_alt=()) -> str:
+    """One paragraph on the friction verdict."""
+    p = with_fr.physical
+    if "slip_jump.S" in p:
+        fr = (f"slip-jump friction S = {_pct(p['slip_jump.S'])}, J = {_pct(p['slip_jump.J'])} "
+              f"of the stroke")
+    else:
+        fr = (f"dead band 2 e_dead = {_pct(2 * p.get('valve.e_dead', 0.0))} of the stroke, "
+              f"friction band z_max = {_num(p.get('valve.z_max', 0.0), 's')}")
+    alt = f"a frictionless valve ({without.label})"
+    if lag_alt:
+        alt += " -- a frictionless valve with a " + " / ".join(e.replace("_", " ") for e in lag_alt)
+        alt += " explains the delays as well as friction could"
+    ev = _cond(mm, "near_op_reversal")
+    if present:
+        return (f"The valve sticks: the model with friction ({fr}) beats the best frictionless "
+                f"alternative, {without.label} (criterion {d_ic:+.1f}; RMSE "
+                f"{_num(without.rmse_all)} -> {_num(with_fr.rmse_all)}), and the band is "
+                f"{_pct(band)} of the stroke. " + (f"At reversals of the output: {ev}." if ev else ""))
+    if significant and band is not None and min_band is not None and band < min_band:
+        return (f"No sticking valve: friction improves the fit (criterion {d_ic:+.1f} against "
+                f"{without.label}) but its band, {_pct(band)} of the stroke, is below "
+                f"{_pct(min_band)}: fitted {fr}.")
+    return (f"No significant valve friction: {alt} explains the record as well "
+            f"(criterion {d_ic:+.1f}); fitted {fr}.")

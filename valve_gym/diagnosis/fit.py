@@ -1,0 +1,756 @@
+"""Free-run simulation-error fitting of a model structure to a recording.
+
+The fitter simulates whole populations of candidate parameter sets in one
+call of the batched physics core and minimises the free-run simulation error
+
+.. math:: J(\\theta) = \\sum_{k \\in \\text{fit}} (y_k - \\hat y_k(\\theta))^2
+
+where :math:`\\hat y` is simulated from the recorded controller output alone
+(no measured output is fed back), starting from an initial state that is
+part of :math:`\\theta`.  Search: differential evolution written over the
+batch axis (JADE's *current-to-pbest/1/bin* with dithered ``F`` and ``CR``
+[1]_), then a bounded Gauss-Newton refinement (:func:`scipy.optimize.least_squares`,
+trust-region reflective) whose finite-difference Jacobian is one batched
+simulation of ``k + 1`` parameter sets.
+
+References
+----------
+.. [1] J. Zhang, A.C. Sanderson, "JADE: adaptive differential evolution with
+   optional external archive", IEEE Trans. Evolutionary Computation 13(5),
+   945-958, 2009.
+.. [2] L. Ljung, "System identification: theory for the user", 2nd ed.,
+   Prentice Hall, 1999 (simulation-error criterion, fit percentage).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field, replace
+from typing import Dict, Optional, Sequence
+
+import numpy as np
+
+from ..params import ModelParams
+from .model import DataScales, ModelStructure
+from .recording import Recording
+
+__all__ = ["ModelFitter", "FitResult", "fit_structure", "fit_with_friction", "fit_initial_state", "rmse",
+           "fit_percent", "effective_n", "information_criterion"]
+
+_BIG = 1e300
+_PBEST = 0.5
+
+
+# --------------------------------------------------------------------------- metrics
+def rmse(y, yhat) -> float:
+    """Root-mean-square error [PV units]."""
+    y, yhat = np.asarray(y, float), np.asarray(yhat, float)
+    if y.size == 0:
+        return float("nan")
+    return float(np.sqrt(np.mean((y - yhat) ** 2)))
+
+
+def fit_percent(y, yhat) -> float:
+    """NRMSE fit [%]: ``100 (1 - ||y - yhat|| / ||y - mean(y)||)`` (100 = perfect, can be < 0)."""
+    y, yhat = np.asarray(y, float), np.asarray(yhat, float)
+    if y.size == 0:
+        return float("nan")
+    den = np.linalg.norm(y - y.mean())
+    if den == 0:
+        return float("nan")
+    return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / den))
+
+
+def effective_n(residual, max_lag: Optional[int] = None) -> float:
+    """Effective number of independent samples of an autocorrelated residual.
+
+    ``N / (1 + 2 sum_k rho_k)``, summing the sample autocorrelation up to its
+    first non-positive value (Geyer's initial-positive-sequence idea); at
+    least 5, at most ``N``.  Free-run residuals are strongly autocorrelated,
+    and information criteria computed with the raw ``N`` would reward every
+    extra parameter.
+    """
+    r = np.asarray(residual, float)
+    r = r - r.mean()
+    n = len(r)
+    if n < 4 or not np.any(r):
+        return float(max(n, 1))
+    L = max_lag or min(n // 3, 500)
+    f = np.fft.rfft(r, 2 * n)
+    acf = np.fft.irfft(f * np.conj(f))[: L + 1]
+    acf = acf / acf[0]
+    s = 0.0
+    for k in range(1, L + 1):
+        if acf[k] <= 0:
+            break
+        s += acf[k]
+    return float(np.clip(n / (1.0 + 2.0 * s), min(5.0, n), n))
+
+
+def information_criterion(sse: float, n_eff: float, k: int, n: int, kind: str = "bic") -> float:
+    """Gaussian information criterion of a free-run fit with effective sample size.
+
+    ``n_eff * ln(SSE / n) + k * ln(n_eff)`` (BIC) or ``+ 2 k`` (AIC).
+    Differences between models fitted to the same samples are what matter.
+    """
+    sse = max(float(sse), 1e-300)
+    pen = np.log(max(n_eff, 2.0)) if kind == "bic" else 2.0
+    return float(n_eff * np.log(sse / max(n, 1)) + k * pen)
+
+
+# --------------------------------------------------------------------------- result
+@dataclass
+class FitResult:
+    """Outcome of fitting one model structure.
+
+    Attributes
+    ----------
+    structure : ModelStructure
+    w : (k,) ndarray, unit coordinates of the optimum
+    params : ModelParams, the fitted core parameters (scalars)
+    physical : dict, fitted parameters by core field name (see ``units``)
+    units : dict, unit of each entry of ``physical``
+    y_sim : (T,) ndarray, free-run simulated PV over the whole record [PV]
+    n_fit : int, samples used for fitting (the first ``n_fit``)
+    cost : float, sum of squared errors on the fit samples [PV^2]
+    rmse, fit_percent : on the fit samples [PV], [%]
+    holdout_rmse, holdout_fit_percent : on the samples after ``n_fit`` (nan if none)
+    rmse_all, fit_percent_all : over the whole record
+    k : int, number of free parameters
+    n_sub : int, Euler steps per controller sample of ``y_sim``
+    n_evals : int, simulated parameter sets
+    seconds : float, wall time
+    """
+
+    structure: ModelStructure
+    w: np.ndarray
+    params: ModelParams
+    physical: Dict[str, float]
+    units: Dict[str, str]
+    y_sim: np.ndarray
+    y: np.ndarray
+    n_fit: int
+    cost: float
+    rmse: float
+    fit_percent: float
+    holdout_rmse: float
+    holdout_fit_percent: float
+    rmse_all: float
+    fit_percent_all: float
+    k: int
+    n_sub: int
+    n_evals: int
+    seconds: float
+
+    @property
+    def residual(self) -> np.ndarray:
+        """Measured minus simulated PV over the whole record, (T,) [PV]."""
+        return self.y - self.y_sim
+
+    @property
+    def label(self) -> str:
+        return self.structure.label()
+
+    def summary(self) -> dict:
+        """JSON-ready summary (floats, lists)."""
+        return {"model": self.label, "effects": list(self.structure.effects),
+                "variants": dict(self.structure.variants),
+                "rmse": self.rmse_all, "fit_percent": self.fit_percent_all,
+                "rmse_fit_part": self.rmse, "fit_percent_fit_part": self.fit_percent,
+                "holdout_rmse": _nan_none(self.holdout_rmse),
+                "holdout_fit_percent": _nan_none(self.holdout_fit_percent),
+                "n_params": self.k, "params": dict(self.physical), "units": dict(self.units),
+                "n_sub": self.n_sub}
+
+
+def _nan_none(x):
+    return None if x is None or not np.isfinite(x) else float(x)
+
+
+# --------------------------------------------------------------------------- optimiser
+class _Objective:
+    """Batched SSE of unit coordinates over a subset of free coordinates."""
+
+    def __init__(self, structure: ModelStructure, u, y, n_fit, free_idx, w_fixed):
+        self.s = structure
+        self.u = np.ascontiguousarray(u[:n_fit])
+        self.y = np.asarray(y[:n_fit], float)
+        self.free = np.asarray(free_idx, int)
+        self.w_fixed = np.asarray(w_fixed, float)
+        self.n_evals = 0
+
+    def full(self, X):
+        X = np.atleast_2d(X)
+        W = np.repeat(self.w_fixed[None, :], X.shape[0], axis=0)
+        W[:, self.free] = X
+        return W
+
+    def sim(self, X):
+        self.n_evals += np.atleast_2d(X).shape[0]
+        try:
+            return self.s.simulate(self.full(X), self.u)
+        except (ValueError, ZeroDivisionError, FloatingPointError):
+            return np.full((len(self.u), np.atleast_2d(X).shape[0]), np.nan)
+
+    def __call__(self, X):
+        Y = self.sim(X)
+        with np.errstate(over="ignore", invalid="ignore"):
+            c = np.sum((Y - self.y[:, None]) ** 2, axis=0)
+        c[~np.isfinite(c)] = _BIG
+        return c
+
+
+def _lhs(rng, pop, k):
+    return (rng.permuted(np.tile(np.arange(pop), (k, 1)), axis=1).T + rng.random((pop, k))) / pop
+
+
+def _de(obj: _Objective, rng, pop: int, gens: int, seeds=None, spread=None, tol=1e-7,
+        patience=20, islands: int = 2):
+    """Differential evolution (current-to-pbest/1/bin) in the unit cube; all rows at once.
+
+    ``islands`` independent populations of ``pop`` members evolve side by
+    side (their trial vectors are simulated in one batch); the budget is
+    ``islands * pop * gens`` evaluations.  An island whose population has
+    converged or stalled restarts from a fresh Latin hypercube that keeps the
+    best member found so far.  Stick-slip friction makes the cost rugged;
+    several independent populations make the search much less of a lottery.
+    """
+    k = len(obj.free)
+    I = max(1, int(islands))
+    X = np.stack([_lhs(rng, pop, k) for _ in range(I)])          # (I, pop, k)
+    if seeds is not None:
+        S = np.atleast_2d(np.asarray(seeds, float))[:, obj.free]
+        m = min(len(S), pop)
+        X[:, :m] = S[:m]
+        if spread is not None and m < pop:
+            sp = np.asarray(spread, float)[obj.free]
+            nc = min(pop - m, pop // 2)
+            for j in range(I):
+                C = S[0][None, :] + rng.normal(size=(nc, k)) * sp[None, :]
+                wide = sp >= 1.0
+                C[:, wide] = rng.random((nc, int(wide.sum())))
+                X[j, m:m + nc] = np.clip(C, 0.0, 1.0)
+    budget = I * pop * gens
+    fx = obj(X.reshape(-1, k)).reshape(I, pop)
+    used = I * pop
+    best = fx.min(axis=1)
+    med = np.median(fx, axis=1)
+    stall = np.zeros(I, int)
+    muF = np.full(I, 0.6)
+    muCR = np.full(I, 0.9)
+    gi = np.unravel_index(int(np.argmin(fx)), fx.shape)
+    gbest_x, gbest_f = X[gi].copy(), float(fx[gi])
+    p = max(2, int(round(_PBEST * pop)))
+    ar = np.arange(pop)
+    while used < budget:
+        order = np.argsort(fx, axis=1)
+        pb = np.take_along_axis(order, rng.integers(0, p, (I, pop)), axis=1)
+        r1 = rng.integers(0, pop, (I, pop))
+        r2 = rng.integers(0, pop, (I, pop))
+        F = np.clip(muF[:, None] + 0.1 * rng.standard_cauchy((I, pop)), 0.1, 1.0)[..., None]
+        CR = np.clip(rng.normal(muCR[:, None], 0.1, (I, pop)), 0.0, 1.0)[..., None]
+        Xp = np.take_along_axis(X, pb[..., None], axis=1)
+        X1 = np.take_along_axis(X, r1[..., None], axis=1)
+        X2 = np.take_along_axis(X, r2[..., None], axis=1)
+        V = X + F * (Xp - X) + F * (X1 - X2)
+        low, high = V < 0, V > 1
+        V[low] = X[low] * rng.random(low.sum())
+        V[high] = X[high] + (1 - X[high]) * rng.random(high.sum())
+        cross = rng.random((I, pop, k)) < CR
+        jr = rng.integers(0, k, (I, pop))
+        cross[np.arange(I)[:, None], ar[None, :], jr] = True
+        U = np.where(cross, V, X)
+        fu = obj(U.reshape(-1, k)).reshape(I, pop)
+        used += I * pop
+        better = fu <= fx
+        strict = fu < fx
+        for j in range(I):
+            if strict[j].any():
+                sF, sC = F[j, strict[j], 0], CR[j, strict[j], 0]
+                muF[j] = 0.9 * muF[j] + 0.1 * float(np.sum(sF ** 2) / np.sum(sF))
+                muCR[j] = 0.9 * muCR[j] + 0.1 * float(np.mean(sC))
+        X[better] = U[better]
+        fx[better] = fu[better]
+        b, m = fx.min(axis=1), np.median(fx, axis=1)
+        moving = (b < best * (1 - 1e-6)) | (m < med * (1 - 1e-3))
+        stall = np.where(moving, 0, stall + 1)
+        best, med = np.minimum(b, best), np.minimum(m, med)
+        gi = np.unravel_index(int(np.argmin(fx)), fx.shape)
+        if fx[gi] < gbest_f:
+            gbest_x, gbest_f = X[gi].copy(), float(fx[gi])
+        done = ((m - b) / np.maximum(np.abs(b), 1e-300) < tol) | (stall >= patience)
+        if done.any():
+            if budget - used < 0.25 * budget:
+                break
+            for j in np.where(done)[0]:
+                X[j] = _lhs(rng, pop, k)
+                X[j, 0] = gbest_x
+                fx[j] = obj(X[j])
+                used += pop
+                best[j], med[j], stall[j] = fx[j].min(), np.median(fx[j]), 0
+                muF[j], muCR[j] = 0.6, 0.9
+    return gbest_x, gbest_f, X, fx
+
+
+def _refine(obj: _Objective, x0, max_nfev=40, step=2e-3):
+    """Bounded least-squares refinement; Jacobian = one batched simulation."""
+    from scipy.optimize import least_squares
+
+    disc = np.array([obj.s.params[j].discrete for j in obj.free], bool)
+    cont = np.where(~disc)[0]
+    if cont.size == 0:
+        return x0, float(obj(x0[None, :])[0])
+    x0 = np.asarray(x0, float)
+    scale = 1.0 / np.sqrt(len(obj.y))
+
+    def expand(z):
+        x = x0.copy()
+        x[cont] = z
+        return x
+
+    def fun(z):
+        Y = obj.sim(expand(z)[None, :])[:, 0]
+        r = (Y - obj.y) * scale
+        if not np.all(np.isfinite(r)):
+            r = np.full_like(obj.y, 1e6)
+        return r
+
+    def jac(z):
+        x = expand(z)
+        h = np.full(cont.size, step)
+        up = z + h > 1.0
+        h[up] = -h[up]
+        X = np.repeat(x[None, :], cont.size + 1, axis=0)
+        for j, c in enumerate(cont):
+            X[j + 1, c] += h[j]
+        Y = obj.sim(X)
+        if not np.all(np.isfinite(Y)):
+            Y = np.where(np.isfinite(Y), Y, Y[:, :1])
+        return ((Y[:, 1:] - Y[:, :1]) / h[None, :]) * scale
+
+    z0 = np.clip(x0[cont], 0.0, 1.0)
+    try:
+        res = least_squares(fun, z0, jac=jac, bounds=(0.0, 1.0), method="trf",
+                            max_nfev=max_nfev, x_scale=1.0, xtol=1e-8, ftol=1e-10)
+        x = expand(np.clip(res.x, 0.0, 1.0))
+    except (ValueError, np.linalg.LinAlgError):  # pragma: no cover - defensive
+        x = x0
+    c = float(obj(x[None, :])[0])
+    return x, c
+
+
+def _grid_polish(obj: _Objective, x, c, rounds: int = 4, n_grid: int = 17):
+    """Batched grid scans over the rugged coordinates around ``x``.
+
+    Friction pairs (``S, J/S`` or ``e_dead, z_max``) are scanned on a 2-D grid
+    of relative changes (x0.4 .. x2.5 and zero), the dead time over every
+    Euler step within +-8 controller samples; each scan is one batched
+    simulation.  Stick-slip events make the cost jump with these parameters,
+    which defeats gradient refinement.
+    """
+    st = obj.s
+    names = [st.params[j].name for j in obj.free]
+    pos = {n: i for i, n in enumerate(names)}
+    groups = []
+    for a, b in (("S", "J_rel"), ("e_dead", "z_max")):
+        if a in pos and b in pos:
+            groups.append((a, b))
+    x = np.asarray(x, float).copy()
+    for _ in range(rounds):
+        improved = False
+        for a, b in groups:
+            ia, ib = pos[a], pos[b]
+            pa, pb = st.params[obj.free[ia]], st.params[obj.free[ib]]
+            va, vb = float(pa.value(x[ia])), float(pb.value(x[ib]))
+            fac = np.concatenate([[0.0], np.geomspace(0.4, 2.5, n_grid - 1)])
+            ga = np.unique(np.clip(np.concatenate([fac * max(va, 1e-4 * pa.hi)]), pa.lo, pa.hi))
+            gb = np.unique(np.clip(np.concatenate([fac * max(vb, 1e-4 * pb.hi)]), pb.lo, pb.hi))
+            A, B = np.meshgrid(ga, gb, indexing="ij")
+            X = np.repeat(x[None, :], A.size, axis=0)
+            X[:, ia] = pa.coord(A.ravel())
+            X[:, ib] = pb.coord(B.ravel())
+            f = obj(X)
+            i = int(np.argmin(f))
+            if f[i] < c * (1 - 1e-9):
+                x, c, improved = X[i].copy(), float(f[i]), True
+        if "dh0" in pos:
+            it = pos["dh0"]
+            X = np.repeat(x[None, :], 41, axis=0)
+            X[:, it] = np.linspace(0.0, 1.0, 41)
+            f = obj(X)
+            i = int(np.argmin(f))
+            if f[i] < c * (1 - 1e-9):
+                x, c, improved = X[i].copy(), float(f[i]), True
+        if "theta" in pos:
+            it = pos["theta"]
+            pt = st.params[obj.free[it]]
+            dte = st.dt_euler
+            th = float(pt.value(x[it]))
+            ks = np.arange(max(0, round(th / dte) - 8 * st.n_sub),
+                           min(round(pt.hi / dte), round(th / dte) + 8 * st.n_sub) + 1)
+            X = np.repeat(x[None, :], len(ks), axis=0)
+            X[:, it] = pt.coord(ks * dte)
+            f = obj(X)
+            i = int(np.argmin(f))
+            if f[i] < c * (1 - 1e-9):
+                x, c, improved = X[i].copy(), float(f[i]), True
+        if not improved:
+            break
+    return x, c
+
+
+_EFFORT = {"fast": (0.7, 0.45), "normal": (1.0, 0.6), "thorough": (1.25, 1.0)}
+
+
+def fit_structure(structure: ModelStructure, u, y, n_fit: Optional[int] = None, *,
+                  seeds=None, spread=None, free: Optional[Sequence[str]] = None,
+                  w_fixed=None, rng=None, popsize: Optional[int] = None,
+                  maxiter: Optional[int] = None, local: bool = True, effort: str = "normal",
+                  final_n_sub: bool = True) -> FitResult:
+    """Fit ``structure`` to ``y`` (T,) driven by ``u`` (T,), free-run, on the first ``n_fit`` samples.
+
+    Parameters
+    ----------
+    structure : ModelStructure
+    u : (T,) array, controller output 0..1
+    y : (T,) array, measured PV [PV units]
+    n_fit : int, optional
+        Samples used in the cost (default all); the rest is held out.
+    seeds : (m, k) array, optional
+        Coordinate vectors put into the initial population (warm start).
+    spread : (k,) array, optional
+        Standard deviation of a cloud of starts around ``seeds[0]`` per
+        coordinate; ``>= 1`` draws that coordinate uniformly.
+    free : sequence of str, optional
+        Names of the coordinates to fit (default all); the others stay at
+        ``w_fixed``.
+    w_fixed : (k,) array, optional
+        Values of the coordinates not fitted (default ``seeds[0]``).
+    rng : numpy Generator or int
+    popsize, maxiter : int, optional
+        Population size and generation limit of the evolution (defaults
+        scale with the number of free parameters and ``effort``).
+    local : bool
+        Refine the best member by least squares.
+    effort : {'fast', 'normal', 'thorough'}
+    final_n_sub : bool
+        Re-simulate the optimum with the smallest ``n_sub`` that passes the
+        core's Euler stability check (:func:`valve_gym.core.check_dt`).
+
+    Returns
+    -------
+    FitResult
+    """
+    t0 = time.perf_counter()
+    rng = np.random.default_rng(rng)
+    u = np.asarray(u, float)
+    y = np.asarray(y, float)
+    T = len(y)
+    n_fit = T if n_fit is None else int(n_fit)
+    k_all = len(structure.params)
+    if w_fixed is None:
+        w_fixed = (np.atleast_2d(seeds)[0] if seeds is not None
+                   else np.array([structure.neutral_coord(p) for p in structure.params]))
+    names = structure.names
+    free_idx = [names.index(n) for n in (free if free is not None else names)]
+    obj = _Objective(structure, u, y, n_fit, free_idx, w_fixed)
+    kf = len(free_idx)
+    pf, gf = _EFFORT.get(effort, _EFFORT["normal"])
+    if kf == 0:
+        w = np.asarray(w_fixed, float).copy()
+    else:
+        pop = popsize or int(np.clip(round(pf * (10 + 4 * kf)), 10, 48))
+        gens = maxiter or int(round(gf * (40 + 15 * kf)))
+        x, c, X, fx = _de(obj, rng, pop, gens, seeds=seeds, spread=spread)
+        if local:
+            for _ in range(2):
+                c_start = c
+                x, c = _grid_polish(obj, x, c)
+                x2, c2 = _refine(obj, x)
+                if c2 < c:
+                    x, c = x2, c2
+                if c > c_start * (1 - 1e-4):
+                    break
+        w = obj.full(x[None, :])[0]
+    ns = structure.stable_n_sub(w) if final_n_sub else structure.n_sub
+    y_sim = structure.simulate(w[None, :], u, n_sub=ns)[:, 0]
+    res = _make_result(structure, w, y, y_sim, n_fit, ns, obj.n_evals, time.perf_counter() - t0)
+    return res
+
+
+def fit_with_friction(structure: ModelStructure, u, y, n_fit=None, *, seeds=None, rng=None,
+                      effort: str = "normal", frictionless: Optional["FitResult"] = None):
+    """Fit a valve model and its frictionless twin so that the friction fit is nested.
+
+    The frictionless model (``z_max = e_dead = 0``, no slip-jump) is fitted
+    first (fewer parameters, smoother cost); the model with friction starts
+    from its optimum with the friction parameters at zero, so its cost can
+    only be lower.  Without a valve (or with ``structure.friction`` False)
+    the structure is fitted alone.
+
+    Returns
+    -------
+    (FitResult with friction, FitResult frictionless or None)
+    """
+    rng = np.random.default_rng(rng)
+    if structure.actuator != "valve" or not structure.friction:
+        return fit_structure(structure, u, y, n_fit, seeds=seeds, rng=rng, effort=effort), None
+    st0 = structure.with_effects(tuple(e for e in structure.effects if e != "slip_jump"),
+                                 friction=False)
+    if frictionless is None:
+        s0 = None
+        if seeds is not None:
+            s0 = np.vstack([transfer(_pseudo(structure, w), st0)[0] for w in np.atleast_2d(seeds)])
+        frictionless = fit_structure(st0, u, y, n_fit, seeds=s0, rng=rng, effort=effort)
+    s1, _ = transfer(frictionless, structure)
+    for name in ("e_dead", "z_max", "S"):
+        if name in structure.names:
+            s1[0, structure.index(name)] = 0.0
+    if seeds is not None:
+        s1 = np.vstack([s1, np.atleast_2d(seeds)])
+    fr = fit_structure(structure, u, y, n_fit, seeds=s1, rng=rng, effort=effort)
+    return fr, frictionless
+
+
+class _Pseudo:
+    def __init__(self, structure, w):
+        self.structure = structure
+        self.w = np.asarray(w, float)
+
+
+def _pseudo(structure, w):
+    return _Pseudo(structure, w)
+
+
+def _make_result(structure, w, y, y_sim, n_fit, ns, n_evals, seconds) -> FitResult:
+    T = len(y)
+    yf, sf = y[:n_fit], y_sim[:n_fit]
+    finite = np.all(np.isfinite(y_sim))
+    cost = float(np.sum((yf - sf) ** 2)) if finite else _BIG
+    if n_fit < T:
+        hr, hf = rmse(y[n_fit:], y_sim[n_fit:]), fit_percent(y[n_fit:], y_sim[n_fit:])
+    else:
+        hr = hf = float("nan")
+    return FitResult(structure=structure, w=np.asarray(w, float), params=structure.model_params(w, n_sub=ns),
+                     physical=structure.physical(w, n_sub=ns), units=structure.units(),
+                     y_sim=y_sim, y=y, n_fit=n_fit, cost=cost, rmse=rmse(yf, sf),
+                     fit_percent=fit_percent(yf, sf), holdout_rmse=hr, holdout_fit_percent=hf,
+                     rmse_all=rmse(y, y_sim), fit_percent_all=fit_percent(y, y_sim),
+                     k=structure.k, n_sub=ns, n_evals=n_evals, seconds=seconds)
+
+
+def init_names(structure: ModelStructure):
+    """Names of the initial-state coordinates of a structure."""
+    return [n for n in structure.names if n in ("y0", "x1_0", "dh0")]
+
+
+def fit_initial_state(result: FitResult, u, y, rng=None) -> FitResult:
+    """Simulate a fitted model on another input, refitting only its initial state.
+
+    The model parameters stay as fitted; the initial level(s) are refitted
+    (free run over the whole of ``y``), as for a second record of the same
+    plant whose starting point is unknown.
+
+    Parameters
+    ----------
+    result : FitResult, the fitted model
+    u : (T,) array, the other record's controller output 0..1
+    y : (T,) array, the other record's PV
+
+    Returns
+    -------
+    FitResult on the other record (``n_fit = T``; ``cost``/``rmse`` are the
+    validation error).
+    """
+    y = np.asarray(y, float)
+    k = max(3, min(5, len(y) // 20))
+    sc2 = replace(result.structure.scales, y0=float(np.median(y[:k])))
+    st = ModelStructure(result.structure.plant, result.structure.actuator,
+                        result.structure.effects, sc2, n_sub=result.n_sub,
+                        friction=result.structure.friction, variants=result.structure.variants,
+                        period_hint=result.structure.period_hint,
+                        output_offset=result.structure.output_offset)
+    w = result.w.copy()
+    names = init_names(st)
+    # the other record's first sample is the natural starting level
+    w[st.index("y0")] = float(st.params[st.index("y0")].coord(0.0))
+    return fit_structure(st, u, y, None, seeds=w[None, :], w_fixed=w, free=names, rng=rng,
+                         popsize=12, maxiter=30, final_n_sub=False)
+
+
+# --------------------------------------------------------------------------- estimator
+class ModelFitter:
+    """Fit the simulator to a recording by free-run simulation error (scikit-learn style).
+
+    Parameters
+    ----------
+    plant : {'tank', 'integrating', 'first_order', 'cascade'}
+        Process model (see :mod:`valve_gym.diagnosis.model`).
+    actuator : {'valve', 'pump'}
+        The paper's valve with friction (``z_max``, ``e_dead`` free) or a pump.
+    effects : sequence of str
+        Optional physics switched on (names of :data:`valve_gym.params.EFFECTS`
+        that the fitter supports, :data:`~valve_gym.diagnosis.model.CANDIDATE_EFFECTS`).
+    friction : bool
+        ``False`` fits a frictionless valve.
+    variants : dict, optional
+        ``{'valve_characteristic': 'equal_percentage' | 'quick_opening'}``.
+    holdout : float
+        Fraction (0..0.9) of the record, at its end, left out of the fit;
+        ``holdout_rmse_`` reports the error there (the model runs on from
+        the fit part without reset).
+    n_sub : int
+        Euler steps per controller sample during the search (the reported
+        simulation uses the smallest ``n_sub >=`` this that passes the core's
+        stability check).
+    saturation : 'auto', None or (lo, hi)
+        Sensor range of the PV (see :class:`~valve_gym.diagnosis.model.DataScales`).
+    period_hint : float, optional
+        Period [s] around which ``oscillating_disturbance`` searches.
+    effort : {'fast', 'normal', 'thorough'}
+        Search budget.
+    popsize, maxiter : int, optional
+        Override the evolution's population size and generation limit.
+    local : bool
+        Least-squares refinement of the best member.
+    seed : int
+        Seed of the search's random generator (results are reproducible).
+
+    Attributes
+    ----------
+    params_ : ModelParams
+        Fitted core parameters (scalars).
+    physical_ : dict
+        Fitted parameters by core field name; ``units_`` their units.
+    initial_state_ : dict
+        Fitted initial level(s) and stem position.
+    cost_ : float
+        Sum of squared free-run errors on the fit samples [PV^2].
+    rmse_, fit_percent_ : float
+        Over the whole record [PV], [%] (NRMSE fit, 100 = perfect).
+    holdout_rmse_, holdout_fit_percent_ : float
+        On the held-out end of the record (nan without holdout).
+    y_sim_ : (T,) ndarray
+        Free-run simulated PV [PV].
+    result_ : FitResult
+        Everything above and more.
+
+    Examples
+    --------
+    >>> from valve_gym.diagnosis.synthetic import make_recording
+    >>> rec = make_recording("none", seed=1, n=400)
+    >>> f = ModelFitter(plant="tank", effort="fast").fit(rec)
+    >>> bool(f.fit_percent_ > 80)
+    True
+    """
+
+    def __init__(self, plant: str = "tank", actuator: str = "valve", effects: Sequence[str] = (),
+                 *, friction: bool = True, variants: Optional[dict] = None,
+                 holdout: float = 0.0, n_sub: int = 2, saturation="auto",
+                 period_hint: Optional[float] = None, output_offset: Optional[bool] = None,
+                 effort: str = "normal", popsize: Optional[int] = None,
+                 maxiter: Optional[int] = None, local: bool = True, seed: int = 0):
+        self.plant = plant
+        self.actuator = actuator
+        self.effects = effects
+        self.friction = friction
+        self.variants = variants
+        self.holdout = holdout
+        self.n_sub = n_sub
+        self.saturation = saturation
+        self.period_hint = period_hint
+        self.output_offset = output_offset
+        self.effort = effort
+        self.popsize = popsize
+        self.maxiter = maxiter
+        self.local = local
+        self.seed = seed
+
+    def _structure(self, rec: Recording, n_fit: int) -> ModelStructure:
+        sc = DataScales.from_signals(rec.op[:n_fit], rec.pv[:n_fit], rec.dt,
+                                     saturation=self.saturation)
+        if self.saturation == "auto":
+            full = DataScales.from_signals(rec.op, rec.pv, rec.dt, saturation="auto")
+            sc = replace(sc, sat_hi=full.sat_hi, sat_lo=full.sat_lo)
+        return ModelStructure(self.plant, self.actuator, tuple(self.effects), sc,
+                              n_sub=self.n_sub, friction=self.friction, variants=self.variants,
+                              period_hint=self.period_hint, output_offset=self.output_offset)
+
+    def fit(self, recording: Recording, init=None) -> "ModelFitter":
+        """Fit to ``recording``; returns ``self``.
+
+        Parameters
+        ----------
+        recording : Recording
+        init : FitResult or (k,) array, optional
+            Warm start: a previous fit of a structure with a subset of these
+            effects, or unit coordinates of this structure.
+        """
+        if not isinstance(recording, Recording):
+            raise TypeError("fit() needs a Recording (see valve_gym.diagnosis.load_recording)")
+        if not 0.0 <= float(self.holdout) <= 0.9:
+            raise ValueError(f"holdout must be a fraction in [0, 0.9], got {self.holdout!r}")
+        T = len(recording)
+        n_fit = T - int(round(float(self.holdout) * T))
+        if n_fit < 20:
+            raise ValueError(f"only {n_fit} samples left to fit after the holdout; use a "
+                             f"longer recording or a smaller holdout")
+        st = self._structure(recording, n_fit)
+        seeds = spread = None
+        if isinstance(init, FitResult):
+            seeds, spread = transfer(init, st)
+        elif init is not None:
+            seeds = np.atleast_2d(np.asarray(init, float))
+        res = fit_structure(st, recording.op, recording.pv, n_fit, seeds=seeds, spread=spread,
+                            rng=self.seed, popsize=self.popsize, maxiter=self.maxiter,
+                            local=self.local, effort=self.effort)
+        self._set(res)
+        return self
+
+    def _set(self, res: FitResult):
+        self.result_ = res
+        self.structure_ = res.structure
+        self.params_ = res.params
+        self.physical_ = res.physical
+        self.units_ = res.units
+        self.initial_state_ = res.structure.initial_values(res.w)
+        self.cost_ = res.cost
+        self.rmse_ = res.rmse_all
+        self.fit_percent_ = res.fit_percent_all
+        self.holdout_rmse_ = res.holdout_rmse
+        self.holdout_fit_percent_ = res.holdout_fit_percent
+        self.y_sim_ = res.y_sim
+        self.n_sub_ = res.n_sub
+        return self
+
+    def predict(self, recording: Recording, refit_initial: bool = True) -> np.ndarray:
+        """Free-run PV ``(T,)`` of the fitted model on another recording's controller output.
+
+        With ``refit_initial`` the initial level(s) are refitted to that
+        recording (the model parameters are not); otherwise the fitted
+        initial state is used.
+        """
+        if not hasattr(self, "result_"):
+            raise RuntimeError("ModelFitter is not fitted yet; call fit(recording) first")
+        if refit_initial:
+            return fit_initial_state(self.result_, recording.op, recording.pv, rng=self.seed).y_sim
+        return self.structure_.simulate(self.result_.w[None, :], recording.op,
+                                        n_sub=self.n_sub_)[:, 0]
+
+    def score(self, recording: Recording) -> float:
+        """NRMSE fit [%] on ``recording`` (initial state refitted)."""
+        return fit_percent(recording.pv, self.predict(recording))
+
+
+def transfer(prev: FitResult, st: ModelStructure):
+    """Warm start for ``st`` from a fit of a related structure.
+
+    Shared internal parameters keep their fitted values, new effect
+    parameters start where they leave the model unchanged.  Returns
+    ``(seeds, spread)`` for :func:`fit_structure`: the seed and a per
+    coordinate spread (small for known, uniform for new coordinates).
+    """
+    vals = prev.structure.decode(prev.w[None, :])
+    common = {k: float(v[0]) for k, v in vals.items() if k in st.names}
+    w0 = st.encode(common)
+    spread = np.array([0.05 if p.name in common else 1.0 for p in st.params])
+    return w0[None, :], spread

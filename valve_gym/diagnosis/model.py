@@ -1,0 +1,786 @@
+"""Model structures for fitting: the core simulator with a small free-parameter set.
+
+A :class:`ModelStructure` turns a matrix of candidate parameter vectors
+``W`` (``(n, k)``, each coordinate in 0..1) into one batched
+:class:`~valve_gym.params.ModelParams` plus initial state, runs the one
+physics core (:func:`valve_gym.core.run_packed`) once for the whole batch and
+returns the simulated process variable ``(T, n)`` in the recording's units.
+Nothing here re-implements physics: it chooses which parameters are free,
+their ranges and units, and the measurement map from the core's output to
+the recorded PV.
+
+Plants (``plant``) and their free parameters (recording units; ``u`` is the
+controller output normalised to 0..1, ``f(u)`` the flow fraction after the
+valve, ``PV`` the process variable):
+
+``first_order``
+    ``T dy/dt = K f + b - y``; free ``K`` [PV/1], ``T`` [s], ``b`` [PV] and
+    the initial output ``y(0)`` [PV].
+``integrating``
+    ``dy/dt = s (q_max f - q_out)``, ``A = 1``; free ``q_max`` [PV/s],
+    ``q_out`` [PV/s], ``y(0)`` [PV] and the sign ``s`` (+1: more output
+    raises the PV, -1: the valve drains the vessel).
+``tank``
+    ``dL/dt = q_max f - k_out sqrt(L)``, ``A = 1``, level ``L = PV`` (> 0);
+    free ``q_max`` [PV/s], ``k_out`` [PV^0.5/s], ``L(0)`` [PV].
+``cascade``
+    the two-tank model of Schoukens et al.
+    ``dx1/dt = -k1 sqrt(x1) + k4 u``, ``dx2/dt = k2 sqrt(x1) - k3 sqrt(x2)``,
+    ``PV = x2 + c``, written in the core's terms ``A1 = 1``, ``q_max = k4``,
+    ``k_out = k1``, ``area2 = k1/k2``, ``k_out2 = k3 k1/k2``; the unmeasured
+    upper level is scaled so that it equals the mean PV at the mean input
+    (one of ``k1, k2, k4`` is redundant); free ``k1, k3, k4, k1/k2`` (via two
+    time constants and a steady level), the offset ``c`` and ``x1(0)``,
+    ``x2(0)``.
+
+Internally the search runs on decorrelated coordinates (time constants,
+steady-state gains and levels at the mean input) scaled from the data; the
+fitted values are reported as the core's parameters.
+
+Actuators (``actuator``)
+
+``valve``
+    the paper's valve (Riihilahti / Yamé & El Bahir) with friction ``z_max``
+    [s] and dead band ``e_dead`` [-] free.  The stem's own dynamics are much
+    faster than a 1-10 s controller sample, so the valve is *quasi-static*:
+    ``tau`` equals the Euler step ``dt/n_sub`` and ``v_max = inf``, i.e. once
+    the friction state breaks away the stem reaches its target within one
+    Euler step.  ``z_max`` keeps the paper's meaning (seconds of integrated
+    error), resolved to ``dt/n_sub``.
+``pump``
+    ``q_in = q_max u`` (no valve, no friction).
+
+Effects (the diagnosis' candidate physics, see :data:`CANDIDATE_EFFECTS`)
+switch the corresponding block of :mod:`valve_gym.params` on and free its
+parameters.  ``slip_jump`` replaces the paper's friction by the
+Choudhury-Thornhill-Shah model (``S``, ``J`` free, positioner lag
+``tau_p = dt/n_sub``).
+
+Measurement map: ``PV_model = s * y_core + c``, then clipped to the sensor
+range when the recording shows the PV pinned at its maximum or minimum
+(``saturation='auto'``): a transmitter that reads exactly the same extreme
+value for several samples is saturated, and the model must see the same
+clipping.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from ..core import array_to_state, check_dt, initial_state, pack, run_packed
+from ..params import (Cascade, DeadTime, FirstOrderParams, IntegratingParams, Leak,
+                      ModelParams, OscillatingDisturbance, Overflow, ParameterError,
+                      SensorLag, SlipJump, TankParams, ValveCharacteristic, ValveParams)
+
+__all__ = ["PLANTS", "ACTUATORS", "CANDIDATE_EFFECTS", "FreeParam", "DataScales",
+           "ModelStructure", "effect_applicability"]
+
+#: Process models the fitter knows.
+PLANTS = ("tank", "integrating", "first_order", "cascade")
+#: Actuators the fitter knows.
+ACTUATORS = ("valve", "pump")
+#: Candidate effects, in the order they are tried.
+CANDIDATE_EFFECTS = ("slip_jump", "valve_characteristic", "dead_time", "overflow", "leak",
+                     "sensor_lag", "oscillating_disturbance")
+
+_BIG = 1e300
+
+
+# --------------------------------------------------------------------------- params
+@dataclass(frozen=True)
+class FreeParam:
+    """One free coordinate of the search.
+
+    Parameters
+    ----------
+    name : str
+        Internal name (e.g. ``"tau1"``, ``"z_max"``).
+    lo, hi : float
+        Bounds in the parameter's own units.
+    scale : {'lin', 'log', 'sq'}
+        Map from the unit coordinate ``w`` in 0..1: ``lo + (hi-lo) w``,
+        ``lo (hi/lo)**w`` or ``lo + (hi-lo) w**2`` (fine resolution near
+        ``lo``, e.g. friction near zero).
+    unit : str
+        Unit, for reports.
+    doc : str
+        One-line meaning.
+    discrete : bool
+        Held fixed by gradient-based refinement (e.g. a sign).
+    """
+
+    name: str
+    lo: float
+    hi: float
+    scale: str = "lin"
+    unit: str = ""
+    doc: str = ""
+    discrete: bool = False
+
+    def value(self, w):
+        """Parameter value(s) for unit coordinate(s) ``w``."""
+        w = np.clip(np.asarray(w, float), 0.0, 1.0)
+        if self.scale == "log":
+            return self.lo * (self.hi / self.lo) ** w
+        if self.scale == "sq":
+            return self.lo + (self.hi - self.lo) * w * w
+        return self.lo + (self.hi - self.lo) * w
+
+    def coord(self, v):
+        """Unit coordinate(s) of value(s) ``v`` (clipped to the bounds)."""
+        v = np.clip(np.asarray(v, float), min(self.lo, self.hi), max(self.lo, self.hi))
+        span = self.hi - self.lo
+        if span == 0:
+            return np.zeros_like(v)
+        if self.scale == "log":
+            return np.log(v / self.lo) / np.log(self.hi / self.lo)
+        if self.scale == "sq":
+            return np.sqrt(np.clip((v - self.lo) / span, 0, 1))
+        return (v - self.lo) / span
+
+
+@dataclass(frozen=True)
+class DataScales:
+    """Scales of a recording that set the search ranges (never fitted values).
+
+    Attributes
+    ----------
+    dt : float, s (controller sample)
+    n : int, samples used for fitting
+    duration : float, s
+    u_mean, u_std, u_min, u_max, u0 : float, controller output 0..1
+    y_mean, y_std, y_min, y_max, y0, y_q50 : float, PV units
+    sat_hi, sat_lo : float or None, PV value where the sensor saturates
+    """
+
+    dt: float
+    n: int
+    duration: float
+    u_mean: float
+    u_std: float
+    u_min: float
+    u_max: float
+    u0: float
+    y_mean: float
+    y_std: float
+    y_min: float
+    y_max: float
+    y0: float
+    y_q50: float
+    sat_hi: Optional[float] = None
+    sat_lo: Optional[float] = None
+
+    @property
+    def u_range(self) -> float:
+        return max(self.u_max - self.u_min, 1e-6)
+
+    @property
+    def y_range(self) -> float:
+        return max(self.y_max - self.y_min, 1e-12 + 1e-9 * abs(self.y_mean))
+
+    @staticmethod
+    def from_signals(u, y, dt, saturation="auto") -> "DataScales":
+        """Scales of ``u`` (0..1) and ``y`` (PV units) sampled every ``dt`` s.
+
+        ``saturation='auto'`` detects a sensor range end: at least 3
+        consecutive samples and 0.5 % of the record exactly at the maximum
+        (or minimum) of ``y``.  ``None`` disables it; a pair ``(lo, hi)``
+        (either may be None) sets it.
+        """
+        u = np.asarray(u, float)
+        y = np.asarray(y, float)
+        k = max(3, min(5, len(y) // 20))
+        y0 = float(np.median(y[:k]))
+        lo = hi = None
+        if saturation == "auto":
+            hi = _plateau(y, +1)
+            lo = _plateau(y, -1)
+        elif saturation is not None:
+            lo, hi = saturation
+        return DataScales(dt=float(dt), n=len(y), duration=float(len(y) * dt),
+                          u_mean=float(u.mean()), u_std=float(max(u.std(), 1e-6)),
+                          u_min=float(u.min()), u_max=float(u.max()), u0=float(u[0]),
+                          y_mean=float(y.mean()), y_std=float(max(y.std(), 1e-12)),
+                          y_min=float(y.min()), y_max=float(y.max()), y0=y0,
+                          y_q50=float(np.median(y)),
+                          sat_hi=None if hi is None else float(hi),
+                          sat_lo=None if lo is None else float(lo))
+
+
+def _plateau(y, side):
+    """Value of a saturated reading at the max (side=+1) or min (-1), else None."""
+    ext = y.max() if side > 0 else y.min()
+    tol = 1e-9 * max(abs(ext), 1.0)
+    at = np.abs(y - ext) <= tol
+    if at.sum() < max(3, 0.005 * len(y)):
+        return None
+    # longest run of consecutive samples at the extreme
+    run = best = 0
+    for a in at:
+        run = run + 1 if a else 0
+        best = max(best, run)
+    return float(ext) if best >= 3 else None
+
+
+def effect_applicability(effect: str, plant: str, actuator: str) -> Tuple[bool, str]:
+    """Whether ``effect`` can be identified for ``plant``/``actuator``, and why not.
+
+    Returns
+    -------
+    (bool, str)
+        ``True, ""`` when it is a candidate; else ``False`` and the reason.
+    """
+    if effect in ("slip_jump", "valve_characteristic") and actuator != "valve":
+        return False, f"{effect} acts on a valve; the actuator is a {actuator}"
+    if effect == "leak" and plant == "integrating":
+        return False, ("a constant leak cannot be told apart from the integrating plant's "
+                       "constant outflow q_out (same equation); it is already in the base model")
+    if effect == "leak" and plant == "first_order":
+        return False, ("a constant leak cannot be told apart from the first-order plant's bias b "
+                       "(same equation); it is already in the base model")
+    if effect not in CANDIDATE_EFFECTS:
+        return False, f"unknown effect {effect!r}"
+    return True, ""
+
+
+# --------------------------------------------------------------------------- structure
+class ModelStructure:
+    """A plant, an actuator and a set of effects with their free parameters.
+
+    Parameters
+    ----------
+    plant : {'tank', 'integrating', 'first_order', 'cascade'}
+    actuator : {'valve', 'pump'}
+    effects : sequence of str
+        Candidate effects switched on (see :data:`CANDIDATE_EFFECTS`).
+    scales : DataScales
+        Scales of the recording (fit part) that set the search ranges.
+    n_sub : int
+        Euler steps per controller sample (``dt_euler = scales.dt / n_sub``).
+    friction : bool
+        Valve friction free (``True``) or a frictionless valve (``False``:
+        ``z_max = e_dead = 0``, used for the stiction verdict).
+    variants : dict, optional
+        ``{'valve_characteristic': 'equal_percentage' | 'quick_opening'}``.
+    period_hint : float, optional
+        Period [s] of the strongest oscillation of the base residual; the
+        oscillating disturbance searches periods within a factor 1.5 of it.
+    output_offset : bool, optional
+        Free offset ``c`` of the measurement (default: only for ``cascade``).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> sc = DataScales.from_signals(np.linspace(0.3, 0.6, 200), np.linspace(1.0, 2.0, 200), 1.0)
+    >>> ms = ModelStructure("first_order", "valve", (), sc, n_sub=2)
+    >>> ms.names
+    ['K', 'T', 'b_offset', 'y0', 'e_dead', 'z_max']
+    """
+
+    def __init__(self, plant: str, actuator: str, effects: Sequence[str], scales: DataScales,
+                 n_sub: int = 2, friction: bool = True, variants: Optional[dict] = None,
+                 period_hint: Optional[float] = None, output_offset: Optional[bool] = None):
+        if plant not in PLANTS:
+            raise ValueError(f"unknown plant {plant!r}; choose one of {', '.join(PLANTS)}")
+        if actuator not in ACTUATORS:
+            raise ValueError(f"unknown actuator {actuator!r}; choose 'valve' or 'pump'")
+        effects = tuple(effects)
+        for e in effects:
+            ok, why = effect_applicability(e, plant, actuator)
+            if not ok:
+                raise ValueError(f"effect {e!r} cannot be used here: {why}")
+        if len(set(effects)) != len(effects):
+            raise ValueError(f"effects listed twice: {effects}")
+        if plant == "tank" and scales.y_min <= 0:
+            raise ValueError(
+                "plant 'tank' needs a positive level (PV > 0, measured above the outlet); the PV "
+                f"goes down to {scales.y_min:g}; use --plant first_order or integrating")
+        self.plant = plant
+        self.actuator = actuator
+        self.effects = effects
+        self.scales = scales
+        self.n_sub = int(n_sub)
+        self.friction = bool(friction) and actuator == "valve"
+        self.variants = dict(variants or {})
+        if "valve_characteristic" in effects:
+            self.variants.setdefault("valve_characteristic", "equal_percentage")
+        self.period_hint = period_hint
+        self.output_offset = (plant == "cascade") if output_offset is None else bool(output_offset)
+        self.params: List[FreeParam] = self._free_params()
+        self.names = [p.name for p in self.params]
+        self._index = {p.name: i for i, p in enumerate(self.params)}
+
+    # ---------------------------------------------------------------- description
+    @property
+    def k(self) -> int:
+        """Number of free parameters (the valve characteristic's kind counts as one)."""
+        extra = 1 if self.variants.get("valve_characteristic") == "quick_opening" else 0
+        return len(self.params) + extra
+
+    @property
+    def dt_euler(self) -> float:
+        return self.scales.dt / self.n_sub
+
+    def label(self) -> str:
+        """Short description, e.g. ``first_order + valve + dead_time``."""
+        parts = [self.plant, self.actuator if self.friction or self.actuator == "pump"
+                 else "frictionless valve"]
+        for e in self.effects:
+            v = self.variants.get(e)
+            parts.append(f"{e} ({v})" if v else e)
+        return " + ".join(parts)
+
+    def with_effects(self, effects: Sequence[str], **kw) -> "ModelStructure":
+        """Same plant/actuator/scales with other effects (keyword overrides allowed)."""
+        args = dict(plant=self.plant, actuator=self.actuator, effects=tuple(effects),
+                    scales=self.scales, n_sub=self.n_sub, friction=self.friction,
+                    variants=self.variants, period_hint=self.period_hint,
+                    output_offset=self.output_offset)
+        args.update(kw)
+        variants = dict(args["variants"] or {})
+        if "valve_characteristic" not in args["effects"]:
+            variants.pop("valve_characteristic", None)
+        args["variants"] = variants
+        return ModelStructure(**args)
+
+    # ---------------------------------------------------------------- parameters
+    def _free_params(self) -> List[FreeParam]:
+        sc = self.scales
+        dt, D = sc.dt, sc.duration
+        yr = sc.y_range
+        P: List[FreeParam] = []
+        tlo, thi = dt / 2.0, max(2.0 * D, dt)
+        if self.plant == "first_order":
+            P += [FreeParam("K", -6.0, 6.0, "lin", "PV/1",
+                            "steady-state gain, asinh-scaled by std(PV)/std(OP)"),
+                  FreeParam("T", tlo, max(D / 2, dt), "log", "s", "time constant"),
+                  FreeParam("b_offset", -1.5 * yr, 1.5 * yr, "lin", "PV",
+                            "bias b relative to mean(PV) - K f(mean OP)"),
+                  FreeParam("y0", -0.5 * yr, 0.5 * yr, "lin", "PV", "initial output - PV(0)")]
+        elif self.plant == "integrating":
+            g = sc.y_std / sc.u_std
+            P += [FreeParam("sign", -1.0, 1.0, "lin", "-", "output sign (>=0: +1)", discrete=True),
+                  FreeParam("q_max", 0.05 * g / D, 20.0 * g / dt, "log", "PV/s",
+                            "rate of change of the PV per unit flow fraction"),
+                  FreeParam("f_bal", sc.u_min - 0.25 * sc.u_range, sc.u_max + 0.25 * sc.u_range,
+                            "lin", "-", "flow fraction that balances the outflow, q_out/q_max"),
+                  FreeParam("y0", -0.5 * yr, 0.5 * yr, "lin", "PV", "initial output - PV(0)")]
+        elif self.plant == "tank":
+            P += [FreeParam("tau", dt / 2, 2 * D, "log", "s",
+                            "linearised outflow time constant at the mean level"),
+                  FreeParam("gain", 0.2, 5.0, "log", "-",
+                            "q_max f(mean OP) / (k_out sqrt(mean PV)): 1 = mean PV is steady"),
+                  FreeParam("y0", -0.5 * yr, 0.5 * yr, "lin", "PV", "initial level - PV(0)")]
+        else:  # cascade
+            P += [FreeParam("tau1", dt / 2, 2 * D, "log", "s", "upper-tank time constant"),
+                  FreeParam("tau2", dt / 2, 2 * D, "log", "s", "lower-tank time constant"),
+                  FreeParam("x2s", 0.2 * max(sc.y_mean, yr), 5.0 * max(sc.y_mean, yr), "log",
+                            "PV", "lower level at the mean input, steady state"),
+                  FreeParam("x1_0", 0.0, 3.0, "lin", "-",
+                            "initial upper level / upper level at the mean input"),
+                  FreeParam("y0", -0.5 * yr, 0.5 * yr, "lin", "PV", "initial lower level - PV(0)")]
+        if self.output_offset:
+            if self.plant == "cascade":
+                P.append(FreeParam("c", sc.y_min - 2 * yr, sc.y_min - 0.01 * yr, "lin", "PV",
+                                   "measurement offset, PV = x2 + c"))
+            else:
+                P.append(FreeParam("c", -yr, yr, "lin", "PV", "measurement offset"))
+        if self.actuator == "valve" and self.friction and "slip_jump" not in self.effects:
+            ur = sc.u_range
+            P += [FreeParam("e_dead", 0.0, float(np.clip(ur, 0.004, 0.2)), "sq", "-",
+                            "half dead band, fraction of stroke"),
+                  FreeParam("z_max", 0.0, float(np.clip(20.0 * ur, 0.01, 2.0)) * dt, "sq", "s",
+                            "half width of the friction band (integrated error)")]
+        for e in self.effects:
+            P += self._effect_params(e)
+        if self.actuator == "valve" and self.friction:
+            # the stem's position at t = 0 is part of the unknown initial state: a sticky
+            # valve can rest anywhere within its band around the first controller output
+            band = max(p.hi for p in P if p.name in ("e_dead", "S"))
+            P.append(FreeParam("dh0", -band, band, "lin", "-",
+                               "initial stem position - first controller output"))
+        return P
+
+    def _effect_params(self, e: str) -> List[FreeParam]:
+        sc = self.scales
+        dt, D = sc.dt, sc.duration
+        if e == "slip_jump":
+            s_hi = float(np.clip(sc.u_range, 0.008, 0.3))
+            return [FreeParam("S", 0.0, s_hi, "sq", "-", "stick band + dead band, fraction of stroke"),
+                    FreeParam("J_rel", 0.0, 2.0, "lin", "-", "slip jump relative to S, J/S")]
+        if e == "valve_characteristic":
+            if self.variants.get("valve_characteristic", "equal_percentage") == "equal_percentage":
+                return [FreeParam("R", 1.5, 100.0, "log", "-", "rangeability (equal percentage)")]
+            return []
+        if e == "dead_time":
+            return [FreeParam("theta", 0.0, float(min(30 * dt, D / 5)), "lin", "s", "dead time")]
+        if e == "overflow":
+            if self.plant == "cascade":
+                return [FreeParam("L_max", 0.3, 6.0, "log", "-",
+                                  "upper-tank top / upper level at the mean input"),
+                        FreeParam("spill", 0.0, 1.0, "lin", "-",
+                                  "fraction of the upper tank's spill that falls into the lower tank"),
+                        FreeParam("L2_frac", 0.0, 1.0, "lin", "-",
+                                  "lower-tank top between median and max PV (+30 % of range)")]
+            return [FreeParam("L_frac", 0.0, 1.0, "lin", "-",
+                              "top between median and max PV (+30 % of range)")]
+        if e == "leak":
+            return [FreeParam("leak_frac", 0.0, 0.8, "sq", "-", "leak / mean inflow")]
+        if e == "sensor_lag":
+            return [FreeParam("tau_s", dt / 2, 30 * dt, "log", "s", "sensor time constant")]
+        if e == "oscillating_disturbance":
+            if self.period_hint:
+                plo, phi = self.period_hint / 1.5, self.period_hint * 1.5
+            else:
+                plo, phi = 4 * dt, D / 2
+            plo, phi = max(plo, 3 * dt), max(min(phi, D), 3.1 * dt)
+            return [FreeParam("dist_amp", 0.0, 1.0, "sq", "-", "amplitude / flow scale"),
+                    FreeParam("period", plo, phi, "log", "s", "period"),
+                    FreeParam("phase", 0.0, 2 * np.pi, "lin", "rad", "phase at t = 0")]
+        raise ValueError(f"unknown effect {e!r}")  # pragma: no cover
+
+    # ---------------------------------------------------------------- coordinates
+    def decode(self, W) -> Dict[str, np.ndarray]:
+        """Internal parameter values ``{name: (n,)}`` of unit coordinates ``W`` (n, k)."""
+        W = np.atleast_2d(np.asarray(W, float))
+        return {p.name: p.value(W[:, i]) for i, p in enumerate(self.params)}
+
+    def encode(self, values: Dict[str, float]) -> np.ndarray:
+        """Unit coordinates ``(k,)`` of internal values (missing names -> 0.5... or neutral)."""
+        w = np.empty(len(self.params))
+        for i, p in enumerate(self.params):
+            v = values.get(p.name)
+            w[i] = self.neutral_coord(p) if v is None else float(p.coord(np.asarray(v, float)))
+        return w
+
+    def neutral_coord(self, p: FreeParam) -> float:
+        """Unit coordinate at which an effect parameter leaves the base model unchanged."""
+        neutral = {"theta": 0.0, "L_frac": 1.0, "L_max": 1.0, "spill": 0.5, "L2_frac": 1.0,
+                   "leak_frac": 0.0, "tau_s": 0.0, "dist_amp": 0.0, "period": 0.5,
+                   "phase": 0.0, "R": 0.5, "S": 0.3, "J_rel": 0.5, "c": 0.5}
+        return float(neutral.get(p.name, 0.5))
+
+    def index(self, name: str) -> int:
+        return self._index[name]
+
+    # ---------------------------------------------------------------- build
+    def _fbar(self, v, n):
+        """Flow fraction at the mean controller output, per row."""
+        u = np.full(n, self.scales.u_mean)
+        kind = self.variants.get("valve_characteristic")
+        if kind is None or self.actuator == "pump":
+            return np.maximum(u, 1e-3)
+        if kind == "equal_percentage":
+            return np.maximum(v["R"] ** (u - 1.0), 1e-3)
+        return np.maximum(np.sqrt(u), 1e-3)
+
+    def build(self, values: Dict[str, np.ndarray], n_sub: Optional[int] = None):
+        """Core parameters, initial state and measurement map for ``values``.
+
+        Returns
+        -------
+        params : ModelParams (fields are ``(n,)`` arrays)
+        init : dict of ``level``, ``level2``, ``h`` for :func:`initial_state`
+        sign, offset : (n,) arrays, measurement ``PV = sign * y_core + offset``
+        """
+        sc = self.scales
+        n = len(next(iter(values.values()))) if values else 1
+        v = {k: np.broadcast_to(np.asarray(a, float), (n,)).copy() for k, a in values.items()}
+        ns = self.n_sub if n_sub is None else int(n_sub)
+        dte = sc.dt / ns
+        fbar = self._fbar(v, n)
+        sign = np.ones(n)
+        offset = v["c"] if "c" in v else np.zeros(n)
+        cas = None
+        level2 = None
+        kw = {}
+        if self.plant == "first_order":
+            # internal shift so that the core's output stays positive (overflow needs L_max > 0)
+            offset = offset + (sc.y_min - sc.y_range)
+            ks = sc.y_std / sc.u_std
+            K = ks * np.sinh(v["K"])
+            b = sc.y_mean - K * fbar + v["b_offset"] - offset
+            proc = FirstOrderParams(K=K, T=v["T"], b=b, level0=0.0)
+            level = sc.y0 + v["y0"] - offset
+            flow_scale = np.maximum(np.abs(K), 1e-12)
+        elif self.plant == "integrating":
+            sign = np.where(v["sign"] >= 0, 1.0, -1.0)
+            offset = offset + np.where(sign > 0, sc.y_min - sc.y_range, sc.y_max + sc.y_range)
+            proc = IntegratingParams(area=1.0, q_max=v["q_max"], q_out=v["q_max"] * v["f_bal"],
+                                     level0=0.0)
+            level = sign * (sc.y0 + v["y0"] - offset)
+            flow_scale = v["q_max"]
+        elif self.plant == "tank":
+            ym = max(sc.y_mean, 1e-9)
+            k_out = 2.0 * np.sqrt(ym) / v["tau"]
+            q_max = v["gain"] * k_out * np.sqrt(ym) / fbar
+            proc = TankParams(area=1.0, q_max=q_max, k_out=k_out, level0=1.0)
+            level = np.maximum(sc.y0 + v["y0"] - offset, 0.0)
+            flow_scale = q_max * fbar
+        else:  # cascade
+            X1 = max(sc.y_mean, 1e-9)
+            qs = 2.0 * X1 / v["tau1"]
+            q_max = qs / fbar
+            k_out = qs / np.sqrt(X1)
+            x2s = v["x2s"]
+            area2 = v["tau2"] * qs / (2.0 * x2s)
+            k_out2 = qs / np.sqrt(x2s)
+            proc = TankParams(area=1.0, q_max=q_max, k_out=k_out, level0=1.0)
+            cas = Cascade(area2=area2, k_out2=k_out2, level2_0=1.0)
+            level = v["x1_0"] * X1
+            level2 = np.maximum(sc.y0 + v["y0"] - offset, 0.0)
+            flow_scale = qs
+        # valve
+        if self.actuator == "valve":
+            if self.friction and "slip_jump" not in self.effects:
+                valve = ValveParams(tau=dte, v_max=np.inf, e_dead=v["e_dead"], z_max=v["z_max"])
+            else:
+                valve = ValveParams(tau=dte, v_max=np.inf, e_dead=0.0, z_max=0.0)
+        else:
+            valve = ValveParams(tau=dte, v_max=np.inf, e_dead=0.0, z_max=0.0)
+        blocks = {}
+        for e in self.effects:
+            if e == "slip_jump":
+                blocks[e] = SlipJump(S=v["S"], J=np.minimum(v["S"] * v["J_rel"], 1.0), tau_p=dte)
+            elif e == "valve_characteristic":
+                kind = self.variants.get("valve_characteristic", "equal_percentage")
+                blocks[e] = ValveCharacteristic(kind=kind, R=v["R"] if "R" in v else 30.0, h0=0.0)
+            elif e == "dead_time":
+                blocks[e] = DeadTime(theta=v["theta"])
+            elif e == "overflow":
+                if self.plant == "cascade":
+                    X1 = max(sc.y_mean, 1e-9)
+                    lo2 = sc.y_q50 - offset
+                    hi2 = sc.y_max + 0.3 * sc.y_range - offset
+                    L2 = np.maximum(lo2 + v["L2_frac"] * (hi2 - lo2), 1e-9)
+                    blocks[e] = Overflow(L_max=v["L_max"] * X1, L2_max=L2,
+                                         spill_to_lower=v["spill"])
+                else:
+                    # top in model units (level = sign * (PV - offset))
+                    ym = sign * (np.array([sc.y_q50, sc.y_max, sc.y_min])[:, None] - offset)
+                    lo = ym[0]
+                    hi = np.maximum(ym[1], ym[2]) + 0.3 * sc.y_range
+                    L = lo + v["L_frac"] * (hi - lo)
+                    blocks[e] = Overflow(L_max=np.maximum(L, 1e-9))
+            elif e == "leak":
+                blocks[e] = Leak(q_leak=v["leak_frac"] * flow_scale)
+            elif e == "sensor_lag":
+                blocks[e] = SensorLag(tau_s=v["tau_s"])
+            elif e == "oscillating_disturbance":
+                amp_scale = self._dist_scale(flow_scale)
+                blocks[e] = OscillatingDisturbance(amplitude=v["dist_amp"] * amp_scale,
+                                                   period=v["period"], phase=v["phase"])
+        kind = "cascade" if self.plant == "cascade" else self.plant
+        mp = ModelParams(valve=valve, process=proc, process_kind=kind, dt=dte, cascade=cas,
+                         actuator=None if self.actuator == "valve" else _pump(), **blocks)
+        h0 = np.clip(sc.u0 + (v["dh0"] if "dh0" in v else 0.0), 0.0, 1.0) * np.ones(n)
+        init = dict(level=level, h=h0)
+        if level2 is not None:
+            init["level2"] = level2
+        return mp, init, sign, offset
+
+    def _dist_scale(self, flow_scale):
+        sc = self.scales
+        if self.plant == "first_order":
+            return np.full_like(flow_scale, 2.0 * sc.y_range)
+        if self.plant == "integrating":
+            return flow_scale * 3.0 * sc.u_std
+        return 0.5 * flow_scale
+
+    # ---------------------------------------------------------------- simulate
+    def simulate(self, W, u, n_sub: Optional[int] = None, coords: bool = True) -> np.ndarray:
+        """Simulated PV ``(T, n)`` for unit coordinates ``W`` (n, k) over input ``u`` (T,).
+
+        ``coords=False`` takes internal values ``{name: (n,)}`` instead of ``W``.
+        Unstable or invalid parameter rows give ``nan`` columns.
+        """
+        values = self.decode(W) if coords else W
+        mp, init, sign, offset = self.build(values, n_sub=n_sub)
+        ns = self.n_sub if n_sub is None else int(n_sub)
+        n = mp.batch_size()
+        n = max(n, len(sign))
+        pk = pack(mp, n, check=False)
+        st = initial_state(mp, n, buf_len=pk.buf_len, **init)
+        S = np.ascontiguousarray(np.stack([np.asarray(a, float) for a in st[:12]]))
+        buf = np.array(st.delay_buf, dtype=np.float64, copy=True)
+        U = np.ascontiguousarray(np.asarray(u, float).reshape(-1, 1))
+        T = U.shape[0]
+        Dz = np.zeros((T, 1))
+        Y = np.empty((T, n))
+        H = np.empty((T, n))
+        LV = np.empty((T, n))
+        run_packed(pk, S, buf, U, Dz, ns, Y, H, LV)
+        Y = sign[None, :] * Y + offset[None, :]
+        sc = self.scales
+        if sc.sat_hi is not None:
+            np.minimum(Y, sc.sat_hi, out=Y)
+        if sc.sat_lo is not None:
+            np.maximum(Y, sc.sat_lo, out=Y)
+        Y[:, ~np.isfinite(Y).all(axis=0)] = np.nan
+        return Y
+
+    def stem(self, W, u, n_sub: Optional[int] = None) -> np.ndarray:
+        """Simulated stem position ``(T,)`` of the first row of ``W`` (0..1)."""
+        values = self.decode(np.atleast_2d(W)[:1])
+        mp, init, sign, offset = self.build(values, n_sub=n_sub)
+        ns = self.n_sub if n_sub is None else int(n_sub)
+        pk = pack(mp, 1, check=False)
+        st = initial_state(mp, 1, buf_len=pk.buf_len, **init)
+        S = np.ascontiguousarray(np.stack([np.asarray(a, float) for a in st[:12]]))
+        buf = np.array(st.delay_buf, dtype=np.float64, copy=True)
+        U = np.ascontiguousarray(np.asarray(u, float).reshape(-1, 1))
+        T = U.shape[0]
+        Y = np.empty((T, 1))
+        H = np.empty((T, 1))
+        LV = np.empty((T, 1))
+        run_packed(pk, S, buf, U, np.zeros((T, 1)), ns, Y, H, LV)
+        return H[:, 0]
+
+    # ---------------------------------------------------------------- reporting
+    def model_params(self, w, n_sub: Optional[int] = None) -> ModelParams:
+        """Scalar :class:`ModelParams` of one coordinate vector ``w`` (k,)."""
+        values = {k: float(a[0]) for k, a in self.decode(np.atleast_2d(w)[:1]).items()}
+        mp, init, sign, offset = self.build({k: np.array([a]) for k, a in values.items()},
+                                            n_sub=n_sub)
+        return _scalarise(mp)
+
+    def initial_values(self, w) -> dict:
+        """Initial state of one coordinate vector: ``level``, ``level2``, ``h``."""
+        values = self.decode(np.atleast_2d(w)[:1])
+        _, init, sign, offset = self.build(values)
+        return {k: float(np.asarray(a).reshape(-1)[0]) for k, a in init.items()}
+
+    def physical(self, w, n_sub: Optional[int] = None) -> Dict[str, float]:
+        """Fitted parameters of one coordinate vector, named after the core's fields.
+
+        Keys are ``block.field`` (e.g. ``process.K``, ``valve.z_max``,
+        ``dead_time.theta``), ``init.*`` for the initial state and
+        ``measurement.*`` for the measurement map ``PV = sign * y_core +
+        offset`` between the core's output and the PV.  ``process.b`` and the
+        initial output/level of the measured vessel are given as read on the
+        PV; the other levels (``overflow.L_max``, the cascade's upper tank)
+        in the core's units (``overflow.L_max_pv`` as read on the PV).  Units:
+        see :meth:`units`.
+        """
+        values = self.decode(np.atleast_2d(w)[:1])
+        mp, init, sign, offset = self.build(values, n_sub=n_sub)
+        mp = _scalarise(mp)
+        out: Dict[str, float] = {}
+        pr = mp.process
+        if self.plant == "first_order":
+            # b in PV units: the core runs on y_core = PV - offset
+            out.update({"process.K": pr.K, "process.T": pr.T, "process.b": pr.b + offset[0]})
+        elif self.plant == "integrating":
+            out.update({"process.q_max": pr.q_max, "process.q_out": pr.q_out})
+        else:
+            out.update({"process.area": pr.area, "process.q_max": pr.q_max,
+                        "process.k_out": pr.k_out})
+        if mp.cascade is not None:
+            out.update({"cascade.area2": mp.cascade.area2, "cascade.k_out2": mp.cascade.k_out2})
+            a2 = mp.cascade.area2
+            out.update({"schoukens.k1": pr.k_out, "schoukens.k2": pr.k_out / a2,
+                        "schoukens.k3": mp.cascade.k_out2 / a2, "schoukens.k4": pr.q_max})
+        if self.actuator == "valve":
+            if mp.slip_jump is not None:
+                out.update({"slip_jump.S": mp.slip_jump.S, "slip_jump.J": mp.slip_jump.J})
+            else:
+                out.update({"valve.e_dead": mp.valve.e_dead, "valve.z_max": mp.valve.z_max})
+        if mp.valve_characteristic is not None:
+            vc = mp.valve_characteristic
+            if vc.kind == "equal_percentage":
+                out["valve_characteristic.R"] = vc.R
+        if mp.dead_time is not None:
+            out["dead_time.theta"] = mp.dead_time.theta
+        if mp.overflow is not None:
+            o = mp.overflow
+            out["overflow.L_max"] = o.L_max
+            if self.plant == "cascade":
+                out["overflow.L2_max"] = o.L2_max
+                out["overflow.spill_to_lower"] = o.spill_to_lower
+                out["overflow.L2_max_pv"] = o.L2_max + offset[0]
+            else:
+                out["overflow.L_max_pv"] = sign[0] * o.L_max + offset[0]
+        if mp.leak is not None:
+            out["leak.q_leak"] = mp.leak.q_leak
+        if mp.sensor_lag is not None:
+            out["sensor_lag.tau_s"] = mp.sensor_lag.tau_s
+        if mp.oscillating_disturbance is not None:
+            d = mp.oscillating_disturbance
+            out.update({"oscillating_disturbance.amplitude": d.amplitude,
+                        "oscillating_disturbance.period": d.period,
+                        "oscillating_disturbance.phase": float(np.mod(d.phase, 2 * np.pi))})
+        for k, a in init.items():
+            if k == "h":
+                if "dh0" in self.names:
+                    out["init.stem"] = float(np.asarray(a).reshape(-1)[0])
+                continue
+            a0 = float(np.asarray(a).reshape(-1)[0])
+            if (k == "level" and self.plant in ("first_order", "integrating")) or k == "level2":
+                a0 = sign[0] * a0 + offset[0]          # as read on the PV
+            out[f"init.{k}"] = a0
+        out["measurement.sign"] = float(sign[0])
+        out["measurement.offset"] = float(offset[0])
+        return {k: float(np.asarray(a).reshape(-1)[0]) for k, a in out.items()}
+
+    def units(self) -> Dict[str, str]:
+        """Units of the keys of :meth:`physical` (PV = units of the recording's PV)."""
+        flow = {"first_order": "PV", "integrating": "PV/s", "tank": "PV/s", "cascade": "PV/s"}
+        u = {"process.K": "PV per unit OP (0..1)", "process.T": "s", "process.b": "PV",
+             "process.q_max": "PV/s", "process.q_out": "PV/s", "process.area": "-",
+             "process.k_out": "PV^0.5/s", "cascade.area2": "-", "cascade.k_out2": "PV^0.5/s",
+             "schoukens.k1": "PV^0.5/s", "schoukens.k2": "PV^0.5/s", "schoukens.k3": "PV^0.5/s",
+             "schoukens.k4": "PV/s per unit input",
+             "slip_jump.S": "fraction of stroke", "slip_jump.J": "fraction of stroke",
+             "valve.e_dead": "fraction of stroke", "valve.z_max": "s (integrated error)",
+             "valve_characteristic.R": "-", "dead_time.theta": "s", "overflow.L_max": "PV",
+             "overflow.L2_max": "PV", "overflow.spill_to_lower": "-",
+             "overflow.L_max_pv": "PV (limit as read on the PV)",
+             "overflow.L2_max_pv": "PV (limit as read on the PV)",
+             "leak.q_leak": flow[self.plant],
+             "sensor_lag.tau_s": "s", "oscillating_disturbance.amplitude": flow[self.plant],
+             "oscillating_disturbance.period": "s", "oscillating_disturbance.phase": "rad",
+             "init.level": "PV", "init.level2": "PV", "init.stem": "fraction of stroke",
+             "measurement.sign": "-",
+             "measurement.offset": "PV"}
+        if self.plant == "cascade":
+            u["overflow.L_max"] = "upper-tank level units (scaled to PV)"
+            u["init.level"] = "upper-tank level units (scaled to PV)"
+        return u
+
+    def stable_n_sub(self, w, start: Optional[int] = None, cap: int = 400) -> int:
+        """Smallest ``n_sub >= start`` for which :func:`check_dt` accepts ``w``'s model."""
+        ns = self.n_sub if start is None else int(start)
+        while ns <= cap:
+            try:
+                check_dt(self.model_params(w, n_sub=ns))
+                return ns
+            except ParameterError:
+                ns = int(math.ceil(ns * 1.5))
+        return cap
+
+
+def _pump():
+    from ..params import Actuator
+    return Actuator(kind="pump")
+
+
+def _scalarise(mp: ModelParams) -> ModelParams:
+    """Copy of a batch-of-one ModelParams with plain floats."""
+    from dataclasses import fields, is_dataclass, replace
+
+    def sc(obj):
+        if obj is None or not is_dataclass(obj):
+            return obj
+        kw = {}
+        for f in fields(obj):
+            a = getattr(obj, f.name)
+            if isinstance(a, np.ndarray):
+                kw[f.name] = float(a.reshape(-1)[0])
+            elif is_dataclass(a):
+                kw[f.name] = sc(a)
+        return replace(obj, **kw) if kw else obj
+
+    return sc(mp)

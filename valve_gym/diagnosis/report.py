@@ -1,0 +1,341 @@
+"""Figures, JSON and markdown report of a diagnosis (matplotlib imported lazily).
+
+Every file is written atomically: to a temporary file in the target folder,
+then renamed over the target, so a reader never sees a half-written file.
+
+Examples
+--------
+>>> from valve_gym.diagnosis import diagnose
+>>> from valve_gym.diagnosis.synthetic import make_recording
+>>> res = diagnose(make_recording("none", seed=4, n=300), candidates=(), effort="fast")
+>>> import tempfile, os
+>>> d = tempfile.mkdtemp()
+>>> paths = write_report(res, d)
+>>> sorted(os.path.basename(p) for p in paths)[:3]
+['acf.png', 'diagnosis.json', 'overlay.png']
+"""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from typing import List, Optional
+
+import numpy as np
+
+__all__ = ["write_json", "write_text", "write_report", "plot_overlay", "plot_residuals",
+           "plot_acf", "plot_validation", "render_markdown", "summary_table"]
+
+
+# --------------------------------------------------------------------------- atomic IO
+def _atomic(path: str, write) -> str:
+    path = os.fspath(path)
+    d = os.path.dirname(os.path.abspath(path)) or "."
+    os.makedirs(d, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp", dir=d)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            write(f)
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    return path
+
+
+def write_text(text: str, path) -> str:
+    """Write ``text`` (UTF-8) to ``path`` atomically; returns the path."""
+    return _atomic(path, lambda f: f.write(text.encode("utf-8")))
+
+
+def write_json(obj, path) -> str:
+    """Write a JSON-ready object (or a result with ``to_dict``) atomically."""
+    if hasattr(obj, "to_dict"):
+        obj = obj.to_dict()
+    return write_text(json.dumps(obj, indent=2, allow_nan=False) + "\n", path)
+
+
+def _savefig(fig, path) -> str:
+    def w(f):
+        fig.savefig(f, format="png", dpi=110, bbox_inches="tight")
+    out = _atomic(path, w)
+    import matplotlib.pyplot as plt
+    plt.close(fig)
+    return out
+
+
+def _plt():
+    try:
+        import matplotlib
+        matplotlib.use("Agg", force=False)
+        import matplotlib.pyplot as plt
+    except ImportError as e:  # pragma: no cover
+        raise ImportError("the report figures need matplotlib: pip install matplotlib") from e
+    return plt
+
+
+# --------------------------------------------------------------------------- figures
+def _shade(ax, res, color="tab:red"):
+    for r in res.mismatch.regions:
+        ax.axvspan(r.t_start, r.t_end, color=color, alpha=0.12, lw=0)
+    n_fit = res.base_split.n_fit
+    if n_fit < len(res.recording):
+        ax.axvline(res.recording.t[n_fit], color="k", ls=":", lw=1)
+
+
+def plot_overlay(res, path=None):
+    """Measured vs simulated PV, before (base) and after (final); controller output below.
+
+    Shaded: mismatch regions of the base model; dotted line: start of the
+    held-out part.  Returns the figure (or the path when ``path`` is given).
+    """
+    plt = _plt()
+    rec = res.recording
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(11, 6.5), sharex=True,
+                                 gridspec_kw={"height_ratios": [3, 1.3]})
+    a1.plot(rec.t, rec.pv, color="0.3", lw=0.8, label="measured PV")
+    a1.plot(rec.t, res.base.y_sim, color="tab:red", lw=1.2,
+            label=f"base: RMSE {res.base.rmse_all:.3g}, fit {res.base.fit_percent_all:.1f} %")
+    if res.effects:
+        a1.plot(rec.t, res.final.y_sim, color="tab:blue", lw=1.2,
+                label=f"+ {', '.join(res.effects)}: RMSE {res.final.rmse_all:.3g}, "
+                      f"fit {res.final.fit_percent_all:.1f} %")
+    if rec.sp is not None:
+        a1.plot(rec.t, rec.sp, color="k", lw=0.8, ls="--", label="set point")
+    _shade(a1, res)
+    a1.set_ylabel("PV")
+    a1.legend(loc="best", fontsize=8)
+    a1.set_title(f"{rec.name}: measured vs free-run simulated "
+                 f"(shaded: mismatch regions of the base model)")
+    lo, hi = rec.op_range
+    a2.plot(rec.t, lo + rec.op * (hi - lo), color="tab:green", lw=0.9, label="controller output")
+    if res.actuator == "valve":
+        try:
+            h = res.final.structure.stem(res.final.w, rec.op, n_sub=res.final.n_sub)
+            a2.plot(rec.t, lo + h * (hi - lo), color="tab:purple", lw=0.9,
+                    label="simulated stem (final model)")
+        except Exception:  # pragma: no cover - plotting aid only
+            pass
+    _shade(a2, res)
+    a2.set_ylabel("OP")
+    a2.set_xlabel("time [s]")
+    a2.legend(loc="best", fontsize=8)
+    fig.tight_layout()
+    return _savefig(fig, path) if path else fig
+
+
+def plot_residuals(res, path=None):
+    """Residuals before and after, with the noise band and the mismatch threshold."""
+    plt = _plt()
+    rec = res.recording
+    fig, axs = plt.subplots(2, 1, figsize=(11, 5.5), sharex=True, sharey=True)
+    for ax, fit, mm, title in ((axs[0], res.base, res.mismatch, "base model"),
+                               (axs[1], res.final, res.mismatch_final,
+                                "final model" + (f" (+ {', '.join(res.effects)})"
+                                                 if res.effects else " (= base)"))):
+        r = fit.residual
+        ax.plot(rec.t, r, color="0.4", lw=0.6, label="residual")
+        if mm.moving_rms is not None:
+            ax.plot(rec.t, mm.moving_rms, color="tab:orange", lw=1.2,
+                    label=f"moving RMS ({mm.window} samples)")
+        ax.axhline(mm.threshold, color="tab:red", ls="--", lw=0.8, label="region threshold")
+        s = 2 * mm.tests.noise_std
+        ax.axhspan(-s, s, color="tab:green", alpha=0.12, lw=0, label="+-2 x noise level")
+        _shade(ax, res)
+        ax.set_title(f"{title}: residual RMS {mm.rms:.3g}, Ljung-Box p = "
+                     f"{mm.tests.ljung_box_p:.2g}", fontsize=10)
+        ax.set_ylabel("PV - simulated")
+        ax.legend(loc="upper right", fontsize=7)
+    axs[1].set_xlabel("time [s]")
+    fig.tight_layout()
+    return _savefig(fig, path) if path else fig
+
+
+def plot_acf(res, path=None):
+    """Residual autocorrelation and residual-input cross-correlation, 95 % bands."""
+    plt = _plt()
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 3.8))
+    for mm, c, lab in ((res.mismatch, "tab:red", "base"),
+                       (res.mismatch_final, "tab:blue", "final")):
+        t = mm.tests
+        a1.plot(t.lags, t.acf, "o-", ms=2.5, lw=0.8, color=c, label=lab)
+        a2.plot(t.ccf_lags, t.ccf, "o-", ms=2.5, lw=0.8, color=c, label=lab)
+    for ax, b in ((a1, res.mismatch.tests.acf_bound), (a2, res.mismatch.tests.ccf_bound)):
+        ax.axhspan(-b, b, color="0.8", alpha=0.6, lw=0, label="95 % band")
+        ax.axhline(0, color="k", lw=0.5)
+        ax.legend(fontsize=8)
+    a1.set_title("residual autocorrelation")
+    a1.set_xlabel("lag [samples]")
+    a2.set_title("cross-correlation residual vs controller output")
+    a2.set_xlabel("lag [samples] (> 0: output leads)")
+    fig.tight_layout()
+    return _savefig(fig, path) if path else fig
+
+
+def plot_validation(res, path=None):
+    """The fitted models on the validation recording (initial state refitted)."""
+    ser = getattr(res, "_validation_series", None)
+    if ser is None:
+        return None
+    plt = _plt()
+    yb, yf, other = ser
+    fig, ax = plt.subplots(figsize=(11, 3.8))
+    v = res.validation
+    ax.plot(other.t, other.pv, color="0.3", lw=0.8, label="measured PV")
+    ax.plot(other.t, yb, color="tab:red", lw=1.1, label=f"base: RMSE {v['base_rmse']:.3g}")
+    ax.plot(other.t, yf, color="tab:blue", lw=1.1, label=f"final: RMSE {v['final_rmse']:.3g}")
+    ax.set_title(f"validation on {other.name} (models fitted on {res.recording.name})")
+    ax.set_xlabel("time [s]")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return _savefig(fig, path) if path else fig
+
+
+# --------------------------------------------------------------------------- markdown
+def _g(x, nd=4):
+    if x is None:
+        return "–"
+    try:
+        x = float(x)
+    except (TypeError, ValueError):
+        return str(x)
+    if not np.isfinite(x):
+        return "–"
+    return f"{x:.{nd}g}"
+
+
+def render_markdown(res, figures: Optional[dict] = None) -> str:
+    """Short markdown report of a :class:`DiagnosisResult`."""
+    d = res.to_dict()
+    rec = d["recording"]
+    L: List[str] = []
+    L.append(f"# Diagnosis of `{rec['name']}`")
+    L.append("")
+    L.append(f"{rec['n']} samples, dt = {_g(rec['dt'])} s, plant `{res.plant}`, actuator "
+             f"`{res.actuator}`; held-out end: {_g(100 * d['holdout']['fraction'], 3)} % of the "
+             f"record.")
+    L.append("")
+    eff = ", ".join(f"`{e}`" for e in d["effects"]) or "none"
+    L.append(f"**Missing physics:** {eff}.  **Valve friction:** "
+             + ("present" if d["stiction"].get("present") else
+                ("not significant" if d["stiction"].get("tested") else "not tested (no valve)"))
+             + ".")
+    L.append("")
+    for p in d["explanation"]:
+        L.append(f"- {p}")
+    if d["stiction"].get("explanation"):
+        L.append(f"- {d['stiction']['explanation']}")
+    L.append("")
+    L.append("## Fit before and after")
+    L.append("")
+    L.append("| model | RMSE (whole record) | fit % | held-out RMSE | held-out fit % | parameters |")
+    L.append("|---|---|---|---|---|---|")
+    h = d["holdout"]
+    for key, hr, hf in (("base", h["base_rmse"], h["base_fit_percent"]),
+                        ("final", h["final_rmse"], h["final_fit_percent"])):
+        m = d[key]
+        L.append(f"| {m['model']} | {_g(m['rmse'])} | {_g(m['fit_percent'], 3)} | {_g(hr)} | "
+                 f"{_g(hf, 3)} | {m['n_params']} |")
+    if d.get("validation"):
+        v = d["validation"]
+        L.append("")
+        L.append(f"Validation on `{v['recording']}` (initial state refitted): RMSE base "
+                 f"{_g(v['base_rmse'])}, final {_g(v['final_rmse'])}; fit % base "
+                 f"{_g(v['base_fit_percent'], 3)}, final {_g(v['final_fit_percent'], 3)}.")
+    L.append("")
+    L.append("## Fitted parameters")
+    L.append("")
+    L.append("| parameter | base | final | unit |")
+    L.append("|---|---|---|---|")
+    keys = list(dict.fromkeys(list(d["base"]["params"]) + list(d["final"]["params"])))
+    units = {**d["base"]["units"], **d["final"]["units"]}
+    for k in keys:
+        L.append(f"| `{k}` | {_g(d['base']['params'].get(k))} | {_g(d['final']['params'].get(k))} "
+                 f"| {units.get(k, '')} |")
+    L.append("")
+    L.append("## Where the base model misses")
+    L.append("")
+    if d["mismatch"]:
+        L.append("| t_start [s] | t_end [s] | RMS | mean | share of squared error | main conditions |")
+        L.append("|---|---|---|---|---|---|")
+        for r in d["mismatch"]:
+            main = sorted(((v, k) for k, v in r["conditions"].items()), reverse=True)[:3]
+            mc = ", ".join(f"{k} {100 * v:.0f} %" for v, k in main)
+            L.append(f"| {_g(r['t_start'])} | {_g(r['t_end'])} | {_g(r['rms'])} | {_g(r['mean'])} | "
+                     f"{_g(100 * r['share_sse'], 3)} % | {mc} |")
+    else:
+        L.append("No region stands out above the threshold.")
+    L.append("")
+    L.append("| condition | fraction | RMS in | RMS out | ratio | z | significant |")
+    L.append("|---|---|---|---|---|---|---|")
+    for c in d["mismatch_conditions"]:
+        L.append(f"| {c['description']} | {_g(100 * c['fraction'], 3)} % | {_g(c['rms_in'])} | "
+                 f"{_g(c['rms_out'])} | {_g(c['ratio'], 3)} | {_g(c['z'], 3)} | "
+                 f"{'yes' if c['significant'] else 'no'} |")
+    L.append("")
+    rt = d["residual_tests"]
+    L.append("Residual tests (base -> final): Ljung-Box p "
+             f"{_g(rt['base']['ljung_box_p'], 3)} -> {_g(rt['final']['ljung_box_p'], 3)}; "
+             f"autocorrelations outside the 95 % band {_g(100 * rt['base']['acf_outside'], 3)} % -> "
+             f"{_g(100 * rt['final']['acf_outside'], 3)} %; input cross-correlations outside "
+             f"{_g(100 * rt['base']['ccf_outside'], 3)} % -> {_g(100 * rt['final']['ccf_outside'], 3)} %.")
+    L.append("")
+    L.append("## Candidates tried")
+    L.append("")
+    L.append("| round | effect | criterion change | held-out change | verdict |")
+    L.append("|---|---|---|---|---|")
+    for c in d["candidates"]:
+        name = c["effect"] + (f" ({c['variant']})" if c["variant"] else "")
+        hc = "–" if c["holdout_change"] is None else f"{100 * c['holdout_change']:+.1f} %"
+        L.append(f"| {c['round']} | {name} | {_g(c['delta_ic'], 3)} | {hc} | "
+                 f"{'**added**' if c['accepted'] else ('pays' if c['pays'] else 'no')} |")
+    for e, why in d["skipped"].items():
+        L.append(f"| – | {e} | – | – | skipped: {why} |")
+    if figures:
+        L.append("")
+        L.append("## Figures")
+        L.append("")
+        for k, p in figures.items():
+            if p:
+                L.append(f"![{k}]({os.path.basename(p)})")
+    L.append("")
+    t = d["timing"]
+    L.append(f"Computed in {_g(t.get('total'), 3)} s ({t.get('candidate_fits')} candidate fits).")
+    return "\n".join(L) + "\n"
+
+
+def write_report(res, folder) -> List[str]:
+    """Write ``diagnosis.json``, ``report.md`` and the PNG figures into ``folder``.
+
+    Returns the written paths.
+    """
+    os.makedirs(folder, exist_ok=True)
+    figs = {"overlay": plot_overlay(res, os.path.join(folder, "overlay.png")),
+            "residuals": plot_residuals(res, os.path.join(folder, "residuals.png")),
+            "acf": plot_acf(res, os.path.join(folder, "acf.png"))}
+    if getattr(res, "_validation_series", None) is not None:
+        figs["validation"] = plot_validation(res, os.path.join(folder, "validation.png"))
+    paths = [p for p in figs.values() if p]
+    paths.append(write_json(res, os.path.join(folder, "diagnosis.json")))
+    paths.append(write_text(render_markdown(res, figs), os.path.join(folder, "report.md")))
+    return paths
+
+
+def summary_table(rows: List[dict]) -> str:
+    """Markdown table of :meth:`DiagnosisResult.summary_row` rows (or error rows)."""
+    L = ["| recording | plant | effects | stiction | RMSE base | RMSE final | fit % base | "
+         "fit % final | held-out RMSE base -> final | s |",
+         "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        if "error" in r:
+            L.append(f"| {r.get('recording', r.get('path'))} | – | ERROR: {r['error']} | | | | | | | |")
+            continue
+        L.append(f"| {r['recording']} | {r['plant']} | {r['effects']} | "
+                 f"{'yes' if r['stiction'] else 'no'} | {_g(r['base_rmse'])} | "
+                 f"{_g(r['final_rmse'])} | {_g(r['base_fit_percent'], 3)} | "
+                 f"{_g(r['final_fit_percent'], 3)} | {_g(r['holdout_base_rmse'])} -> "
+                 f"{_g(r['holdout_final_rmse'])} | {_g(r['seconds'], 3)} |")
+    return "\n".join(L) + "\n"

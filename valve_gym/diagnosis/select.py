@@ -1,0 +1,318 @@
+"""Name the missing physics: greedy selection of candidate effects.
+
+Starting from the base model (plant + actuator, friction free, no optional
+effect), every candidate effect is switched on in turn and the model refitted
+(warm-started from the current fit, the new parameters starting where they
+change nothing).  A candidate *pays* when both
+
+1. the information criterion of the free-run residual on the fit part falls:
+   ``dIC = n_eff ln(SSE_new / SSE_old) + dk ln(n_eff) < -ic_margin``, with
+   ``n_eff`` the effective number of independent residual samples of the
+   current model (:func:`~valve_gym.diagnosis.fit.effective_n`; free-run
+   residuals are autocorrelated, the raw sample count would reward every
+   parameter), and
+2. the free-run RMSE on the held-out end of the record falls by at least
+   ``holdout_gain`` (relative), or the record has no holdout.
+
+The candidate with the lowest criterion among those that pay is added, and
+the search repeats with the others until none pays or ``max_effects`` are
+in.  "None" is the answer when no candidate pays.
+
+To save time every round first *screens* all candidates with a small search
+budget, then *confirms* the ``n_confirm`` most promising ones (lowest
+screening criterion) with the full budget, seeded with their screening
+optimum; the decision uses the confirmed fits.
+
+The friction verdict (:func:`valve_gym.diagnosis.diagnose`) uses the same
+criterion on the whole record, against the best frictionless alternative,
+plus the band ``min_band``.
+"""
+from __future__ import annotations
+
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from .fit import FitResult, effective_n, fit_structure, information_criterion, transfer
+from .locate import dominant_period
+from .model import CANDIDATE_EFFECTS, ModelStructure, effect_applicability
+
+__all__ = ["SelectionRule", "CandidateFit", "Selection", "select_effects", "compare",
+           "candidate_variants"]
+
+
+@dataclass(frozen=True)
+class SelectionRule:
+    """When an extra model element pays.
+
+    Parameters
+    ----------
+    criterion : {'bic', 'aic'}
+        Information criterion on the free-run residual (effective samples).
+    ic_margin : float
+        The criterion must fall by more than this.
+    holdout_gain : float
+        Relative reduction of the held-out RMSE required (0.10 = 10 %).
+    max_effects : int
+        Most effects added.
+    min_band : float
+        Friction verdict: smallest friction band (dead band ``2 e_dead`` or
+        slip-jump ``S``, fraction of stroke) called a sticking valve; below
+        half a percent of stroke friction is at the resolution of a
+        positioner and of the recorded controller output.
+    """
+
+    criterion: str = "bic"
+    ic_margin: float = 2.0
+    holdout_gain: float = 0.10
+    max_effects: int = 3
+    min_band: float = 0.005
+
+
+@dataclass
+class CandidateFit:
+    """One candidate tried in one round of the selection.
+
+    Attributes
+    ----------
+    round : int, 1-based
+    effect : str
+    variant : str or None
+    fit : FitResult (fit on the fit part; ``holdout_rmse`` on the rest)
+    delta_ic : float, criterion change against the current model
+    holdout_change : float, relative change of the held-out RMSE (< 0 better)
+    pays : bool
+    accepted : bool
+    reason : str
+    """
+
+    round: int
+    effect: str
+    variant: Optional[str]
+    fit: FitResult
+    delta_ic: float
+    holdout_change: float
+    pays: bool
+    accepted: bool = False
+    reason: str = ""
+    confirmed: bool = False
+
+    def summary(self) -> dict:
+        return {"round": self.round, "effect": self.effect, "variant": self.variant,
+                "delta_ic": self.delta_ic, "holdout_change": _f(self.holdout_change),
+                "rmse_fit_part": self.fit.rmse, "holdout_rmse": _f(self.fit.holdout_rmse),
+                "n_params": self.fit.k, "pays": self.pays, "accepted": self.accepted,
+                "confirmed": self.confirmed, "seconds": self.fit.seconds,
+                "reason": self.reason, "params": dict(self.fit.physical)}
+
+
+def _f(x):
+    return None if x is None or not np.isfinite(x) else float(x)
+
+
+@dataclass
+class Selection:
+    """Outcome of :func:`select_effects`.
+
+    Attributes
+    ----------
+    base : FitResult, base model on the fit part
+    final : FitResult, selected model on the fit part
+    effects : list of str, effects added, in order
+    candidates : list of CandidateFit, every candidate of every round
+    skipped : dict, effect -> reason it was not a candidate
+    n_eff : float, effective samples of the base residual
+    seconds : float
+    """
+
+    base: FitResult
+    final: FitResult
+    effects: List[str]
+    candidates: List[CandidateFit]
+    skipped: Dict[str, str]
+    n_eff: float
+    seconds: float
+
+
+def compare(old: FitResult, new: FitResult, rule: SelectionRule,
+            n_eff: Optional[float] = None) -> Tuple[float, float, bool]:
+    """Criterion change, relative held-out RMSE change and whether ``new`` pays against ``old``.
+
+    Both fits must share the fit samples.  ``n_eff`` defaults to the
+    effective sample count of ``old``'s fit-part residual.
+    """
+    n = old.n_fit
+    if n_eff is None:
+        n_eff = effective_n(old.residual[:n])
+    ic_old = information_criterion(old.cost, n_eff, old.k, n, rule.criterion)
+    ic_new = information_criterion(new.cost, n_eff, new.k, n, rule.criterion)
+    d_ic = ic_new - ic_old
+    if np.isfinite(old.holdout_rmse) and np.isfinite(new.holdout_rmse) and old.holdout_rmse > 0:
+        h = new.holdout_rmse / old.holdout_rmse - 1.0
+        h_ok = h <= -rule.holdout_gain
+    else:
+        h = float("nan")
+        h_ok = True
+    return float(d_ic), float(h), bool(d_ic < -rule.ic_margin and h_ok)
+
+
+def candidate_variants(effect: str, actuator: str) -> List[Optional[str]]:
+    """Variants tried for a candidate effect (None = the only one)."""
+    if effect == "valve_characteristic":
+        return ["equal_percentage", "quick_opening"]
+    return [None]
+
+
+def _candidate_structure(current: FitResult, effect, variant, period_hint):
+    st0 = current.structure
+    variants = dict(st0.variants)
+    if variant is not None:
+        variants[effect] = variant
+    return st0.with_effects(st0.effects + (effect,), variants=variants, period_hint=period_hint)
+
+
+def _fit_candidate(args):
+    (current, effect, variant, u, y, n_fit, seed, effort, period_hint, extra) = args
+    st = _candidate_structure(current, effect, variant, period_hint)
+    seeds, spread = transfer(current, st)
+    if effect == "slip_jump":
+        # start the stick band where the dead band of the paper's valve was
+        vals = current.structure.decode(current.w[None, :])
+        if "e_dead" in vals:
+            S0 = 2.0 * float(vals["e_dead"][0])
+            i = st.index("S")
+            seeds = seeds.copy()
+            seeds[0, i] = float(st.params[i].coord(S0))
+    if extra is not None:
+        seeds = np.vstack([seeds, np.atleast_2d(extra)])
+    return fit_structure(st, u, y, n_fit, seeds=seeds, spread=None, rng=seed, effort=effort)
+
+
+def _run(tasks, jobs, executor=None):
+    if executor is not None and len(tasks) > 1:
+        return list(executor.map(_fit_candidate, tasks))
+    if jobs > 1 and len(tasks) > 1:
+        with ProcessPoolExecutor(max_workers=jobs) as ex:
+            return list(ex.map(_fit_candidate, tasks))
+    return [_fit_candidate(t) for t in tasks]
+
+
+def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_EFFECTS,
+                   rule: SelectionRule = SelectionRule(), seed: int = 0, effort: str = "thorough",
+                   jobs: int = 1, progress=None, screen_effort: str = "fast",
+                   n_confirm: int = 3) -> Selection:
+    """Greedy forward selection of candidate effects on top of ``base``.
+
+    Parameters
+    ----------
+    base : FitResult, the base model fitted on the first ``base.n_fit`` samples
+    u, y : (T,) controller output 0..1 and PV of the whole record
+    candidates : effects to try (those that cannot be identified for this
+        plant/actuator are skipped with a reason)
+    rule : SelectionRule
+    seed : int
+    effort : str, search budget of the confirmation fits
+    jobs : int, worker processes for the candidate fits of a round
+    screen_effort : str, search budget of the screening fits
+    n_confirm : int, candidates per round refitted with the full budget (those
+        whose screening fit lowered the criterion most)
+    progress : callable(str), optional, told about each round
+
+    Returns
+    -------
+    Selection
+    """
+    t0 = time.perf_counter()
+    st = base.structure
+    skipped: Dict[str, str] = {}
+    pool: List[str] = []
+    for e in candidates:
+        ok, why = effect_applicability(e, st.plant, st.actuator)
+        if ok:
+            pool.append(e)
+        else:
+            skipped[e] = why
+    n_fit = base.n_fit
+    n_eff0 = effective_n(base.residual[:n_fit])
+    current = base
+    effects: List[str] = []
+    tried: List[CandidateFit] = []
+    rnd = 0
+    ex = ProcessPoolExecutor(max_workers=jobs) if jobs > 1 else None
+    try:
+        while pool and len(effects) < rule.max_effects:
+            rnd += 1
+            period = dominant_period(current.residual[:n_fit], st.scales.dt)
+            n_eff = effective_n(current.residual[:n_fit])
+            meta = [(e, v) for e in pool for v in candidate_variants(e, st.actuator)]
+            if progress:
+                progress(f"round {rnd}: screening {', '.join(pool)}")
+            # 1) screening: every candidate with a small budget
+            tasks = [(current, e, v, u, y, n_fit, seed + 7919 * rnd + i, screen_effort, period,
+                      None) for i, (e, v) in enumerate(meta)]
+            screened = _run(tasks, jobs, ex)
+            scores = [compare(current, r, rule, n_eff)[0] for r in screened]
+            # 2) confirmation: the most promising with the full budget
+            order = np.argsort(scores)
+            short = []
+            for i in order:
+                if meta[i][0] not in [meta[j][0] for j in short]:
+                    short.append(i)
+                if len(short) >= n_confirm:
+                    break
+            if progress:
+                progress(f"round {rnd}: confirming {', '.join(meta[i][0] for i in short)}")
+            tasks = [(current, meta[i][0], meta[i][1], u, y, n_fit, seed + 104729 * rnd + i,
+                      effort, period, _coords_in(screened[i])) for i in short]
+            confirmed = _run(tasks, jobs, ex)
+            results = list(screened)
+            for i, r in zip(short, confirmed):
+                if r.cost <= screened[i].cost:
+                    results[i] = r
+            by_effect: Dict[str, CandidateFit] = {}
+            for i, ((e, v), res) in enumerate(zip(meta, results)):
+                d_ic, h, pays = compare(current, res, rule, n_eff)
+                cf = CandidateFit(round=rnd, effect=e, variant=v, fit=res, delta_ic=d_ic,
+                                  holdout_change=h, pays=pays, confirmed=i in short)
+                if e not in by_effect or res.cost < by_effect[e].fit.cost:
+                    by_effect[e] = cf
+            round_fits = list(by_effect.values())
+            for cf in round_fits:
+                cf.reason = _reason(cf, rule)
+            tried.extend(round_fits)
+            paying = [cf for cf in round_fits if cf.pays]
+            if not paying:
+                break
+            best = min(paying, key=lambda c: c.delta_ic)
+            best.accepted = True
+            best.reason = "added: " + best.reason
+            effects.append(best.effect)
+            current = best.fit
+            pool.remove(best.effect)
+    finally:
+        if ex is not None:
+            ex.shutdown()
+    return Selection(base=base, final=current, effects=effects, candidates=tried, skipped=skipped,
+                     n_eff=n_eff0, seconds=time.perf_counter() - t0)
+
+
+def _coords_in(res: FitResult):
+    return res.w[None, :]
+
+
+def _reason(cf: CandidateFit, rule: SelectionRule) -> str:
+    crit = rule.criterion.upper()
+    parts = [f"{crit} {'-' if cf.delta_ic < 0 else '+'}{abs(cf.delta_ic):.1f}"]
+    if np.isfinite(cf.holdout_change):
+        parts.append(f"held-out RMSE {100 * cf.holdout_change:+.1f} %")
+    if cf.pays:
+        return "pays (" + ", ".join(parts) + ")"
+    why = []
+    if not cf.delta_ic < -rule.ic_margin:
+        why.append(f"{crit} does not fall by more than {rule.ic_margin:g}")
+    if np.isfinite(cf.holdout_change) and not cf.holdout_change <= -rule.holdout_gain:
+        why.append(f"held-out RMSE does not fall by {100 * rule.holdout_gain:g} %")
+    return "does not pay (" + ", ".join(parts) + "): " + "; ".join(why)
