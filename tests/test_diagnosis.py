@@ -151,3 +151,30 @@ def test_result_json_schema_and_validation(overflow_result):
     assert {"base_rmse", "final_rmse"} <= set(d["validation"])
     assert d["validation"]["final_rmse"] < d["validation"]["base_rmse"]
     assert d["holdout"]["final_rmse"] <= d["holdout"]["base_rmse"]
+
+
+def test_cascade_structure_and_sensor_range():
+    t = np.arange(400.0)
+    u = 0.3 + 0.2 * (np.sin(t / 40) > 0)
+    y = np.minimum(5 + 0.001 * t + 6 * (np.sin(t / 40) > 0) * (1 - np.exp(-(t % 125) / 20)), 10.0)
+    sc = DataScales.from_signals(u, y, 4.0)
+    assert sc.sat_hi == 10.0 and sc.sat_lo is None
+    st = ModelStructure("cascade", "pump", ("overflow",), sc)
+    assert "c" in st.names and "L_max" in st.names and "dh0" not in st.names
+    W = np.random.default_rng(0).random((8, len(st.params)))
+    Y = st.simulate(W, u)
+    assert Y.shape == (400, 8) and np.nanmax(Y) <= 10.0
+    p = st.physical(W[0])
+    assert {"schoukens.k1", "schoukens.k4", "overflow.spill_to_lower", "init.level2"} <= set(p)
+
+
+def test_integrating_output_sign_is_fitted():
+    rng = np.random.default_rng(5)
+    T = 600
+    u = np.clip(0.5 + np.cumsum(rng.normal(0, 0.01, T)), 0.3, 0.7)
+    y = 50 - np.cumsum(0.8 * (u - 0.5)) + 0.02 * rng.normal(size=T)   # the valve drains
+    rec = Recording(t=np.arange(T) * 1.0, op=u, pv=y, dt=1.0)
+    f = ModelFitter(plant="integrating", friction=False, effort="fast").fit(rec)
+    assert f.physical_["measurement.sign"] == -1.0
+    assert rel(f.physical_["process.q_max"], 0.8) < 0.1
+    assert f.fit_percent_ > 90

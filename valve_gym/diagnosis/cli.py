@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import argparse
 import glob
-import json
 import os
 import sys
 import time
@@ -140,7 +139,6 @@ def main(argv: Optional[List[str]] = None) -> int:
 
 def _main(argv: List[str]) -> int:
     from .diagnose import diagnose, diagnose_many
-    from .select import SelectionRule
 
     a = build_parser().parse_args(argv)
     columns = parse_columns(a.columns) if a.columns else None

@@ -6,7 +6,7 @@ parameters in the recording's units.
 """
 from __future__ import annotations
 
-from typing import List, Optional
+from typing import Optional
 
 import numpy as np
 
@@ -57,8 +57,52 @@ def _improvement(before: FitResult, after: FitResult) -> str:
     return s
 
 
+def _where_gained(before: FitResult, after: FitResult, masks) -> str:
+    """The operating condition where the residual fell most (relative), as a clause."""
+    if not masks:
+        return ""
+    rb, ra = before.residual, after.residual
+    best = None
+    for name, (m, desc) in masks.items():
+        if m.sum() < 5:
+            continue
+        a = float(np.sqrt(np.mean(rb[m] ** 2)))
+        b = float(np.sqrt(np.mean(ra[m] ** 2)))
+        if a > 0 and (best is None or b / a < best[0]):
+            best = (b / a, desc, a, b)
+    if best is None:
+        return ""
+    return (f" The residual fell most {best[1]} (RMS {_num(best[2])} -> {_num(best[3])}).")
+
+
+def _plateau_evidence(before: FitResult, mm: MismatchReport) -> str:
+    """Flat top of the measured PV that the model without overflow overshoots."""
+    y, ys = before.y, before.y_sim
+    sig = max(mm.tests.noise_std, 1e-12)
+    top = float(np.max(y))
+    flat = y >= top - 2.5 * sig
+    sat = before.structure.scales.sat_hi
+    s = (f"the measured PV sits flat at its top ({_num(top)}) for {int(flat.sum())} samples "
+         f"({_pct(flat.mean())} of the record)")
+    if sat is not None:
+        # the model is clipped by the sensor range: it stays pinned where the PV has fallen
+        pinned = (ys >= sat - 1e-9 * max(abs(sat), 1.0)) & (y < sat - 2.5 * sig)
+        s += (f"; the model without overflow stays pinned at the sensor's {_num(sat)} on "
+              f"{int(pinned.sum())} samples where the measured level has already fallen")
+    else:
+        over = ys - top
+        s += (f" while the model without overflow goes above that level on "
+              f"{int(np.sum(over > 2.5 * sig))} samples, by up to "
+              f"{_num(max(float(over.max()), 0.0))}")
+    hi = mm.condition("pv_high")
+    if hi is not None and hi.mean_in < 0:
+        s += (f"; in the top 10 % of the PV the model is too high by {_num(-hi.mean_in)} on "
+              f"average (water it predicts is lost)")
+    return s
+
+
 def explain_effect(effect: str, before: FitResult, after: FitResult, mm: MismatchReport,
-                   pv_unit: str = "PV units") -> str:
+                   pv_unit: str = "PV units", masks=None) -> str:
     """One paragraph on why ``effect`` was added.
 
     Parameters
@@ -68,10 +112,13 @@ def explain_effect(effect: str, before: FitResult, after: FitResult, mm: Mismatc
     after : FitResult, the model with it (whole record)
     mm : MismatchReport of ``before``
     pv_unit : str, how to call the PV's unit
+    masks : dict, optional, operating-condition masks
+        (:func:`~valve_gym.diagnosis.locate.condition_masks`); the condition
+        where the residual fell most is named
     """
     p = after.physical
     dt = after.structure.scales.dt
-    imp = _improvement(before, after)
+    imp = _improvement(before, after) + "." + _where_gained(before, after, masks).rstrip(".")
     regions = mm.regions
     where = ""
     if regions:
@@ -98,7 +145,8 @@ def explain_effect(effect: str, before: FitResult, after: FitResult, mm: Mismatc
             L2 = p.get("overflow.L2_max_pv", float("nan"))
             sp = p.get("overflow.spill_to_lower", float("nan"))
             ev2 = _cond(mm, "pv_at_upper_range")
-            return (f"Overflow. Evidence: {ev}" + (f"; {ev2}" if ev2 else "") +
+            return (f"Overflow. Evidence: {_plateau_evidence(before, mm)}; {ev}"
+                    + (f"; {ev2}" if ev2 else "") +
                     f". The mismatch sits at the high-level episodes: the upper tank spills, so "
                     f"the lower tank gets less water than the model predicts and its level falls "
                     f"back sooner. Fitted upper-tank top at {_num(L1)} (upper-level units, the "
@@ -106,8 +154,8 @@ def explain_effect(effect: str, before: FitResult, after: FitResult, mm: Mismatc
                     f"{_pct(sp)} of the spill reaches the lower tank, lower-tank top at "
                     f"{_num(L2, pv_unit)}. {imp}.{where}")
         L = p.get("overflow.L_max_pv", float("nan"))
-        return (f"Overflow. Evidence: {ev}; the measured PV is flat-topped while the base model "
-                f"keeps rising: the vessel overflows at L_max = {_num(L, pv_unit)}. {imp}.{where}")
+        return (f"Overflow. Evidence: {_plateau_evidence(before, mm)}; {ev}. The vessel "
+                f"overflows at L_max = {_num(L, pv_unit)}. {imp}.{where}")
     if effect == "dead_time":
         th = p.get("dead_time.theta", float("nan"))
         t = mm.tests
@@ -178,7 +226,8 @@ def explain_none(base: FitResult, mm: MismatchReport, best_candidate: Optional[s
 
 def explain_stiction(present: bool, with_fr: FitResult, without: FitResult, d_ic: float,
                      h_change: float, mm: MismatchReport, significant: bool = None,
-                     band: float = None, min_band: float = None, lag_alt=()) -> str:
+                     band: float = None, min_band: float = None, lag_alt=(),
+                     op_range: float = None) -> str:
     """One paragraph on the friction verdict."""
     p = with_fr.physical
     if "slip_jump.S" in p:
@@ -195,11 +244,14 @@ def explain_stiction(present: bool, with_fr: FitResult, without: FitResult, d_ic
     if present:
         return (f"The valve sticks: the model with friction ({fr}) beats the best frictionless "
                 f"alternative, {without.label} (criterion {d_ic:+.1f}; RMSE "
-                f"{_num(without.rmse_all)} -> {_num(with_fr.rmse_all)}), and the band is "
-                f"{_pct(band)} of the stroke. " + (f"At reversals of the output: {ev}." if ev else ""))
+                f"{_num(without.rmse_all)} -> {_num(with_fr.rmse_all)}), and the band, "
+                f"{_pct(band)} of the stroke, is as large as the controller output's movements "
+                f"(working range {_pct(op_range or 0.0)}): the controller keeps pushing a valve "
+                f"that does not follow. " + (f"At reversals of the output: {ev}." if ev else ""))
     if significant and band is not None and min_band is not None and band < min_band:
-        return (f"No sticking valve: friction improves the fit (criterion {d_ic:+.1f} against "
-                f"{without.label}) but its band, {_pct(band)} of the stroke, is below "
-                f"{_pct(min_band)}: fitted {fr}.")
+        return (f"No sticking valve that matters: friction improves the fit (criterion "
+                f"{d_ic:+.1f} against {without.label}) but its band, {_pct(band)} of the stroke, "
+                f"is small against the controller output's working range "
+                f"({_pct(op_range or 0.0)}; needed {_pct(min_band)}): fitted {fr}.")
     return (f"No significant valve friction: {alt} explains the record as well "
             f"(criterion {d_ic:+.1f}); fitted {fr}.")

@@ -4,7 +4,7 @@ Given a recording and a free-run simulation, the residual
 ``r = PV_measured - PV_simulated`` is examined three ways:
 
 * **in time** -- the moving RMS of ``r`` over ``w`` samples is compared with a
-  robust threshold (``median + 3 * 1.4826 * MAD`` of the moving RMS, and at
+  robust threshold (``median + 2 * 1.4826 * MAD`` of the moving RMS, and at
   least twice the measurement-noise level estimated from the sample-to-sample
   differences of ``r``); samples above it form regions, gaps shorter than
   ``w`` are merged, regions shorter than ``w/2`` dropped.  When nothing
@@ -328,6 +328,31 @@ def condition_masks(op, pv, sp=None, dt: float = 1.0, window: int = 5,
     return masks
 
 
+def _regions(r, t, dt, above, w, masks, sse) -> List[Region]:
+    """Merge samples flagged ``above`` into regions (gaps < ``w`` merged, < ``w/2`` dropped)."""
+    idx = np.flatnonzero(above)
+    out: List[Region] = []
+    if not idx.size:
+        return out
+    starts = [idx[0]]
+    ends = []
+    for a, b in zip(idx[:-1], idx[1:]):
+        if b - a > w:
+            ends.append(a + 1)
+            starts.append(b)
+    ends.append(idx[-1] + 1)
+    for a, b in zip(starts, ends):
+        if b - a < max(2, w // 2):
+            continue
+        seg = r[a:b]
+        out.append(Region(
+            t_start=float(t[a]), t_end=float(t[b - 1] + dt), i_start=int(a), i_end=int(b),
+            rms=float(np.sqrt(np.mean(seg ** 2))), mean=float(np.mean(seg)),
+            peak=float(np.max(np.abs(seg))), share_sse=float(np.sum(seg ** 2) / sse),
+            conditions={k: float(np.mean(m[a:b])) for k, (m, _) in masks.items()}))
+    return out
+
+
 # --------------------------------------------------------------------------- main
 def locate_mismatch(t, op, pv, y_sim, sp=None, dt: Optional[float] = None, window: Optional[int] = None,
                     max_lag: Optional[int] = None, sat_hi: Optional[float] = None,
@@ -376,36 +401,16 @@ def locate_mismatch(t, op, pv, y_sim, sp=None, dt: Optional[float] = None, windo
     sig = noise_level(r)
     med = np.median(mrms)
     mad = np.median(np.abs(mrms - med)) * 1.4826
-    thr = float(max(med + 3.0 * mad, 2.0 * sig, 1e-300))
-    above = mrms > thr
-    if not above.any() and med > 3.0 * sig:
-        # the model misses everywhere (a free-run compromise): show where it misses most
-        thr = float(np.quantile(mrms, 0.8))
-        above = mrms > thr
-    # regions
-    idx = np.flatnonzero(above)
-    regions: List[Region] = []
+    thr = float(max(med + 2.0 * mad, 2.0 * sig, 1e-300))
     masks = condition_masks(u, y, sp, dt, w, sat_hi, sat_lo)
     sse = float(np.sum(r * r)) or 1e-300
-    if idx.size:
-        starts = [idx[0]]
-        ends = []
-        for a, b in zip(idx[:-1], idx[1:]):
-            if b - a > w:
-                ends.append(a + 1)
-                starts.append(b)
-        ends.append(idx[-1] + 1)
-        for a, b in zip(starts, ends):
-            if b - a < max(2, w // 2):
-                continue
-            seg = r[a:b]
-            regions.append(Region(
-                t_start=float(t[a]), t_end=float(t[b - 1] + dt), i_start=int(a), i_end=int(b),
-                rms=float(np.sqrt(np.mean(seg ** 2))), mean=float(np.mean(seg)),
-                peak=float(np.max(np.abs(seg))), share_sse=float(np.sum(seg ** 2) / sse),
-                conditions={k: float(np.mean(m[a:b])) for k, (m, _) in masks.items()}))
-        regions.sort(key=lambda g: -g.share_sse)
-        regions = regions[:max_regions]
+    regions = _regions(r, t, dt, mrms > thr, w, masks, sse)
+    if not regions and med > 3.0 * sig:
+        # the model misses everywhere (a free-run compromise): show where it misses most
+        thr = float(np.quantile(mrms, 0.8))
+        regions = _regions(r, t, dt, mrms > thr, w, masks, sse)
+    regions.sort(key=lambda g: -g.share_sse)
+    regions = regions[:max_regions]
     # effective samples
     from .fit import effective_n
     neff = effective_n(r)

@@ -65,12 +65,12 @@ clipping.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from ..core import array_to_state, check_dt, initial_state, pack, run_packed
+from ..core import check_dt, initial_state, pack, run_packed
 from ..params import (Cascade, DeadTime, FirstOrderParams, IntegratingParams, Leak,
                       ModelParams, OscillatingDisturbance, Overflow, ParameterError,
                       SensorLag, SlipJump, TankParams, ValveCharacteristic, ValveParams)
@@ -277,7 +277,7 @@ class ModelStructure:
     >>> sc = DataScales.from_signals(np.linspace(0.3, 0.6, 200), np.linspace(1.0, 2.0, 200), 1.0)
     >>> ms = ModelStructure("first_order", "valve", (), sc, n_sub=2)
     >>> ms.names
-    ['K', 'T', 'b_offset', 'y0', 'e_dead', 'z_max']
+    ['K', 'T', 'b_offset', 'y0', 'e_dead', 'z_max', 'dh0']
     """
 
     def __init__(self, plant: str, actuator: str, effects: Sequence[str], scales: DataScales,
@@ -324,6 +324,11 @@ class ModelStructure:
     def dt_euler(self) -> float:
         return self.scales.dt / self.n_sub
 
+    @property
+    def t_min(self) -> float:
+        """Smallest time constant searched [s]: the Euler step, at least half a sample."""
+        return max(self.scales.dt / 2.0, self.dt_euler)
+
     def label(self) -> str:
         """Short description, e.g. ``first_order + valve + dead_time``."""
         parts = [self.plant, self.actuator if self.friction or self.actuator == "pump"
@@ -352,7 +357,8 @@ class ModelStructure:
         dt, D = sc.dt, sc.duration
         yr = sc.y_range
         P: List[FreeParam] = []
-        tlo, thi = dt / 2.0, max(2.0 * D, dt)
+        # fastest time constant resolvable by the Euler step (and by the sampling)
+        tlo, thi = self.t_min, max(2.0 * D, dt)
         if self.plant == "first_order":
             P += [FreeParam("K", -6.0, 6.0, "lin", "PV/1",
                             "steady-state gain, asinh-scaled by std(PV)/std(OP)"),
@@ -369,14 +375,14 @@ class ModelStructure:
                             "lin", "-", "flow fraction that balances the outflow, q_out/q_max"),
                   FreeParam("y0", -0.5 * yr, 0.5 * yr, "lin", "PV", "initial output - PV(0)")]
         elif self.plant == "tank":
-            P += [FreeParam("tau", dt / 2, 2 * D, "log", "s",
+            P += [FreeParam("tau", tlo, 2 * D, "log", "s",
                             "linearised outflow time constant at the mean level"),
                   FreeParam("gain", 0.2, 5.0, "log", "-",
                             "q_max f(mean OP) / (k_out sqrt(mean PV)): 1 = mean PV is steady"),
                   FreeParam("y0", -0.5 * yr, 0.5 * yr, "lin", "PV", "initial level - PV(0)")]
         else:  # cascade
-            P += [FreeParam("tau1", dt / 2, 2 * D, "log", "s", "upper-tank time constant"),
-                  FreeParam("tau2", dt / 2, 2 * D, "log", "s", "lower-tank time constant"),
+            P += [FreeParam("tau1", tlo, 2 * D, "log", "s", "upper-tank time constant"),
+                  FreeParam("tau2", tlo, 2 * D, "log", "s", "lower-tank time constant"),
                   FreeParam("x2s", 0.2 * max(sc.y_mean, yr), 5.0 * max(sc.y_mean, yr), "log",
                             "PV", "lower level at the mean input, steady state"),
                   FreeParam("x1_0", 0.0, 3.0, "lin", "-",
@@ -430,7 +436,7 @@ class ModelStructure:
         if e == "leak":
             return [FreeParam("leak_frac", 0.0, 0.8, "sq", "-", "leak / mean inflow")]
         if e == "sensor_lag":
-            return [FreeParam("tau_s", dt / 2, 30 * dt, "log", "s", "sensor time constant")]
+            return [FreeParam("tau_s", self.t_min, 30 * dt, "log", "s", "sensor time constant")]
         if e == "oscillating_disturbance":
             if self.period_hint:
                 plo, phi = self.period_hint / 1.5, self.period_hint * 1.5

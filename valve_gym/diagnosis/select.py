@@ -31,14 +31,14 @@ from __future__ import annotations
 
 import time
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
 from .fit import FitResult, effective_n, fit_structure, information_criterion, transfer
 from .locate import dominant_period
-from .model import CANDIDATE_EFFECTS, ModelStructure, effect_applicability
+from .model import CANDIDATE_EFFECTS, effect_applicability
 
 __all__ = ["SelectionRule", "CandidateFit", "Selection", "select_effects", "compare",
            "candidate_variants"]
@@ -60,16 +60,26 @@ class SelectionRule:
         Most effects added.
     min_band : float
         Friction verdict: smallest friction band (dead band ``2 e_dead`` or
-        slip-jump ``S``, fraction of stroke) called a sticking valve; below
-        half a percent of stroke friction is at the resolution of a
-        positioner and of the recorded controller output.
+        slip-jump ``S``, fraction of stroke) called a sticking valve (0.1 %
+        of stroke: the resolution of a positioner).
+    abs_band, rel_band : float
+        Friction verdict: the band must also be either at least ``abs_band``
+        of the stroke (1 %: more than the dead band a healthy control valve
+        is allowed) or at least ``rel_band`` of the controller output's
+        working range (its 2-98 % percentile range).  A valve that sticks
+        enough to shape the loop makes the controller move within about one
+        to two friction bands (the output of a PI loop in a stiction limit
+        cycle swings by roughly the stick band); friction far smaller than
+        both 1 % and the output's movements does not govern the loop.
     """
 
     criterion: str = "bic"
     ic_margin: float = 2.0
     holdout_gain: float = 0.10
     max_effects: int = 3
-    min_band: float = 0.005
+    min_band: float = 0.001
+    abs_band: float = 0.01
+    rel_band: float = 0.5
 
 
 @dataclass
