@@ -353,7 +353,7 @@ def make_controllers(cfg: BenchmarkConfig, policies: Sequence[str] = ()) -> list
     for path in policies:
         from .ppo import load_policy
 
-        c = load_policy(path)
+        c = load_policy(path, name=Path(path).stem)  # label = file name (ppo.zip -> ppo)
         base, k = c.name, 2
         while c.name in names:
             c.name = f"{base}_{k}"
@@ -542,27 +542,25 @@ def run_benchmark(cfg: BenchmarkConfig = None, quick: bool = False, policies: Op
     seconds = time.perf_counter() - t0
     episodes = pd.concat(frames, ignore_index=True)
     summary = pd.concat([summarise(episodes), paired_summary(episodes)], ignore_index=True)
-    ex = pick_example_valve(episodes, valves)
+    ex = pick_example_valve(episodes, valves, cfg.bands)
     targets = ppo_targets(episodes, [c.name for c in ctrls])
     return BenchmarkResult(valves=valves, episodes=episodes, summary=summary, rollouts=rollouts,
                            controllers=[c.name for c in ctrls], example_valve=ex, targets=targets,
                            seconds=seconds, config=cfg)
 
 
-def pick_example_valve(episodes, valves) -> int:
+def pick_example_valve(episodes, valves, rule: BandRule = BandRule()) -> int:
     """The sticky valve shown in the trajectory figures.
 
-    The sticky-band valve on which PI shows the largest limit cycle; if PI
-    has none there, the sticky valve with the largest ``z_max``; without a
-    sticky valve, the valve with the largest ``z_max``.
+    The stickiest valve inside the training range: the sticky-band valve
+    with the largest ``z_max / train_z_max[1] + e_dead / train_e_dead[1]``;
+    without a sticky valve, the valve with the largest ``z_max``.
     """
-    pi = episodes[episodes["controller"] == "pi"].set_index("valve")
     sticky = valves[valves["band"] == "sticky"]
     if len(sticky):
-        amp = pi.loc[sticky["valve"], "lc_amplitude"].to_numpy()
-        if np.any(amp > 0):
-            return int(sticky["valve"].to_numpy()[int(np.argmax(amp))])
-        return int(sticky["valve"].to_numpy()[int(np.argmax(sticky["z_max"].to_numpy()))])
+        sev = sticky["z_max"].to_numpy() / rule.train_z_max[1] \
+            + sticky["e_dead"].to_numpy() / max(rule.train_e_dead[1], 1e-12)
+        return int(sticky["valve"].to_numpy()[int(np.argmax(sev))])
     return int(valves["valve"].to_numpy()[int(np.argmax(valves["z_max"].to_numpy()))])
 
 
@@ -601,7 +599,8 @@ def ppo_targets(episodes, controllers: Sequence[str]) -> dict:
             res[band] = {"iae_reduction": float(1.0 - np.nanmedian(ri)),
                          "travel_ratio": float(np.nanmedian(rt)),
                          "iae_median": float(np.median(em)), "iae_median_pi": float(np.median(pm)),
-                         "n": int(m.sum())}
+                         "n": int(m.sum()), "n_iae_worse": int(np.sum(ri > 1.0)),
+                         "n_travel_worse": int(np.sum(rt > 1.0))}
         s = res.get("sticky")
         if s is not None:
             res["meets_iae_target"] = bool(s["iae_reduction"] >= TARGET_IAE_REDUCTION)
@@ -677,15 +676,17 @@ def _targets_md(res: BenchmarkResult) -> str:
              "1 - median(IAE / IAE_PI); travel ratio = median(valve travel / valve travel of PI). "
              f"PPO targets on the sticky band: IAE reduction >= {100 * TARGET_IAE_REDUCTION:.0f} %, "
              f"travel ratio <= {TARGET_TRAVEL_RATIO:g}.\n",
-             "| controller | band | IAE reduction | valve travel ratio | median IAE | median IAE of PI |",
-             "|---|---|---|---|---|---|"]
+             "| controller | band | IAE reduction | valve travel ratio | median IAE | median IAE of PI "
+             "| valves with higher IAE than PI |",
+             "|---|---|---|---|---|---|---|"]
     for c, r in res.targets.items():
         for band in BANDS:
             if band not in r:
                 continue
             b = r[band]
             lines.append(f"| {c} | {band} | {100 * b['iae_reduction']:+.1f} % | {b['travel_ratio']:.2f}x | "
-                         f"{_fmt(b['iae_median'])} | {_fmt(b['iae_median_pi'])} |")
+                         f"{_fmt(b['iae_median'])} | {_fmt(b['iae_median_pi'])} | "
+                         f"{b['n_iae_worse']} of {b['n']} |")
     lines.append("")
     for c, r in res.targets.items():
         if not c.startswith("ppo") or "sticky" not in r:
@@ -723,6 +724,11 @@ def losses(res: BenchmarkResult) -> List[str]:
                 gain = b["iae_reduction"]
                 out.append(f"{c} moves the valve {b['travel_ratio']:.2f}x as much as PI on the {band} band "
                            f"(valve wear) for an IAE change of {100 * gain:+.1f} %.")
+        for band in ("sticky", "outside_training"):
+            b = r.get(band)
+            if b and b["n_iae_worse"] > 0 and b["iae_reduction"] >= -0.01:
+                out.append(f"{c} has a higher IAE than PI on {b['n_iae_worse']} of the {b['n']} {band} valves "
+                           f"(see ratio_vs_friction.png).")
     if not out:
         out.append("No controller is worse than PI by more than 1 % IAE or 10 % valve travel on any band.")
     return out
@@ -786,7 +792,7 @@ def report_markdown(res: BenchmarkResult, command: str = "") -> str:
                  f"{ex['z_max']:.3g} s, e_dead {ex['e_dead']:.3g}, tau {ex['tau']:.3g} s, v_max "
                  f"{ex['v_max']:.3g} 1/s.\n")
     lines.append("Files: results.csv (long format), episodes.csv (per episode), valves.csv, config.yaml, "
-                 "boxplots.png, trajectories.png, op_vs_stem.png.\n")
+                 "boxplots.png, ratio_vs_friction.png, trajectories.png, op_vs_stem.png.\n")
     return "\n".join(lines)
 
 
@@ -825,6 +831,36 @@ def write_figures(res: BenchmarkResult, out: Path) -> Dict[str, Path]:
     files["boxplots.png"] = out / "boxplots.png"
     _save_fig(fig, files["boxplots.png"])
     plt.close(fig)
+    # ---- paired ratios against the friction
+    others = [c for c in ctrls if c != "pi"]
+    if others:
+        fig, axes = plt.subplots(2, len(others), figsize=(3.6 * len(others), 6.2), squeeze=False,
+                                 sharex=True)
+        z_of = res.valves.set_index("valve")
+        for j, c in enumerate(others):
+            for i2, metric in enumerate(("iae", "valve_travel")):
+                r = paired_ratios(ep, metric)[c]
+                zz = z_of.loc[r.index, "z_max"].to_numpy()
+                ed = z_of.loc[r.index, "e_dead"].to_numpy()
+                ax = axes[i2, j]
+                sc = ax.scatter(zz, r.to_numpy(), c=ed, cmap="viridis", s=14, vmin=0.0,
+                                vmax=max(float(res.valves["e_dead"].max()), 1e-6))
+                ax.axhline(1.0, color="k", lw=0.8, ls=":")
+                ax.axvline(res.config.bands.train_z_max[1], color="r", lw=0.8, ls="--")
+                ax.set_xscale("log")
+                ax.grid(alpha=0.3)
+                if i2 == 0:
+                    ax.set_title(c, fontsize=10)
+                else:
+                    ax.set_xlabel("z_max [s]")
+                if j == 0:
+                    ax.set_ylabel(("IAE" if metric == "iae" else "valve travel") + " / PI's")
+        fig.colorbar(sc, ax=axes.ravel().tolist(), label="e_dead", shrink=0.8)
+        fig.suptitle("Per-valve ratio to PI against the friction (red: end of the training range)",
+                     fontsize=10)
+        files["ratio_vs_friction.png"] = out / "ratio_vs_friction.png"
+        _save_fig(fig, files["ratio_vs_friction.png"])
+        plt.close(fig)
     # ---- trajectories on the example valve
     i = res.example_valve
     vrow = res.valves.set_index("valve").loc[i]

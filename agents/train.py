@@ -97,7 +97,10 @@ class PPOHyper:
     """PPO hyperparameters (names as in stable-baselines3 / rl-zoo).
 
     ``learning_rate`` and ``clip_range`` decay linearly to 0 over training
-    when ``lr_schedule`` is ``'linear'``.
+    when ``lr_schedule`` is ``'linear'``. ``normalize_reward`` divides the
+    training rewards by a running estimate of the standard deviation of the
+    discounted return (SB3's ``VecNormalize(norm_obs=False)``; training only,
+    the policy's inputs are not affected).
     """
 
     n_envs: int = 16
@@ -114,6 +117,7 @@ class PPOHyper:
     max_grad_norm: float = 0.5
     target_kl: float = 0.0
     normalize_advantage: bool = True
+    normalize_reward: bool = False
     policy_kwargs: PolicyKwargs = field(default_factory=PolicyKwargs)
 
     def __post_init__(self):
@@ -259,7 +263,7 @@ def load_train_config(path_or_dict) -> TrainConfig:
     >>> load_train_config({"ppo": {"n_stepz": 10}})
     Traceback (most recent call last):
     ...
-    valve_gym.config.ConfigError: unknown key 'ppo.n_stepz' (did you mean 'n_steps'?); the keys of 'ppo' are: n_envs, n_steps, batch_size, n_epochs, gamma, gae_lambda, learning_rate, lr_schedule, clip_range, ent_coef, vf_coef, max_grad_norm, target_kl, normalize_advantage, policy_kwargs
+    valve_gym.config.ConfigError: unknown key 'ppo.n_stepz' (did you mean 'n_steps'?); the keys of 'ppo' are: n_envs, n_steps, batch_size, n_epochs, gamma, gae_lambda, learning_rate, lr_schedule, clip_range, ent_coef, vf_coef, max_grad_norm, target_kl, normalize_advantage, normalize_reward, policy_kwargs
     """
     src = ""
     if isinstance(path_or_dict, (str, os.PathLike)):
@@ -381,8 +385,12 @@ def build_training_env(cfg: TrainConfig, seed: int, kind: Optional[str] = None):
     from .ppo import TransformVecEnv
 
     venv = make_vec_env(cfg.env, cfg.ppo.n_envs, seed, kind or cfg.vec_env)
-    venv = VecMonitor(venv)
-    return TransformVecEnv(venv, obs_transform(cfg))
+    venv = TransformVecEnv(VecMonitor(venv), obs_transform(cfg))
+    if cfg.ppo.normalize_reward:
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        venv = VecNormalize(venv, norm_obs=False, norm_reward=True, gamma=cfg.ppo.gamma)
+    return venv
 
 
 # --------------------------------------------------------------------------- training

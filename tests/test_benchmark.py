@@ -35,7 +35,7 @@ def test_quick_writes_results_csv(quick_run):
 
 
 def test_quick_writes_figures_raw_metrics_and_config(quick_run, capsys):
-    for name in ("boxplots.png", "trajectories.png", "op_vs_stem.png"):
+    for name in ("boxplots.png", "trajectories.png", "op_vs_stem.png", "ratio_vs_friction.png"):
         data = (quick_run / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 5000
     ep = pd.read_csv(quick_run / "episodes.csv")
