@@ -684,22 +684,11 @@ def _pad_ylim(ax, *ys, floor: float):
 # --------------------------------------------------------------------------- #
 # Writing files
 # --------------------------------------------------------------------------- #
-def _write_atomic(path: str, write: Callable) -> str:
-    """Call ``write(file)`` on a temporary file next to ``path``, then rename it to ``path``."""
-    folder = os.path.dirname(os.path.abspath(path))
-    base = os.path.basename(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{base}.", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    return path
+def _write_atomic(path, write) -> str:
+    """Write atomically (see :func:`valve_gym._io.write_atomic`)."""
+    from ._io import write_atomic
+
+    return write_atomic(path, write)
 
 
 def _save_figure(fig, path: str, dpi: int) -> str:

@@ -28,22 +28,11 @@ __all__ = ["write_json", "write_text", "write_report", "plot_overlay", "plot_res
 
 
 # --------------------------------------------------------------------------- atomic IO
-def _atomic(path: str, write) -> str:
-    path = os.fspath(path)
-    d = os.path.dirname(os.path.abspath(path)) or "."
-    os.makedirs(d, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix="." + os.path.basename(path) + ".", suffix=".tmp", dir=d)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    return path
+def _atomic(path, write) -> str:
+    """Write atomically (see :func:`valve_gym._io.write_atomic`)."""
+    from .._io import write_atomic
+
+    return write_atomic(path, write)
 
 
 def write_text(text: str, path) -> str:
