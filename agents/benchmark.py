@@ -39,7 +39,6 @@ import io
 import math
 import os
 import sys
-import tempfile
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -49,7 +48,7 @@ import numpy as np
 
 from valve_gym.config import ConfigError, EnvConfig, config_to_dict, load_config
 
-from .evaluate import VALVE_KEYS, env_config_for, episode_metrics, make_eval_env, rollout
+from .evaluate import VALVE_KEYS, episode_metrics, make_eval_env, rollout
 from .knocker import KNOCKER_DEFAULTS, KnockerController
 from .pi import PIController, default_tuning
 
@@ -438,16 +437,18 @@ def paired_summary(episodes, ref: str = "pi"):
 
 # --------------------------------------------------------------------------- atomic writes
 def _atomic_write_bytes(path: Path, data: bytes) -> None:
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=str(path.parent))
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    """Write ``data`` to ``path`` atomically (:func:`valve_gym._io.write_atomic`)."""
+    from valve_gym._io import write_atomic
+
+    write_atomic(path, lambda f: f.write(data))
+    _readable(str(path))
+
+
+def _readable(path: str) -> None:
+    """Give a written file the usual permissions under the umask (temporary files are 0600)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    os.chmod(path, 0o666 & ~mask)
 
 
 def _atomic_write_text(path: Path, text: str) -> None:

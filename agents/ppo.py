@@ -18,10 +18,9 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import zipfile
-from dataclasses import asdict, dataclass, field
-from typing import Any, NamedTuple, Optional, Sequence, Tuple
+from dataclasses import asdict, dataclass
+from typing import NamedTuple, Optional, Tuple
 
 import numpy as np
 
@@ -194,25 +193,26 @@ class TransformVecEnv(_vec_env_wrapper_base()):
 def save_policy(model, path: str, meta: dict) -> str:
     """Save an SB3 model plus ``meta`` atomically to ``path`` (.zip).
 
-    The model is written to a temporary file in the target directory, the
-    metadata entry is appended, then the file is moved into place with
-    :func:`os.replace`, so a reader never sees a half-written policy.
+    The zip (SB3's entries plus ``valve_gym.json``) is built in memory and
+    written through :func:`valve_gym._io.write_atomic` (temporary file, then
+    :func:`os.replace`), so a reader never sees a half-written policy.
     """
+    import io
+
+    from valve_gym._io import write_atomic
+
     path = str(path)
     if not path.endswith(".zip"):
         path += ".zip"
-    d = os.path.dirname(os.path.abspath(path))
-    os.makedirs(d, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=".tmp_", suffix=".zip", dir=d)
-    os.close(fd)
-    try:
-        model.save(tmp)
-        with zipfile.ZipFile(tmp, "a", compression=zipfile.ZIP_DEFLATED) as z:
-            z.writestr(POLICY_META_NAME, json.dumps(meta, indent=1, sort_keys=True, default=_json_default))
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    buf = io.BytesIO()
+    model.save(buf)
+    with zipfile.ZipFile(buf, "a", compression=zipfile.ZIP_DEFLATED) as z:
+        z.writestr(POLICY_META_NAME, json.dumps(meta, indent=1, sort_keys=True, default=_json_default))
+    data = buf.getvalue()
+    write_atomic(path, lambda f: f.write(data))
+    from .benchmark import _readable
+
+    _readable(path)
     return path
 
 

@@ -1,9 +1,10 @@
 """Train a PPO policy from a YAML config: ``valve-gym train``.
 
-``valve-gym train --config configs/ppo_residual.yaml [--out DIR] [--resume CKPT]
+``valve-gym train --config configs/ppo_shipped.yaml [--out DIR] [--resume CKPT]
 [--timesteps N] [--seed S] [--vec-env native|dummy|subproc] [--no-progress]``
 
-The config (see :class:`TrainConfig`, example ``configs/ppo_residual.yaml``)
+The config (see :class:`TrainConfig`; ``configs/ppo_shipped.yaml`` made the
+shipped direct policy, ``configs/ppo_residual.yaml`` is a residual one)
 holds rl-zoo style PPO hyperparameters (``ppo``: ``n_envs``, ``n_steps``,
 ``batch_size``, ``gamma``, ``gae_lambda``, ``learning_rate``, ``ent_coef``,
 ``policy_kwargs.net_arch``, ...), ``total_timesteps``, environment overrides
@@ -670,7 +671,7 @@ def _final_eval(cfg: TrainConfig, out: Path, model) -> dict:
 def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="valve-gym train",
                                 description="Train a PPO policy (stable-baselines3) from a YAML config.")
-    p.add_argument("--config", required=True, help="training YAML, e.g. configs/ppo_residual.yaml")
+    p.add_argument("--config", required=True, help="training YAML, e.g. configs/ppo_shipped.yaml")
     p.add_argument("--out", default=None, help="output folder (default: runs/<name>)")
     p.add_argument("--resume", default=None, metavar="CKPT", help="checkpoint .zip to continue from")
     p.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")

@@ -1,6 +1,6 @@
 """PPO training throughput: native vector env vs SB3's DummyVecEnv and SubprocVecEnv.
 
-In one run, with the same PPO settings (``configs/ppo_residual.yaml`` by
+In one run, with the same PPO settings (``configs/ppo_shipped.yaml`` by
 default, ``n_envs`` sub-environments), measures
 
 (a) **PPO env-steps/s**: wall-clock env steps per second of
@@ -78,7 +78,7 @@ def ppo_speed(cfg, kind, n_steps):
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--config", default=str(ROOT / "configs" / "ppo_residual.yaml"))
+    p.add_argument("--config", default=str(ROOT / "configs" / "ppo_shipped.yaml"))
     p.add_argument("--n-envs", type=int, default=None, help="override ppo.n_envs")
     p.add_argument("--steps", type=int, default=40960, help="env steps of the timed PPO run")
     p.add_argument("--kinds", default="native,dummy,subproc")

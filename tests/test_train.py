@@ -118,3 +118,21 @@ def test_resume_rejects_other_transform(tmp_path):
     cfg_path.write_text(yaml.safe_dump(TINY))
     assert cli_main(["train", "--config", str(cfg_path), "--out", str(tmp_path / "o"), "--resume", ck,
                      "--no-progress"]) == 2
+
+
+def test_shipped_policy_matches_its_config():
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    zips = sorted((root / "agents" / "policies").glob("*.zip"))
+    for z in zips:
+        meta = read_policy_meta(str(z))
+        assert meta["command"].startswith("valve-gym train --config configs/")
+        cfg_file = meta["command"].split("--config ")[1].split()[0]
+        cfg = load_train_config(root / cfg_file)
+        if "--seed" in meta["command"]:
+            from dataclasses import replace
+
+            cfg = replace(cfg, seed=int(meta["command"].split("--seed ")[1].split()[0]))
+        assert load_train_config(meta["train_config"]) == cfg
+        assert load_train_config(z.with_suffix(".yaml")) == cfg

@@ -21,6 +21,9 @@ def write_atomic(path, write: Callable) -> str:
     try:
         with os.fdopen(fd, "wb") as f:
             write(f)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes 0600; give results the usual mode
         os.replace(tmp, path)
     except BaseException:
         try:
