@@ -46,7 +46,7 @@ from typing import Dict, List, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
-from valve_gym.config import ConfigError, EnvConfig, config_to_dict, load_config
+from valve_gym.config import read_yaml, ConfigError, EnvConfig, config_to_dict, load_config
 
 from .evaluate import VALVE_KEYS, episode_metrics, make_eval_env, rollout
 from .knocker import KNOCKER_DEFAULTS, KnockerController
@@ -249,16 +249,8 @@ def load_benchmark_config(path_or_dict=None) -> BenchmarkConfig:
     """
     base_dir = None
     if isinstance(path_or_dict, (str, os.PathLike)):
-        import yaml
-
         p = Path(path_or_dict)
-        if not p.is_file():
-            raise ConfigError(f"benchmark config file {str(p)!r} does not exist")
-        with open(p, encoding="utf-8") as fh:
-            try:
-                data = yaml.safe_load(fh) or {}
-            except yaml.YAMLError as exc:
-                raise ConfigError(f"{p}: not valid YAML: {exc}") from None
+        data = read_yaml(p, "benchmark config")
         base_dir = p.resolve().parent
         src = f" in {p}"
     else:

@@ -55,7 +55,7 @@ from typing import Mapping, Optional, Tuple
 
 import numpy as np
 
-from valve_gym.config import ConfigError, EnvConfig, config_to_dict, load_config
+from valve_gym.config import read_yaml, ConfigError, EnvConfig, config_to_dict, load_config
 
 from .ppo import ObsTransform, read_policy_meta, save_policy
 
@@ -268,16 +268,8 @@ def load_train_config(path_or_dict) -> TrainConfig:
     """
     src = ""
     if isinstance(path_or_dict, (str, os.PathLike)):
-        import yaml
-
         p = Path(path_or_dict)
-        if not p.is_file():
-            raise ConfigError(f"training config file {str(p)!r} does not exist")
-        with open(p, encoding="utf-8") as fh:
-            try:
-                data = yaml.safe_load(fh) or {}
-            except yaml.YAMLError as exc:
-                raise ConfigError(f"{p}: not valid YAML: {exc}") from None
+        data = read_yaml(p, "training config")
         src = f" in {p}"
     else:
         data = path_or_dict or {}

@@ -523,14 +523,15 @@ def _build(cls, data: Mapping, path: str, base=None):
         raise ConfigError(f"{where}: {msg}") from None
 
 
-def _read_yaml(path) -> Any:
+def read_yaml(path, what: str = "config") -> Any:
+    """Read a YAML file; ``ConfigError`` (naming ``what`` and the file) if missing or invalid."""
     try:
         import yaml
     except ImportError:  # pragma: no cover
         raise ImportError("reading YAML configs needs PyYAML: pip install pyyaml") from None
     p = Path(path)
     if not p.is_file():
-        raise ConfigError(f"config file {str(p)!r} does not exist")
+        raise ConfigError(f"{what} file {str(p)!r} does not exist")
     try:
         with open(p, encoding="utf-8") as fh:
             data = yaml.safe_load(fh)
@@ -572,7 +573,7 @@ def load_config(path_or_dict: Union[str, os.PathLike, Mapping, None], cls=EnvCon
     onto the class named by ``process_kind``.
     """
     if isinstance(path_or_dict, (str, os.PathLike)):
-        data = _read_yaml(path_or_dict)
+        data = read_yaml(path_or_dict)
         src = f" in {os.fspath(path_or_dict)}"
     elif path_or_dict is None:
         data, src = {}, ""

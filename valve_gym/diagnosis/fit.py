@@ -338,6 +338,15 @@ def _refine(obj: _Objective, x0, max_nfev=40, step=2e-3):
     return x, c
 
 
+def _take_best(obj: _Objective, X, x, c):
+    """Simulate the candidate rows ``X`` in one batch; keep the best if it lowers the cost ``c``."""
+    f = obj(X)
+    i = int(np.argmin(f))
+    if f[i] < c * (1 - 1e-9):
+        return X[i].copy(), float(f[i]), True
+    return x, c, False
+
+
 def _grid_polish(obj: _Objective, x, c, rounds: int = 4, n_grid: int = 17):
     """Batched grid scans over the rugged coordinates around ``x``.
 
@@ -368,18 +377,14 @@ def _grid_polish(obj: _Objective, x, c, rounds: int = 4, n_grid: int = 17):
             X = np.repeat(x[None, :], A.size, axis=0)
             X[:, ia] = pa.coord(A.ravel())
             X[:, ib] = pb.coord(B.ravel())
-            f = obj(X)
-            i = int(np.argmin(f))
-            if f[i] < c * (1 - 1e-9):
-                x, c, improved = X[i].copy(), float(f[i]), True
+            x, c, better = _take_best(obj, X, x, c)
+            improved |= better
         if "dh0" in pos:
             it = pos["dh0"]
             X = np.repeat(x[None, :], 41, axis=0)
             X[:, it] = np.linspace(0.0, 1.0, 41)
-            f = obj(X)
-            i = int(np.argmin(f))
-            if f[i] < c * (1 - 1e-9):
-                x, c, improved = X[i].copy(), float(f[i]), True
+            x, c, better = _take_best(obj, X, x, c)
+            improved |= better
         if "theta" in pos:
             it = pos["theta"]
             pt = st.params[obj.free[it]]
@@ -389,10 +394,8 @@ def _grid_polish(obj: _Objective, x, c, rounds: int = 4, n_grid: int = 17):
                            min(round(pt.hi / dte), round(th / dte) + 8 * st.n_sub) + 1)
             X = np.repeat(x[None, :], len(ks), axis=0)
             X[:, it] = pt.coord(ks * dte)
-            f = obj(X)
-            i = int(np.argmin(f))
-            if f[i] < c * (1 - 1e-9):
-                x, c, improved = X[i].copy(), float(f[i]), True
+            x, c, better = _take_best(obj, X, x, c)
+            improved |= better
         if not improved:
             break
     return x, c
