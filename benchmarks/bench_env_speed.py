@@ -6,7 +6,8 @@ Measures
     wrappers: PassiveEnvChecker, OrderEnforcing, TimeLimit) at the default
     config, and of ``CartPole-v1`` made the same way;
 (b) env-steps/s of the native vector env ``ValveTankVectorEnv`` and of
-    Gymnasium's ``CartPoleVectorEnv`` at N = 1, 64, 1024, 4096;
+    Gymnasium's ``CartPoleVectorEnv`` at N = 1, 64, 1024, 4096, and at
+    N = 1024, 4096 with the plant run in two kernel threads (``threads=2``);
 (c) plant Euler sub-steps/s (= env-steps/s x substeps), next to the bare kernel
     (:func:`valve_gym.core.run_packed` alone, same valves and random inputs);
 (d) the numba kernel of :mod:`valve_gym.core` against its pure-Python version
@@ -87,7 +88,7 @@ def vector_runner(env, n_steps, discrete):
     return run
 
 
-def kernel_runner(env, n_steps):
+def kernel_runner(env, n_steps, threads=1):
     """The bare kernel on the vector env's valves, same random inputs (no env around it)."""
     from valve_gym import core
 
@@ -102,7 +103,7 @@ def kernel_runner(env, n_steps):
 
     def run():
         for i in range(n_steps):
-            core.run_packed(pk, S, buf, us[i % n_act], D, ns, Y, H, LV)
+            core.run_packed(pk, S, buf, us[i % n_act], D, ns, Y, H, LV, threads=threads)
 
     return run
 
@@ -170,6 +171,16 @@ def main(argv=None) -> int:
         v, c = n * steps / t["valve"], n * steps / t["cartpole"]
         out["vector"][n] = {"ValveTank": v, "CartPole": c, "substeps_per_s": v * substeps,
                             "kernel_substeps_per_s": n * steps * substeps / t["kernel"]}
+    out["vector_threads"] = {}
+    for n in (1024, 4096):
+        steps = max(70, 700 // (10 if q else 1))
+        t = _best({"valve": vector_runner(ValveTankVectorEnv(n, threads=2), steps, False),
+                   "cartpole": vector_runner(CartPoleVectorEnv(num_envs=n), steps, True),
+                   "kernel": kernel_runner(ValveTankVectorEnv(n), steps, threads=2)},
+                  max(reps - 2, 2))
+        v, c = n * steps / t["valve"], n * steps / t["cartpole"]
+        out["vector_threads"][n] = {"ValveTank": v, "CartPole": c, "substeps_per_s": v * substeps,
+                                    "kernel_substeps_per_s": n * steps * substeps / t["kernel"]}
 
     # (d) numba against pure Python
     out["kernel"] = bench_kernel(n=4, T=50 if q else 200, n_sub=substeps, repeats=reps)
@@ -185,6 +196,10 @@ def main(argv=None) -> int:
         lines.append(f"| vector env N={n}, env-steps/s | {r['ValveTank']:,.0f} | {r['CartPole']:,.0f} | "
                      f"{r['ValveTank'] / r['CartPole']:.2f} | {r['substeps_per_s'] / 1e6:.1f} M | "
                      f"{r['kernel_substeps_per_s'] / 1e6:.1f} M |")
+    for n, r in out["vector_threads"].items():
+        lines.append(f"| vector env N={n}, 2 kernel threads, env-steps/s | {r['ValveTank']:,.0f} | "
+                     f"{r['CartPole']:,.0f} | {r['ValveTank'] / r['CartPole']:.2f} | "
+                     f"{r['substeps_per_s'] / 1e6:.1f} M | {r['kernel_substeps_per_s'] / 1e6:.1f} M |")
     kn = out["kernel"]
     lines.append(f"| kernel n=4: numba vs its pure-Python version, sub-steps/s | {kn['numba']:,.0f} | "
                  f"{kn['python']:,.0f} (Python) | {kn['numba'] / kn['python']:.0f}x | | |")

@@ -901,3 +901,48 @@ def test_bug_zero_outflow_warns():
         warnings.simplefilter("error")
         tr = simulate(p, np.full(3, 0.5))
     assert tr.level[-1, 0] > p.process.level0
+
+
+def _run_threads(p, U, D, threads):
+    n = p.batch_size()
+    pk = cmod.pack(p, n)
+    st = initial_state(p, n, buf_len=pk.buf_len)
+    S, buf = cmod.state_to_array(st), np.array(st.delay_buf, float, copy=True)
+    T = U.shape[0]
+    Y, H, LV = (np.empty((T, n)) for _ in range(3))
+    cmod.run_packed(pk, S, buf, np.ascontiguousarray(U), np.ascontiguousarray(D), 7, Y, H, LV,
+                    threads=threads)
+    return Y, H, LV, S, buf
+
+
+@pytest.mark.parametrize("case", list(BATCH))
+@pytest.mark.parametrize("shared_input", [False, True])
+def test_kernel_threads_give_the_same_result_bit_for_bit(case, shared_input):
+    p = BATCH[case]
+    u, d = batch_inputs(T=300)
+    if shared_input:
+        u, d = u[:, :1], d[:, :1]
+    ref = _run_threads(p, u, d, 1)
+    for threads in (2, 3, 8):          # 3 systems: blocks of 1 and 2, and more threads than systems
+        out = _run_threads(p, u, d, threads)
+        for a, b, name in zip(ref, out, ("Y", "H", "LV", "S", "buf")):
+            np.testing.assert_array_equal(a, b, err_msg=f"{case}, {threads} threads: {name}")
+
+
+def test_kernel_threads_survive_a_fork():
+    """A process forked after the kernel threads started must not wait on its parent's threads."""
+    import multiprocessing as mp
+
+    if "fork" not in mp.get_all_start_methods():
+        pytest.skip("no fork on this platform")
+    p = BATCH["paper+effects"]
+    u, d = batch_inputs(T=100)
+    ref = _run_threads(p, u, d, 2)[0]
+    pool = mp.get_context("fork").Pool(1)
+    try:
+        y = pool.apply_async(_run_threads, (p, u, d, 2)).get(timeout=60)[0]
+    except mp.TimeoutError:
+        pytest.fail("the forked process hung on the kernel threads of its parent")
+    finally:
+        pool.terminate()
+    np.testing.assert_array_equal(ref, y)

@@ -178,3 +178,26 @@ def test_integrating_output_sign_is_fitted():
     assert f.physical_["measurement.sign"] == -1.0
     assert rel(f.physical_["process.q_max"], 0.8) < 0.1
     assert f.fit_percent_ > 90
+
+
+def test_fitter_simulations_are_the_same_in_kernel_threads():
+    from valve_gym.diagnosis import model as mmod
+
+    case = make_case("dead_time", seed=3, n=1500)
+    r = case.recording
+    st = ModelStructure("tank", "valve", ("dead_time", "sensor_lag"),
+                        DataScales.from_signals(r.op, r.pv, r.dt))
+    W = np.random.default_rng(1).random((40, len(st.params)))   # 40 x 1500 x n_sub: above the threshold
+    assert 40 * 1500 * st.n_sub >= mmod._MIN_THREADED_STEPS
+    old = mmod.kernel_threads()
+    try:
+        mmod.set_kernel_threads(1)
+        y1 = st.simulate(W, r.op)
+        mmod.set_kernel_threads(3)
+        y3 = st.simulate(W, r.op)
+    finally:
+        mmod.set_kernel_threads(old)
+    np.testing.assert_array_equal(y1, y3)
+    assert np.isfinite(y1).any()
+    with pytest.raises(ValueError, match="at least 1"):
+        mmod.set_kernel_threads(0)

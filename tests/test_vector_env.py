@@ -137,9 +137,9 @@ def test_one_kernel_call_per_step(monkeypatch):
     calls = []
     real = vector_module.core.run_packed
 
-    def counting(*args):
+    def counting(*args, **kw):
         calls.append(args[3].shape)
-        return real(*args)
+        return real(*args, **kw)
 
     monkeypatch.setattr(vector_module.core, "run_packed", counting)
     venv = ValveTankVectorEnv(16, SHORT)
@@ -147,6 +147,20 @@ def test_one_kernel_call_per_step(monkeypatch):
     for _ in range(30):
         venv.step(np.zeros((16, 1), np.float32))
     assert calls == [(1, 16)] * 30
+
+
+def test_kernel_threads_change_nothing_but_speed():
+    out = []
+    for threads in (1, 2):
+        venv = ValveTankVectorEnv(7, SHORT, threads=threads)
+        obs, _ = venv.reset(seed=3)
+        rng = np.random.default_rng(0)
+        rows = [obs]
+        for _ in range(80):                       # crosses the autoresets of SHORT episodes
+            obs, rew, term, trunc, info = venv.step(rng.uniform(-1, 1, (7, 1)).astype(np.float32))
+            rows += [obs, rew[:, None], info["stem"][:, None], info["level"][:, None]]
+        out.append(np.concatenate([np.asarray(r, float).reshape(7, -1) for r in rows], axis=1))
+    np.testing.assert_array_equal(out[0], out[1])
 
 
 def test_make_vec_vector_entry_point_and_time_limit():
@@ -194,6 +208,9 @@ def test_render_and_bad_input():
         ValveTankVectorEnv(0)
     with pytest.raises(ValueError, match="autoreset_mode"):
         ValveTankVectorEnv(2, autoreset_mode="sometimes")
+    for bad in (0, 1.5, True):
+        with pytest.raises(ValueError, match="threads must be a positive integer"):
+            ValveTankVectorEnv(2, threads=bad)
     venv.step(np.zeros(2, np.float32))  # (N,) is accepted as (N, 1)
 
 

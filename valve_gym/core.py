@@ -22,6 +22,7 @@ The controller sample is ``n_sub * dt`` seconds.
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from typing import NamedTuple, Optional
 
@@ -121,7 +122,7 @@ class Trajectory(NamedTuple):
 
 
 # ---------------------------------------------------------------- kernel
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _kernel(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV):  # pragma: no cover - compiled
     T = U.shape[0]
     n = S.shape[1]
@@ -579,7 +580,7 @@ def _as_2d(a, T_expected=None, name="u"):
 
 
 def run_packed(pk: Packed, S: np.ndarray, buf: np.ndarray, U: np.ndarray, D: np.ndarray,
-               n_sub: int, Y: np.ndarray, H: np.ndarray, LV: np.ndarray) -> None:
+               n_sub: int, Y: np.ndarray, H: np.ndarray, LV: np.ndarray, threads: int = 1) -> None:
     """Advance the packed state ``S`` in place over the inputs ``U`` (T, n|1).
 
     The low-overhead path used by the environments. ``U`` and ``D`` must be
@@ -587,8 +588,44 @@ def run_packed(pk: Packed, S: np.ndarray, buf: np.ndarray, U: np.ndarray, D: np.
     zeros for no disturbance) and 1 or ``n`` columns; ``Y``, ``H``, ``LV``
     (T, n) receive the measured output, stem position and level after each
     sample. No checks are made here: use :func:`simulate` for checked calls.
+
+    ``threads > 1`` splits the batch into that many column blocks run at once
+    in threads (the compiled kernel releases the GIL).  The systems of a batch
+    are independent, so the result is bit-for-bit the one of ``threads=1``;
+    it pays from a few hundred thousand Euler steps per call
+    (``benchmarks/bench_env_speed.py`` measures it).
     """
-    _kernel(S, pk.P, U, D, pk.flags, buf, n_sub, pk.dt, Y, H, LV)
+    n = S.shape[1]
+    threads = min(int(threads), n) if HAVE_NUMBA else 1
+    if threads <= 1:
+        _kernel(S, pk.P, U, D, pk.flags, buf, n_sub, pk.dt, Y, H, LV)
+        return
+    edges = np.linspace(0, n, threads + 1).astype(int)
+
+    def block(a, b):
+        def cols(A):
+            return A[:, a:b] if A.shape[1] > 1 else A
+        _kernel(S[:, a:b], cols(pk.P), cols(U), cols(D), pk.flags, buf[a:b] if buf.shape[0] > 1 else buf,
+                n_sub, pk.dt, Y[:, a:b], H[:, a:b], LV[:, a:b])
+
+    futures = [_thread_pool(threads).submit(block, a, b) for a, b in zip(edges[:-1], edges[1:])]
+    for f in futures:
+        f.result()
+
+
+_POOL = [None, 0]      # (pool, pid): a forked child must not use its parent's threads
+
+
+def _thread_pool(n: int):
+    """This process's pool of kernel threads, grown on demand."""
+    pool, pid = _POOL
+    if pool is None or pid != os.getpid() or pool._max_workers < n:
+        from concurrent.futures import ThreadPoolExecutor
+        if pool is not None and pid == os.getpid():
+            pool.shutdown(wait=False)
+        _POOL[:] = [ThreadPoolExecutor(max_workers=n, thread_name_prefix="valve_gym-kernel"),
+                    os.getpid()]
+    return _POOL[0]
 
 
 def simulate(params: ModelParams, u, state: Optional[State] = None, d=None, n_sub: int = 1,

@@ -11,7 +11,7 @@ import json
 import math
 import os
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from dataclasses import dataclass
 from typing import Callable, List, Optional, Sequence
 
@@ -20,7 +20,7 @@ import numpy as np
 from .explain import explain_effect, explain_none, explain_stiction
 from .fit import FitResult, fit_initial_state, fit_structure, fit_with_friction, transfer
 from .locate import MismatchReport, condition_masks, locate_mismatch
-from .model import ACTUATORS, CANDIDATE_EFFECTS, PLANTS, DataScales, ModelStructure
+from .model import ACTUATORS, CANDIDATE_EFFECTS, PLANTS, DataScales, ModelStructure, process_pool
 from .recording import Recording, RecordingError
 from .select import Selection, SelectionRule, select_effects
 
@@ -272,7 +272,7 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
         tasks.append((stf, sf))
     args = [(t[0], u, y, t[1], seed + 17 + i, effort) for i, t in enumerate(tasks)]
     if jobs > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as ex:
+        with process_pool(jobs) as ex:
             fits = list(ex.map(_fit_task, args))
     else:
         fits = [_fit_task(a) for a in args]
@@ -533,7 +533,7 @@ def diagnose_many(paths: Sequence[str], jobs: int = 2, load_kw: Optional[dict] =
     Parameters
     ----------
     paths : sequence of CSV paths
-    jobs : int, worker processes (each diagnosis runs single-threaded)
+    jobs : int, worker processes (the kernel threads are shared out between them)
     load_kw : dict, keyword arguments of :func:`load_recording` (columns, op_range, ...)
     diag_kw : dict, keyword arguments of :func:`diagnose` (plant, actuator, ...); may
         be a callable ``path -> dict`` for per-file settings
@@ -578,7 +578,7 @@ def diagnose_many(paths: Sequence[str], jobs: int = 2, load_kw: Optional[dict] =
             out[i] = _diagnose_job(t)
             note(i, out[i])
     else:
-        with ProcessPoolExecutor(max_workers=jobs) as ex:
+        with process_pool(jobs) as ex:
             futs = {ex.submit(_diagnose_job, t): i for i, t in enumerate(tasks)}
             for fu in as_completed(futs):
                 i = futs[fu]

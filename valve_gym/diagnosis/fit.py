@@ -192,9 +192,10 @@ class _Objective:
             return np.full((len(self.u), np.atleast_2d(X).shape[0]), np.nan)
 
     def __call__(self, X):
-        Y = self.sim(X)
+        Y = self.sim(X)                      # a fresh array: squared in place
         with np.errstate(over="ignore", invalid="ignore"):
-            c = np.sum((Y - self.y[:, None]) ** 2, axis=0)
+            Y -= self.y[:, None]
+            c = np.einsum("ij,ij->j", Y, Y)
         c[~np.isfinite(c)] = _BIG
         return c
 

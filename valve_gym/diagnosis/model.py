@@ -65,6 +65,7 @@ clipping.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
 from typing import Dict, List, Optional, Sequence, Tuple
 
@@ -76,7 +77,40 @@ from ..params import (Cascade, DeadTime, FirstOrderParams, IntegratingParams, Le
                       SensorLag, SlipJump, TankParams, ValveCharacteristic, ValveParams)
 
 __all__ = ["PLANTS", "ACTUATORS", "CANDIDATE_EFFECTS", "FreeParam", "DataScales",
-           "ModelStructure", "effect_applicability"]
+           "ModelStructure", "effect_applicability", "kernel_threads", "set_kernel_threads",
+           "process_pool"]
+
+# batched simulations of at least this many Euler steps run in kernel threads
+_MIN_THREADED_STEPS = 100_000
+_THREADS = [min(os.cpu_count() or 1, 8)]
+
+
+def kernel_threads() -> int:
+    """Threads the fitter's batched simulations use (default: the machine's cores, at most 8)."""
+    return _THREADS[0]
+
+
+def set_kernel_threads(n: int) -> None:
+    """Set the threads of the fitter's batched simulations (1 = none).
+
+    Results do not depend on it: the systems of a batch are independent.
+    """
+    n = int(n)
+    if n < 1:
+        raise ValueError(f"kernel threads must be at least 1, got {n}")
+    _THREADS[0] = n
+
+
+def process_pool(jobs: int):
+    """Worker processes for ``jobs`` fits or recordings at once, the kernel threads shared out.
+
+    Each worker runs its batched simulations in ``kernel_threads() // jobs``
+    threads (at least 1), so workers and threads together do not oversubscribe
+    the cores.
+    """
+    from concurrent.futures import ProcessPoolExecutor
+    return ProcessPoolExecutor(max_workers=jobs, initializer=set_kernel_threads,
+                               initargs=(max(1, kernel_threads() // max(1, int(jobs))),))
 
 #: Process models the fitter knows.
 PLANTS = ("tank", "integrating", "first_order", "cascade")
@@ -337,6 +371,11 @@ class ModelStructure:
             v = self.variants.get(e)
             parts.append(f"{e} ({v})" if v else e)
         return " + ".join(parts)
+
+    def __getstate__(self):
+        d = dict(self.__dict__)
+        d.pop("_scratch", None)        # kernel scratch arrays: rebuilt on first use
+        return d
 
     def with_effects(self, effects: Sequence[str], **kw) -> "ModelStructure":
         """Same plant/actuator/scales with other effects (keyword overrides allowed)."""
@@ -614,19 +653,31 @@ class ModelStructure:
         buf = np.array(st.delay_buf, dtype=np.float64, copy=True)
         U = np.ascontiguousarray(np.asarray(u, float).reshape(-1, 1))
         T = U.shape[0]
-        Dz = np.zeros((T, 1))
         Y = np.empty((T, n))
-        H = np.empty((T, n))
-        LV = np.empty((T, n))
-        run_packed(pk, S, buf, U, Dz, ns, Y, H, LV)
-        Y = sign[None, :] * Y + offset[None, :]
+        H, LV, Dz = self._work(T, n)
+        threads = kernel_threads() if T * n * ns >= _MIN_THREADED_STEPS else 1
+        run_packed(pk, S, buf, U, Dz, ns, Y, H, LV, threads=threads)
+        if np.any(sign != 1.0):
+            Y *= sign[None, :]
+        if np.any(offset != 0.0):
+            Y += offset[None, :]
         sc = self.scales
         if sc.sat_hi is not None:
             np.minimum(Y, sc.sat_hi, out=Y)
         if sc.sat_lo is not None:
             np.maximum(Y, sc.sat_lo, out=Y)
-        Y[:, ~np.isfinite(Y).all(axis=0)] = np.nan
+        bad = ~np.isfinite(Y).all(axis=0)
+        if bad.any():
+            Y[:, bad] = np.nan
         return Y
+
+    def _work(self, T: int, n: int):
+        """Scratch arrays of the kernel (stem, level, zero load), reused between calls."""
+        w = self.__dict__.get("_scratch")
+        if w is None or w[0].shape[0] != T or w[0].shape[1] < n:
+            w = (np.empty((T, n)), np.empty((T, n)), np.zeros((T, 1)))
+            self.__dict__["_scratch"] = w
+        return w[0][:, :n], w[1][:, :n], w[2]
 
     def stem(self, W, u, n_sub: Optional[int] = None) -> np.ndarray:
         """Simulated stem position ``(T,)`` of the first row of ``W`` (0..1)."""

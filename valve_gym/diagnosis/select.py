@@ -30,7 +30,6 @@ plus the band ``min_band``.
 from __future__ import annotations
 
 import time
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from typing import Dict, List, Optional, Sequence, Tuple
 
@@ -38,7 +37,7 @@ import numpy as np
 
 from .fit import FitResult, effective_n, fit_structure, information_criterion, transfer
 from .locate import dominant_period
-from .model import CANDIDATE_EFFECTS, effect_applicability
+from .model import CANDIDATE_EFFECTS, effect_applicability, process_pool
 
 __all__ = ["SelectionRule", "CandidateFit", "Selection", "select_effects", "compare",
            "candidate_variants"]
@@ -205,7 +204,7 @@ def _run(tasks, jobs, executor=None):
     if executor is not None and len(tasks) > 1:
         return list(executor.map(_fit_candidate, tasks))
     if jobs > 1 and len(tasks) > 1:
-        with ProcessPoolExecutor(max_workers=jobs) as ex:
+        with process_pool(jobs) as ex:
             return list(ex.map(_fit_candidate, tasks))
     return [_fit_candidate(t) for t in tasks]
 
@@ -251,7 +250,7 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
     effects: List[str] = []
     tried: List[CandidateFit] = []
     rnd = 0
-    ex = ProcessPoolExecutor(max_workers=jobs) if jobs > 1 else None
+    ex = process_pool(jobs) if jobs > 1 else None
     try:
         while pool and len(effects) < rule.max_effects:
             rnd += 1

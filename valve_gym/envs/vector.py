@@ -161,6 +161,11 @@ class ValveTankVectorEnv(VectorEnv):
     sub-environment where NaN entries are drawn. ``'reset_mask'`` (``(N,)``
     bool) resets only the marked sub-environments.
 
+    **Threads.** ``threads=2`` (or more) runs the plant of the sub-environments
+    in that many column blocks at once (the compiled kernel releases the GIL);
+    the results are bit for bit those of ``threads=1``. It pays for large ``N``
+    (``benchmarks/bench_env_speed.py``).
+
     Attributes
     ----------
     config : EnvConfig
@@ -189,7 +194,7 @@ class ValveTankVectorEnv(VectorEnv):
     def __init__(self, num_envs: int = 1, config: Union[EnvConfig, Mapping, str, None] = None, *,
                  preset: str = "default", max_episode_steps: Optional[int] = None,
                  autoreset_mode: Union[AutoresetMode, str] = AutoresetMode.NEXT_STEP,
-                 render_mode: Optional[str] = None):
+                 render_mode: Optional[str] = None, threads: int = 1):
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         N = int(num_envs)
@@ -208,6 +213,10 @@ class ValveTankVectorEnv(VectorEnv):
         if isinstance(max_episode_steps, bool) or not isinstance(max_episode_steps, (int, np.integer)) \
                 or max_episode_steps < 1:
             raise ValueError(f"max_episode_steps must be a positive integer, got {max_episode_steps!r}")
+        if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
+            raise ValueError(f"threads must be a positive integer (kernel threads per step; 1 = none), "
+                             f"got {threads!r}")
+        self.threads = int(threads)
         self.num_envs = N
         self.config = cfg
         self.max_episode_steps = int(max_episode_steps)
@@ -456,7 +465,7 @@ class ValveTankVectorEnv(VectorEnv):
         Hs = np.empty((1, N))
         LV = np.empty((1, N))
         core.run_packed(self._pk, self._S, self._buf, u.reshape(1, N), load.reshape(1, N),
-                        self.substeps, Y, Hs, LV)
+                        self.substeps, Y, Hs, LV, threads=self.threads)
         obs = np.empty((N, self._nobs), dtype=np.float32)
         reward = np.empty(N)
         ym = np.empty(N)
