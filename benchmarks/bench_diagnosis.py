@@ -10,7 +10,11 @@ wall-clock and other processes slow them down.
 Usage::
 
     python benchmarks/bench_diagnosis.py [--samples 3600] [--jobs 2] [--repeat 1]
-        [--effects none,overflow] [--effort normal]
+        [--effects none,overflow] [--effort normal] [--reference]
+
+``--reference`` also diagnoses every recording serially (one process, kernel
+threads off) right after the timed run, and reports the ratio of the two wall
+times: the machine's load affects both alike.  Both give the same result.
 """
 from __future__ import annotations
 
@@ -22,7 +26,7 @@ import time
 import numpy as np
 
 from valve_gym.diagnosis import diagnose
-from valve_gym.diagnosis.model import DataScales, ModelStructure
+from valve_gym.diagnosis.model import DataScales, ModelStructure, kernel_threads, set_kernel_threads
 from valve_gym.diagnosis.synthetic import make_case
 
 
@@ -54,6 +58,8 @@ def main(argv=None):
     ap.add_argument("--effects", default="none,overflow",
                     help="effects hidden in the benchmark recordings (one recording each)")
     ap.add_argument("--effort", default="normal", choices=("fast", "normal", "thorough"))
+    ap.add_argument("--reference", action="store_true",
+                    help="also time a serial diagnosis (1 process, no kernel threads) of each recording")
     a = ap.parse_args(argv)
     diagnose(make_case("none", seed=1, n=300).recording, candidates=(), effort="fast")  # warm-up
     rate = kernel_rate(a.samples)
@@ -63,9 +69,11 @@ def main(argv=None):
     print(f"Machine: {os.cpu_count()} cores, load average {load[0]:.1f} / {load[1]:.1f} / "
           f"{load[2]:.1f} (1/5/15 min) at the start; batched core {rate / 1e6:.1f} M simulated "
           f"samples/s (2 Euler steps each) in this process.\n")
+    ref_head = " serial reference [s] | speed-up |" if a.reference else ""
     print("| recording | effects named | total [s] | base fit | selection (screen + confirm) | "
-          "candidate fits | per candidate [s] | friction verdict | whole-record refits | locate |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
+          "candidate fits | per candidate [s] | friction verdict | whole-record refits | locate |"
+          + ref_head)
+    print("|---|---|---|---|---|---|---|---|---|---|" + ("---|---|" if a.reference else ""))
     totals, cpu = [], []
     for eff in a.effects.split(","):
         for rep in range(a.repeat):
@@ -78,10 +86,25 @@ def main(argv=None):
             cpu.append(_cpu() - c0)
             totals.append(wall)
             t = res.timing
+            ref = ""
+            if a.reference:
+                threads = kernel_threads()
+                set_kernel_threads(1)
+                try:
+                    t1 = time.perf_counter()
+                    res1 = diagnose(case.recording, plant="tank", actuator="valve", jobs=1,
+                                    effort=a.effort)
+                    serial = time.perf_counter() - t1
+                finally:
+                    set_kernel_threads(threads)
+                if res1.effects != res.effects:
+                    raise SystemExit(f"{case.name}: the serial run named {res1.effects}, "
+                                     f"the timed run {res.effects}")
+                ref = f" {serial:.1f} | {serial / wall:.2f}x |"
             print(f"| {case.name} | {', '.join(res.effects) or 'none'} | {wall:.1f} | "
                   f"{t['base_fit']:.1f} | {t['selection']:.1f} | {t['candidate_fits']} | "
                   f"{t['per_candidate']:.2f} | {t['friction_verdict']:.1f} | "
-                  f"{t['full_refit']:.1f} | {t['locate']:.1f} |")
+                  f"{t['full_refit']:.1f} | {t['locate']:.1f} |" + ref)
     print(f"\nMean {np.mean(totals):.1f} s per recording (max {np.max(totals):.1f} s); "
           f"target <= 30 s. Load average at the end {os.getloadavg()[0]:.1f}. CPU time "
           f"(this process and its workers) per recording: "

@@ -26,11 +26,12 @@ import argparse
 import sys
 import time
 from collections import Counter, defaultdict
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 
 import numpy as np
 
 from valve_gym.diagnosis import diagnose
+from valve_gym.diagnosis.model import process_pool
 from valve_gym.diagnosis.synthetic import SUITE_EFFECTS, make_case
 
 # truth parameter checked per effect: (truth key, fitted key)
@@ -84,7 +85,7 @@ def main(argv=None):
             i += 1
     t0 = time.perf_counter()
     out = []
-    with ProcessPoolExecutor(max_workers=a.jobs) as ex:
+    with process_pool(a.jobs) as ex:
         futs = [ex.submit(run_case, t) for t in tasks]
         for k, fu in enumerate(as_completed(futs), 1):
             r = fu.result()
