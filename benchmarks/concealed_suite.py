@@ -143,7 +143,7 @@ def main(argv=None):
               f"{med('base_fit'):.1f} -> {med('final_fit'):.1f} | {ptxt} |")
     secs = [r["seconds"] for r in out]
     print(f"\n{len(out)} diagnoses in {elapsed:.0f} s with {a.jobs} workers "
-          f"(median {np.median(secs):.1f} s per recording, single-threaded each).\n")
+          f"(median {np.median(secs):.1f} s per recording, kernel threads shared out between the workers).\n")
     if a.json:
         from valve_gym.diagnosis.report import write_json
         write_json({"cases": out, "settings": vars(a)}, a.json)
