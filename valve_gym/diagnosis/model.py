@@ -82,11 +82,12 @@ __all__ = ["PLANTS", "ACTUATORS", "CANDIDATE_EFFECTS", "FreeParam", "DataScales"
 
 # batched simulations of at least this many Euler steps run in kernel threads
 _MIN_THREADED_STEPS = 100_000
-_THREADS = [min(os.cpu_count() or 1, 8)]
+_THREADS = [min(len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity")
+                else (os.cpu_count() or 1), 8)]
 
 
 def kernel_threads() -> int:
-    """Threads the fitter's batched simulations use (default: the machine's cores, at most 8)."""
+    """Threads the fitter's batched simulations use (default: the cores this process may use, at most 8)."""
     return _THREADS[0]
 
 
