@@ -150,6 +150,10 @@ def test_result_json_schema_and_validation(overflow_result):
     assert isinstance(d["stiction"]["present"], bool)
     assert {"base_rmse", "final_rmse"} <= set(d["validation"])
     assert d["validation"]["final_rmse"] < d["validation"]["base_rmse"]
+    # validated on its own recording: from the fitted initial state it is the fit itself
+    v, res = d["validation"], overflow_result
+    assert v["final_rmse_same_state"] == pytest.approx(res.final.rmse_all, rel=1e-9)
+    assert v["base_rmse_same_state"] == pytest.approx(res.base.rmse_all, rel=1e-9)
     assert d["holdout"]["final_rmse"] <= d["holdout"]["base_rmse"]
 
 

@@ -208,7 +208,8 @@ def _print_summary(res) -> None:
     if d["validation"]:
         v = d["validation"]
         print(f"  validation on {v['recording']}: RMSE base {v['base_rmse']:.4g} -> final "
-              f"{v['final_rmse']:.4g}")
+              f"{v['final_rmse']:.4g} (initial state refitted); {v['base_rmse_same_state']:.4g} -> "
+              f"{v['final_rmse_same_state']:.4g} from the fitted recording's initial state")
     s = d["stiction"]
     print(f"  valve friction: {'present' if s.get('present') else 'not significant'}"
           + (f" ({s['model']}: " + ", ".join(f"{k} = {v:.4g}" for k, v in s['parameters'].items()

@@ -233,7 +233,10 @@ def render_markdown(res, figures: Optional[dict] = None) -> str:
         L.append("")
         L.append(f"Validation on `{v['recording']}` (initial state refitted): RMSE base "
                  f"{_g(v['base_rmse'])}, final {_g(v['final_rmse'])}; fit % base "
-                 f"{_g(v['base_fit_percent'], 3)}, final {_g(v['final_fit_percent'], 3)}.")
+                 f"{_g(v['base_fit_percent'], 3)}, final {_g(v['final_fit_percent'], 3)}. "
+                 f"Starting from the fitted recording's initial state instead (a record known to "
+                 f"start at the same point): RMSE base {_g(v['base_rmse_same_state'])}, final "
+                 f"{_g(v['final_rmse_same_state'])}.")
     L.append("")
     L.append("## Fitted parameters")
     L.append("")
