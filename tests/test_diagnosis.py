@@ -205,3 +205,30 @@ def test_fitter_simulations_are_the_same_in_kernel_threads():
     assert np.isfinite(y1).any()
     with pytest.raises(ValueError, match="at least 1"):
         mmod.set_kernel_threads(0)
+
+
+@pytest.mark.parametrize("effect, friction, seed, sticks", [
+    ("slip_jump", 1.0, 6, True),       # S = 1.5 %, J = 1.9 % of the stroke
+    ("none", 6.0, 5, True),            # the paper's valve, dead band 2 e_dead = 1.5 %
+    ("none", 0.0, 5, False),           # frictionless valve
+    ("none", 0.0, 6, False),
+])
+def test_friction_verdict_on_known_valves(effect, friction, seed, sticks):
+    case = make_case(effect, seed=seed, n=1200, friction=friction)
+    res = diagnose(case.recording, plant="tank", candidates=(), effort="fast")
+    s = res.to_dict()["stiction"]
+    assert s["tested"] and s["present"] is sticks, s["explanation"]
+    if sticks:
+        t = case.truth
+        true_band = t["slip_jump.S"] if effect == "slip_jump" else 2 * t["valve.e_dead"]
+        assert abs(s["band"] - true_band) < 0.3 * true_band
+        assert s["band"] >= s["band_needed"] and s["delta_ic"] < 0
+        assert s["explanation"].startswith("The valve sticks") and "that matters in this loop" in s["explanation"]
+    else:
+        assert s["band"] < 0.005 or s["delta_ic"] > -2.0
+        assert s["explanation"].startswith("No")
+
+
+def test_synthetic_friction_scale_is_checked():
+    with pytest.raises(ValueError, match="friction must be a finite number"):
+        make_case("none", seed=1, n=100, friction=-1.0)

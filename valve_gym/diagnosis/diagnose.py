@@ -325,7 +325,8 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
     verdict["explanation"] = explain_stiction(present, best1, best0, d_ic, float("nan"), mm,
                                               significant=significant, band=band,
                                               min_band=need, lag_alt=lag_alt,
-                                              op_range=op_range)
+                                              op_range=op_range, abs_band=rule.abs_band,
+                                              rel_band=rule.rel_band)
     # keep the nested optimum as the final model when it is the same structure and better
     new_final = final
     for f in fric:

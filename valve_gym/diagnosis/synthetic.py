@@ -133,7 +133,7 @@ def _sp_profile(rng, T, dt, lo, hi, hold=(150.0, 400.0)):
 
 def make_case(effect: str = "none", seed: int = 0, n: int = 1800, dt: float = 1.0,
               noise: float = 0.004, magnitude: float = 1.0,
-              load_disturbance: float = 0.0) -> SyntheticCase:
+              load_disturbance: float = 0.0, friction: float = 1.0) -> SyntheticCase:
     """Generate one closed-loop level recording with ``effect`` concealed in it.
 
     Parameters
@@ -151,6 +151,9 @@ def make_case(effect: str = "none", seed: int = 0, n: int = 1800, dt: float = 1.
     load_disturbance : float
         Std of a slowly varying unmeasured inflow, as a fraction of the mean
         inflow (0 = none).
+    friction : float
+        Scales the valve's drawn dead band and friction band (``e_dead``,
+        ``z_max``; 0 = a frictionless valve); the random draws do not change.
 
     Returns
     -------
@@ -165,6 +168,10 @@ def make_case(effect: str = "none", seed: int = 0, n: int = 1800, dt: float = 1.
     tau_v = rng.uniform(0.1, 0.5)
     e_dead = rng.uniform(0.001, 0.006)
     z_max = rng.uniform(0.0, 0.03)
+    if not (np.isfinite(friction) and friction >= 0):
+        raise ValueError(f"friction must be a finite number >= 0 (a scale of the drawn friction), "
+                         f"got {friction!r}")
+    e_dead, z_max = e_dead * friction, z_max * friction
     n_sub = int(np.ceil(dt / min(tau_v, 0.1)))
     dte = dt / n_sub
     tank = TankParams(area=area, q_max=q_max, k_out=k_out, level0=1.0)
