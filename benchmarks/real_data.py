@@ -11,7 +11,10 @@
    "stiction"), and the balanced accuracy is the mean of the true-positive rate
    over stiction tags and the true-negative rate over no-stiction tags.  The
    per-tag mean accuracy (each tag weighted by the fraction of its records
-   judged right) is reported too.  Nothing is tuned on these labels.
+   judged right) is reported too.  Nothing is tuned on these labels.  As a
+   reference method in the same run, Horch's model-free cross-correlation test
+   (:mod:`valve_gym.diagnosis.indices`) is scored on the self-regulating tags
+   next to the verdict on the same tags.
 
 Usage::
 
@@ -91,7 +94,7 @@ def plant_loops(effort="normal", jobs=2, limit=None):
         per_tag[r["tag"]].append((label, verdict))
         table.append((os.path.basename(r["csv_file"]), r["tag"], label, verdict, s))
     print("## Industrial loops (StictionGPT plant data): friction verdict vs expert label\n")
-    print("| record | tag | plant | label | verdict | criterion change | held-out change | model params |")
+    print("| record | tag | plant | label | verdict | criterion change | model params | Horch test |")
     print("|---|---|---|---|---|---|---|---|")
     for name, tag, label, verdict, s in table:
         if verdict is None:
@@ -99,10 +102,13 @@ def plant_loops(effort="normal", jobs=2, limit=None):
             continue
         par = ", ".join(f"{k}={v:.3g}" for k, v in s["parameters"].items()
                         if isinstance(v, float) and k != "dead_band")
-        hc = s.get("holdout_change")
+        h = s.get("horch") or {}
+        hx = h.get("verdict", "")
+        if h.get("phase_index") is not None:
+            hx += f" ({h['phase_index']:.2f})"
         print(f"| {name[:48]} | {tag} | {_plant_for(name)} | {'stiction' if label else 'no'} | "
               f"{'stiction' if verdict else 'no'} | {s.get('delta_ic', float('nan')):.1f} | "
-              f"{'' if hc is None else f'{100 * hc:+.0f} %'} | {par} |")
+              f"{par} | {hx} |")
     # group-aware scores
     tp = tn = npos = nneg = 0
     acc_pos, acc_neg = [], []
@@ -139,11 +145,45 @@ def plant_loops(effort="normal", jobs=2, limit=None):
           f"defaults, then applied to the held-out tag): balanced accuracy "
           f"**{loto['balanced']:.2f}** (TPR {loto['tpr']:.2f}, TNR {loto['tnr']:.2f}); "
           f"thresholds chosen: {loto['chosen']}.\n")
+    ref = horch_reference([(t[1], t[2], t[3], t[4]) for t in table if t[3] is not None])
+    print(f"Reference method on the self-regulating tags (Horch's cross-correlation test, model-free; "
+          f"level loops are outside its scope): {ref['n_pos']} stiction and {ref['n_neg']} "
+          f"no-stiction tags. Horch: TPR {ref['horch_tpr']:.2f}, TNR {ref['horch_tnr']:.2f}, "
+          f"balanced accuracy **{ref['horch_balanced']:.2f}** (a tag is called sticking when its "
+          f"records judged 'stiction' are at least those judged 'no stiction'; 'undetermined' "
+          f"records abstain). valve_gym's verdict on the same tags: TPR {ref['ours_tpr']:.2f}, "
+          f"TNR {ref['ours_tnr']:.2f}, balanced accuracy **{ref['ours_balanced']:.2f}**.\n")
     return {"balanced_accuracy_majority": bal, "balanced_accuracy_tag_mean": bal_mean,
-            "balanced_accuracy_loto": loto["balanced"], "tpr": tpr,
+            "balanced_accuracy_loto": loto["balanced"], "horch_reference": ref, "tpr": tpr,
             "tnr": tnr, "records": [{"file": t[0], "tag": t[1], "label": t[2], "verdict": t[3],
                                      "stiction": t[4] if t[3] is not None else None}
                                     for t in table]}
+
+
+def horch_reference(items):
+    """Tag-level scores of Horch's test and of the verdict on the tags where Horch applies.
+
+    ``items``: (tag, label, verdict, stiction dict) per record.
+    """
+    tags = defaultdict(list)
+    for tag, label, verdict, s in items:
+        h = (s.get("horch") or {}).get("verdict")
+        if h is None or h == "not applicable":
+            continue
+        tags[tag].append((label, verdict, h))
+    hp, hn, op, on = [], [], [], []
+    for v in tags.values():
+        label = v[0][0]
+        k_st = sum(h == "stiction" for _, _, h in v)
+        k_no = sum(h == "no stiction" for _, _, h in v)
+        horch = k_st > 0 and k_st >= k_no
+        ours = sum(vv for _, vv, _ in v) >= len(v) / 2
+        (hp if label else hn).append(horch if label else not horch)
+        (op if label else on).append(ours if label else not ours)
+    f = (lambda x: float(np.mean(x)) if x else float("nan"))
+    return {"n_pos": len(hp), "n_neg": len(hn), "horch_tpr": f(hp), "horch_tnr": f(hn),
+            "horch_balanced": 0.5 * (f(hp) + f(hn)), "ours_tpr": f(op), "ours_tnr": f(on),
+            "ours_balanced": 0.5 * (f(op) + f(on))}
 
 
 def _verdict(s, margin, abs_band, rel_band, min_band=0.001):

@@ -215,6 +215,10 @@ def _print_summary(res) -> None:
           + (f" ({s['model']}: " + ", ".join(f"{k} = {v:.4g}" for k, v in s['parameters'].items()
                                           if isinstance(v, float)) + ")" if s.get("tested") else
              " (not tested)"))
+    h = s.get("horch")
+    if h:
+        print(f"  Horch's cross-correlation test (model-free, not part of the verdict): {h['verdict']}"
+              + ("" if h["phase_index"] is None else f" (phase index {h['phase_index']:.2f})"))
     if d["mismatch"]:
         r = d["mismatch"][0]
         print(f"  largest mismatch: {r['t_start']:g}-{r['t_end']:g} s "

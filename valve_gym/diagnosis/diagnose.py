@@ -18,6 +18,7 @@ from typing import Callable, List, Optional, Sequence
 import numpy as np
 
 from .explain import explain_effect, explain_none, explain_stiction
+from .indices import horch_ccf
 from .fit import FitResult, fit_initial_state, fit_structure, fit_with_friction, rmse, transfer
 from .locate import MismatchReport, condition_masks, locate_mismatch
 from .model import ACTUATORS, CANDIDATE_EFFECTS, PLANTS, DataScales, ModelStructure, process_pool
@@ -450,6 +451,8 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     say(f"{rec.name}: friction verdict")
     stiction, fr0, final_v = _friction_verdict(final, rec, rule, seed, plan["verdict"], mm,
                                                jobs=jobs)
+    if actuator == "valve":     # a model-free second opinion, not part of the verdict
+        stiction["horch"] = horch_ccf(rec.op, rec.pv, rec.dt, plant)
     if final_v is not final:
         same = final is base
         final = final_v

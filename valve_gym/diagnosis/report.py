@@ -217,6 +217,11 @@ def render_markdown(res, figures: Optional[dict] = None) -> str:
         L.append(f"- {p}")
     if d["stiction"].get("explanation"):
         L.append(f"- {d['stiction']['explanation']}")
+    h = d["stiction"].get("horch")
+    if h:
+        pi = "" if h["phase_index"] is None else f", phase index {h['phase_index']:.2f}"
+        L.append(f"- Second opinion, without a model (Horch's cross-correlation test, not part of "
+                 f"the verdict): {h['verdict']}{pi}: {h['reason']}.")
     L.append("")
     L.append("## Fit before and after")
     L.append("")
