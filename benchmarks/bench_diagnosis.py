@@ -10,7 +10,7 @@ wall-clock and other processes slow them down.
 Usage::
 
     python benchmarks/bench_diagnosis.py [--samples 3600] [--jobs 2] [--repeat 1]
-        [--effects none,overflow] [--effort normal] [--reference]
+        [--effects none,overflow] [--effort auto] [--reference]
 
 ``--reference`` also diagnoses every recording serially (one process, kernel
 threads off) right after the timed run, and reports the ratio of the two wall
@@ -57,7 +57,7 @@ def main(argv=None):
     ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--effects", default="none,overflow",
                     help="effects hidden in the benchmark recordings (one recording each)")
-    ap.add_argument("--effort", default="normal", choices=("fast", "normal", "thorough"))
+    ap.add_argument("--effort", default="auto", choices=("auto", "fast", "normal", "thorough"))
     ap.add_argument("--reference", action="store_true",
                     help="also time a serial diagnosis (1 process, no kernel threads) of each recording")
     a = ap.parse_args(argv)

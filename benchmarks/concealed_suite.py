@@ -13,7 +13,7 @@ parallel worker processes, and the result is compared with the truth.
 Usage::
 
     python benchmarks/concealed_suite.py [--quick] [--per-effect 6] [--none 12]
-        [--samples 1800] [--jobs 2] [--seed 0] [--effort normal] [--json OUT.json]
+        [--samples 1800] [--jobs 2] [--seed 0] [--effort auto] [--json OUT.json]
 
 Prints markdown tables: the confusion matrix, the accuracy and the fit
 improvement.  Case ``i`` uses seed ``seed * 1000 + i``.  The selection rule's
@@ -72,7 +72,7 @@ def main(argv=None):
     ap.add_argument("--samples", type=int, default=1800)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)
-    ap.add_argument("--effort", default="normal", choices=("fast", "normal", "thorough"))
+    ap.add_argument("--effort", default="auto", choices=("auto", "fast", "normal", "thorough"))
     ap.add_argument("--json", help="write every case's outcome as JSON")
     a = ap.parse_args(argv)
     if a.quick:

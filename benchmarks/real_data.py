@@ -18,7 +18,7 @@
 
 Usage::
 
-    python benchmarks/real_data.py [--jobs 2] [--only tanks|loops] [--effort normal]
+    python benchmarks/real_data.py [--jobs 2] [--only tanks|loops] [--effort auto]
         [--json OUT.json] [--limit N]
 
 Prints markdown tables.
@@ -38,7 +38,7 @@ from valve_gym.diagnosis import data_path, diagnose, load_recording
 from valve_gym.diagnosis.diagnose import diagnose_many
 
 
-def cascaded_tanks(effort="normal", jobs=2):
+def cascaded_tanks(effort="auto", jobs=2):
     path = data_path("cascaded_tanks/estimation.csv")
     rec = load_recording(path, columns={"t": "t_s", "op": "u_V", "pv": "y_V"}, op_range=(0, 10))
     t0 = time.perf_counter()
@@ -70,7 +70,7 @@ def _plant_for(path):
     return "integrating" if "LIC" in os.path.basename(path).upper() else "first_order"
 
 
-def plant_loops(effort="normal", jobs=2, limit=None):
+def plant_loops(effort="auto", jobs=2, limit=None):
     folder = data_path("stictiongpt_plant_loops")
     rows = list(csv.DictReader(open(os.path.join(folder, "index.csv"), encoding="utf-8")))
     if limit:
@@ -235,7 +235,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--only", choices=("tanks", "loops"))
     ap.add_argument("--jobs", type=int, default=2)
-    ap.add_argument("--effort", default="normal", choices=("fast", "normal", "thorough"))
+    ap.add_argument("--effort", default="auto", choices=("auto", "fast", "normal", "thorough"))
     ap.add_argument("--limit", type=int, default=None, help="at most N plant records (quick look)")
     ap.add_argument("--json", help="write the numbers as JSON")
     a = ap.parse_args(argv)

@@ -233,3 +233,16 @@ def test_friction_verdict_on_known_valves(effect, friction, seed, sticks):
 def test_synthetic_friction_scale_is_checked():
     with pytest.raises(ValueError, match="friction must be a finite number"):
         make_case("none", seed=1, n=100, friction=-1.0)
+
+
+def test_auto_effort_follows_the_record_length():
+    from valve_gym.diagnosis.diagnose import AUTO_THOROUGH_SAMPLES, resolve_effort
+
+    assert resolve_effort("auto", AUTO_THOROUGH_SAMPLES) == "thorough"
+    assert resolve_effort("auto", AUTO_THOROUGH_SAMPLES + 1) == "normal"
+    assert resolve_effort("fast", 10) == "fast"
+    with pytest.raises(ValueError, match="effort must be one of auto"):
+        resolve_effort("quick", 100)
+    res = diagnose(make_recording("none", seed=4, n=300), candidates=())
+    assert res.to_dict()["settings"]["effort"] == "thorough"
+    assert res.to_dict()["settings"]["effort_asked"] == "auto"

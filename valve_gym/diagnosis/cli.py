@@ -6,7 +6,7 @@ Usage::
         [--op-range LO,HI] [--plant tank|integrating|first_order|cascade]
         [--actuator valve|pump] [--validate OTHER.csv] [--holdout FRAC]
         [--json OUT.json] [--report DIR] [--effects LIST] [--jobs N]
-        [--effort fast|normal|thorough] [--seed N] [--quiet]
+        [--effort auto|fast|normal|thorough] [--seed N] [--quiet]
 
 A folder is diagnosed file by file (``*.csv``, sorted) in ``--jobs`` worker
 processes, with a progress line per file on stderr and a summary table on
@@ -63,8 +63,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", default="2",
                    help="worker processes (default 2): recordings in parallel for a folder, "
                         "candidate fits in parallel for one file")
-    p.add_argument("--effort", default="normal", choices=("fast", "normal", "thorough"),
-                   help="search budget (default normal)")
+    p.add_argument("--effort", default="auto", choices=("auto", "fast", "normal", "thorough"),
+                   help="search budget (default auto: thorough up to 1800 samples, normal above)")
     p.add_argument("--seed", default="0", help="seed of the search (default 0)")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     return p

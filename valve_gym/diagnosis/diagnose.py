@@ -169,6 +169,21 @@ def _tests(mm: MismatchReport) -> dict:
             "threshold": mm.threshold, "window": mm.window}
 
 
+#: ``effort='auto'`` searches thoroughly up to this many samples, normally above: a thorough
+#: diagnosis of 1800 samples takes 12-17 s on two cores, of 3600 about 30 s
+#: (``benchmarks/bench_diagnosis.py --effort thorough``).
+AUTO_THOROUGH_SAMPLES = 1800
+
+
+def resolve_effort(effort: str, n_samples: int) -> str:
+    """The search budget ``effort`` stands for on a record of ``n_samples``."""
+    if effort == "auto":
+        return "thorough" if n_samples <= AUTO_THOROUGH_SAMPLES else "normal"
+    if effort not in _EFFORT_PLAN:
+        raise ValueError(f"effort must be one of auto, {', '.join(_EFFORT_PLAN)}, got {effort!r}")
+    return effort
+
+
 # search budgets of the stages per ``effort``
 _EFFORT_PLAN = {
     "fast": {"base": "normal", "screen": "fast", "confirm": "normal", "n_confirm": 2,
@@ -340,7 +355,7 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
 def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve", *,
              candidates: Optional[Sequence[str]] = None, holdout: float = 0.3,
              validate: Optional[Recording] = None, rule: SelectionRule = SelectionRule(),
-             effort: str = "normal", seed: int = 0, jobs: int = 1, saturation="auto",
+             effort: str = "auto", seed: int = 0, jobs: int = 1, saturation="auto",
              n_sub: int = 1,
              progress: Optional[Callable[[str], None]] = None) -> DiagnosisResult:
     """Diagnose one recording: base fit, mismatch location, missing physics, friction verdict.
@@ -364,7 +379,9 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
         (fitted on ``recording``) are simulated on its input with their
         initial state refitted.
     rule : SelectionRule
-    effort : {'fast', 'normal', 'thorough'}
+    effort : {'auto', 'fast', 'normal', 'thorough'}
+        Search budget; ``'auto'`` (default) is ``'thorough'`` for records of up to
+        :data:`AUTO_THOROUGH_SAMPLES` samples and ``'normal'`` for longer ones.
     seed : int
     jobs : int
         Worker processes for the candidate fits (1 = in this process).
@@ -422,9 +439,8 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
         raise ValueError(f"n_sub must be a positive whole number, got {n_sub!r}")
     st = ModelStructure(plant, actuator, (), sc, n_sub=int(n_sub))
     say(f"{rec.name}: fitting the base model ({st.label()}, {st.k} parameters)")
-    plan = _EFFORT_PLAN.get(effort)
-    if plan is None:
-        raise ValueError(f"effort must be one of {', '.join(_EFFORT_PLAN)}, got {effort!r}")
+    effort_asked, effort = effort, resolve_effort(effort, len(rec))
+    plan = _EFFORT_PLAN[effort]
     base_split, _ = fit_with_friction(st, rec.op, rec.pv, n_fit, rng=seed, effort=plan["base"])
     timing["base_fit"] = time.perf_counter() - t0
     # ---- selection
@@ -500,7 +516,8 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
         timing["validation"] = time.perf_counter() - t0
     timing["total"] = time.perf_counter() - t_all
     settings = {"plant": plant, "actuator": actuator, "candidates": list(cands),
-                "holdout": float(holdout), "effort": effort, "seed": seed,
+                "holdout": float(holdout), "effort": effort, "effort_asked": effort_asked,
+                "seed": seed,
                 "rule": dict(rule.__dict__), "n_sub_search": st.n_sub,
                 "sensor_range": {"lo": sc.sat_lo, "hi": sc.sat_hi},
                 "valve_model": ("quasi-static: tau = dt/n_sub, v_max = inf"

@@ -101,6 +101,13 @@ def _plateau_evidence(before: FitResult, mm: MismatchReport) -> str:
     return s
 
 
+def _weak(corr: float) -> str:
+    """A note when a correlation is too weak to carry the argument alone."""
+    if np.isfinite(corr) and abs(corr) >= 0.3:
+        return ""
+    return ", weak on its own: the choice rests on the information criterion and the held-out error"
+
+
 def explain_effect(effect: str, before: FitResult, after: FitResult, mm: MismatchReport,
                    pv_unit: str = "PV units", masks=None) -> str:
     """One paragraph on why ``effect`` was added.
@@ -161,7 +168,7 @@ def explain_effect(effect: str, before: FitResult, after: FitResult, mm: Mismatc
         t = mm.tests
         dc = derivative_correlation(before.residual, before.y_sim)
         return (f"Dead time. Evidence: the residual follows the model's own rate of change "
-                f"(correlation {dc:+.2f}: the model responds too early) and correlates with the "
+                f"(correlation {dc:+.2f}{_weak(dc)}: the model responds too early) and correlates with the "
                 f"controller output up to lag {t.ccf_peak_lag} (peak {t.ccf_peak:+.2f}, 95 % band "
                 f"+-{t.ccf_bound:.2f}). A transport delay theta = {_num(th, 's')} "
                 f"({th / dt:.1f} samples) between the valve and the process fits. {imp}.{where}")
@@ -169,7 +176,7 @@ def explain_effect(effect: str, before: FitResult, after: FitResult, mm: Mismatc
         ts = p.get("sensor_lag.tau_s", float("nan"))
         dc = derivative_correlation(before.residual, before.y_sim)
         return (f"Sensor lag. Evidence: the residual follows the model's own rate of change "
-                f"(correlation {dc:+.2f}): the measurement lags behind the process, smoothly "
+                f"(correlation {dc:+.2f}{_weak(dc)}): the measurement lags behind the process, smoothly "
                 f"rather than by a fixed delay. A first-order measurement lag tau_s = "
                 f"{_num(ts, 's')} fits. {imp}.{where}")
     if effect == "oscillating_disturbance":
