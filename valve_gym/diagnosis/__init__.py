@@ -17,6 +17,8 @@ locate_mismatch, MismatchReport
     residual analysis in time and by operating condition.
 SelectionRule
     when an extra model element pays.
+horch_ccf
+    Horch's model-free cross-correlation stiction test (a second opinion).
 write_report, write_json
     figures, JSON and markdown (matplotlib imported lazily).
 
@@ -30,6 +32,7 @@ Examples
 """
 from .diagnose import DiagnosisResult, diagnose, diagnose_many, validate_on
 from .fit import FitResult, ModelFitter, fit_percent, rmse
+from .indices import horch_ccf
 from .locate import MismatchReport, locate_mismatch
 from .model import ACTUATORS, CANDIDATE_EFFECTS, PLANTS
 from .recording import Recording, RecordingError, data_path, load_recording
@@ -39,4 +42,4 @@ from .select import SelectionRule
 __all__ = ["load_recording", "Recording", "RecordingError", "data_path", "ModelFitter",
            "FitResult", "diagnose", "diagnose_many", "DiagnosisResult", "validate_on",
            "locate_mismatch", "MismatchReport", "SelectionRule", "write_report", "write_json",
-           "rmse", "fit_percent", "PLANTS", "ACTUATORS", "CANDIDATE_EFFECTS"]
+           "rmse", "fit_percent", "PLANTS", "ACTUATORS", "CANDIDATE_EFFECTS", "horch_ccf"]
