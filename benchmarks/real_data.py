@@ -151,7 +151,10 @@ def plant_loops(effort="auto", jobs=2, limit=None):
           f"no-stiction tags. Horch: TPR {ref['horch_tpr']:.2f}, TNR {ref['horch_tnr']:.2f}, "
           f"balanced accuracy **{ref['horch_balanced']:.2f}** (a tag is called sticking when its "
           f"records judged 'stiction' are at least those judged 'no stiction'; 'undetermined' "
-          f"records abstain). valve_gym's verdict on the same tags: TPR {ref['ours_tpr']:.2f}, "
+          f"records abstain, and a tag with no other verdict raises no alarm: "
+          f"{len(ref['silent_tags'])} tags, "
+          f"{', '.join(t + (' (stiction)' if l else ' (no stiction)') for t, l in ref['silent_tags']) or '-'}). "
+          f"valve_gym's verdict on the same tags: TPR {ref['ours_tpr']:.2f}, "
           f"TNR {ref['ours_tnr']:.2f}, balanced accuracy **{ref['ours_balanced']:.2f}**.\n")
     return {"balanced_accuracy_majority": bal, "balanced_accuracy_tag_mean": bal_mean,
             "balanced_accuracy_loto": loto["balanced"], "horch_reference": ref, "tpr": tpr,
@@ -172,16 +175,20 @@ def horch_reference(items):
             continue
         tags[tag].append((label, verdict, h))
     hp, hn, op, on = [], [], [], []
-    for v in tags.values():
+    silent = []
+    for tag, v in tags.items():
         label = v[0][0]
         k_st = sum(h == "stiction" for _, _, h in v)
         k_no = sum(h == "no stiction" for _, _, h in v)
         horch = k_st > 0 and k_st >= k_no
+        if k_st == k_no == 0:
+            silent.append((tag, label))
         ours = sum(vv for _, vv, _ in v) >= len(v) / 2
         (hp if label else hn).append(horch if label else not horch)
         (op if label else on).append(ours if label else not ours)
     f = (lambda x: float(np.mean(x)) if x else float("nan"))
-    return {"n_pos": len(hp), "n_neg": len(hn), "horch_tpr": f(hp), "horch_tnr": f(hn),
+    return {"n_pos": len(hp), "n_neg": len(hn), "silent_tags": silent,
+            "horch_tpr": f(hp), "horch_tnr": f(hn),
             "horch_balanced": 0.5 * (f(hp) + f(hn)), "ours_tpr": f(op), "ours_tnr": f(on),
             "ours_balanced": 0.5 * (f(op) + f(on))}
 

@@ -946,3 +946,17 @@ def test_kernel_threads_survive_a_fork():
     finally:
         pool.terminate()
     np.testing.assert_array_equal(ref, y)
+
+
+def test_kernel_threads_from_several_caller_threads_at_once():
+    """Callers in different threads (a vector env beside a fit) asking for different thread counts."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    p = BATCH["paper+effects"]
+    u, d = batch_inputs(T=200)
+    ref = _run_threads(p, u, d, 1)[0]
+    cmod._POOL.update(pid=None)                      # start from no pool: the growth path is exercised
+    with ThreadPoolExecutor(4) as ex:
+        outs = list(ex.map(lambda k: _run_threads(p, u, d, 2 + k % 3)[0], range(24)))
+    for y in outs:
+        np.testing.assert_array_equal(ref, y)

@@ -218,7 +218,7 @@ def test_friction_verdict_on_known_valves(effect, friction, seed, sticks):
     res = diagnose(case.recording, plant="tank", candidates=(), effort="fast")
     s = res.to_dict()["stiction"]
     assert s["tested"] and s["present"] is sticks, s["explanation"]
-    assert s["horch"]["verdict"] == "not applicable"        # a level loop: outside Horch's test
+    assert s["horch"]["verdict"] in ("stiction", "no stiction", "undetermined")  # a draining tank regulates itself
     if sticks:
         t = case.truth
         true_band = t["slip_jump.S"] if effect == "slip_jump" else 2 * t["valve.e_dead"]

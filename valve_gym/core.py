@@ -592,7 +592,7 @@ def run_packed(pk: Packed, S: np.ndarray, buf: np.ndarray, U: np.ndarray, D: np.
     ``threads > 1`` splits the batch into that many column blocks run at once
     in threads (the compiled kernel releases the GIL).  The systems of a batch
     are independent, so the result is bit-for-bit the one of ``threads=1``;
-    it pays from a few hundred thousand Euler steps per call
+    it pays from about a hundred thousand Euler steps per call
     (``benchmarks/bench_env_speed.py`` measures it).
     """
     n = S.shape[1]
@@ -608,24 +608,35 @@ def run_packed(pk: Packed, S: np.ndarray, buf: np.ndarray, U: np.ndarray, D: np.
         _kernel(S[:, a:b], cols(pk.P), cols(U), cols(D), pk.flags, buf[a:b] if buf.shape[0] > 1 else buf,
                 n_sub, pk.dt, Y[:, a:b], H[:, a:b], LV[:, a:b])
 
-    futures = [_thread_pool(threads).submit(block, a, b) for a, b in zip(edges[:-1], edges[1:])]
+    pool = _thread_pool(threads - 1)
+    futures = [pool.submit(block, a, b) for a, b in zip(edges[1:-1], edges[2:])]
+    block(edges[0], edges[1])          # the calling thread runs the first block itself
     for f in futures:
         f.result()
 
 
-_POOL = [None, 0]      # (pool, pid): a forked child must not use its parent's threads
+# this process's kernel threads; a forked child must not use (or wait on) its parent's
+_POOL = {"pid": None, "pool": None, "lock": None}
 
 
 def _thread_pool(n: int):
-    """This process's pool of kernel threads, grown on demand."""
-    pool, pid = _POOL
-    if pool is None or pid != os.getpid() or pool._max_workers < n:
-        from concurrent.futures import ThreadPoolExecutor
-        if pool is not None and pid == os.getpid():
-            pool.shutdown(wait=False)
-        _POOL[:] = [ThreadPoolExecutor(max_workers=n, thread_name_prefix="valve_gym-kernel"),
-                    os.getpid()]
-    return _POOL[0]
+    """A pool of at least ``n`` kernel threads, made once per process and grown on demand.
+
+    A pool that is replaced is not shut down: a caller in another thread may
+    still be submitting to it.
+    """
+    pid = os.getpid()
+    if _POOL["pid"] != pid:
+        import threading
+        _POOL.update(pid=pid, pool=None, lock=threading.Lock())
+    with _POOL["lock"]:
+        pool = _POOL["pool"]
+        if pool is None or pool._max_workers < n:
+            from concurrent.futures import ThreadPoolExecutor
+            pool = ThreadPoolExecutor(max_workers=max(n, os.cpu_count() or 1),
+                                      thread_name_prefix="valve_gym-kernel")
+            _POOL["pool"] = pool
+        return pool
 
 
 def simulate(params: ModelParams, u, state: Optional[State] = None, d=None, n_sub: int = 1,

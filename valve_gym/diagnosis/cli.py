@@ -112,6 +112,11 @@ def _check_out(path: Optional[str], what: str, is_dir: bool):
             raise _UsageError(f"{what}: folder {parent!r} does not exist; create it first")
 
 
+def _g4(x) -> str:
+    """A number to 4 significant digits; "n/a" where the JSON holds none (non-finite)."""
+    return "n/a" if x is None else f"{x:.4g}"
+
+
 def main(argv: Optional[List[str]] = None) -> int:
     """Run ``valve-gym diagnose`` with ``argv``; returns the exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -204,12 +209,12 @@ def _print_summary(res) -> None:
           f"(fit {d['base']['fit_percent']:.1f} % -> {d['final']['fit_percent']:.1f} %)")
     h = d["holdout"]
     if h["base_rmse"] is not None:
-        print(f"  held-out RMSE base {h['base_rmse']:.4g} -> final {h['final_rmse']:.4g}")
+        print(f"  held-out RMSE base {_g4(h['base_rmse'])} -> final {_g4(h['final_rmse'])}")
     if d["validation"]:
         v = d["validation"]
-        print(f"  validation on {v['recording']}: RMSE base {v['base_rmse']:.4g} -> final "
-              f"{v['final_rmse']:.4g} (initial state refitted); {v['base_rmse_same_state']:.4g} -> "
-              f"{v['final_rmse_same_state']:.4g} from the fitted recording's initial state")
+        print(f"  validation on {v['recording']}: RMSE base {_g4(v['base_rmse'])} -> final "
+              f"{_g4(v['final_rmse'])} (initial state refitted); {_g4(v['base_rmse_same_state'])} "
+              f"-> {_g4(v['final_rmse_same_state'])} from the fitted recording's initial state")
     s = d["stiction"]
     print(f"  valve friction: {'present' if s.get('present') else 'not significant'}"
           + (f" ({s['model']}: " + ", ".join(f"{k} = {v:.4g}" for k, v in s['parameters'].items()

@@ -19,7 +19,8 @@ import numpy as np
 
 from .explain import explain_effect, explain_none, explain_stiction
 from .indices import horch_ccf
-from .fit import FitResult, fit_initial_state, fit_structure, fit_with_friction, rmse, transfer
+from .fit import (AUTO_THOROUGH_SAMPLES, FitResult, fit_initial_state, fit_structure, fit_with_friction,
+                  resolve_effort, rmse, transfer)
 from .locate import MismatchReport, condition_masks, locate_mismatch
 from .model import ACTUATORS, CANDIDATE_EFFECTS, PLANTS, DataScales, ModelStructure, process_pool
 from .recording import Recording, RecordingError
@@ -167,21 +168,6 @@ def _tests(mm: MismatchReport) -> dict:
             "ccf_outside": t.ccf_outside, "ccf_peak_lag": t.ccf_peak_lag, "ccf_peak": t.ccf_peak,
             "ccf_lags": t.ccf_lags, "ccf": t.ccf, "period": t.period, "n_eff": t.n_eff,
             "threshold": mm.threshold, "window": mm.window}
-
-
-#: ``effort='auto'`` searches thoroughly up to this many samples, normally above: a thorough
-#: diagnosis of 1800 samples takes 12-17 s on two cores, of 3600 about 30 s
-#: (``benchmarks/bench_diagnosis.py --effort thorough``).
-AUTO_THOROUGH_SAMPLES = 1800
-
-
-def resolve_effort(effort: str, n_samples: int) -> str:
-    """The search budget ``effort`` stands for on a record of ``n_samples``."""
-    if effort == "auto":
-        return "thorough" if n_samples <= AUTO_THOROUGH_SAMPLES else "normal"
-    if effort not in _EFFORT_PLAN:
-        raise ValueError(f"effort must be one of auto, {', '.join(_EFFORT_PLAN)}, got {effort!r}")
-    return effort
 
 
 # search budgets of the stages per ``effort``
@@ -342,7 +328,7 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
                                               significant=significant, band=band,
                                               min_band=need, lag_alt=lag_alt,
                                               op_range=op_range, abs_band=rule.abs_band,
-                                              rel_band=rule.rel_band)
+                                              rel_band=rule.rel_band, floor=rule.min_band)
     # keep the nested optimum as the final model when it is the same structure and better
     new_final = final
     for f in fric:

@@ -234,7 +234,8 @@ def explain_none(base: FitResult, mm: MismatchReport, best_candidate: Optional[s
 def explain_stiction(present: bool, with_fr: FitResult, without: FitResult, d_ic: float,
                      h_change: float, mm: MismatchReport, significant: bool = None,
                      band: float = None, min_band: float = None, lag_alt=(),
-                     op_range: float = None, abs_band: float = 0.01, rel_band: float = 0.5) -> str:
+                     op_range: float = None, abs_band: float = 0.01, rel_band: float = 0.5,
+                     floor: float = 0.001) -> str:
     """One paragraph on the friction verdict (``min_band``: the band needed, see ``SelectionRule``)."""
     p = with_fr.physical
     if "slip_jump.S" in p:
@@ -255,13 +256,14 @@ def explain_stiction(present: bool, with_fr: FitResult, without: FitResult, d_ic
                 f"{_pct(band)} of the stroke, reaches the {_pct(min_band)} that matters in this "
                 f"loop (the smaller of {_pct(abs_band)} of the stroke, more dead band than a "
                 f"healthy valve is allowed, and {rel_band:g} x the controller output's working "
-                f"range of {_pct(op_range or 0.0)}): the controller keeps pushing a valve that "
+                f"range of {_pct(op_range or 0.0)}; at least {_pct(floor)}, a positioner's "
+                f"resolution): the controller keeps pushing a valve that "
                 f"does not follow. " + (f"At reversals of the output: {ev}." if ev else ""))
     if significant and band is not None and min_band is not None and band < min_band:
         return (f"No sticking valve that matters: friction improves the fit (criterion "
                 f"{d_ic:+.1f} against {without.label}) but its band, {_pct(band)} of the stroke, "
                 f"is below the {_pct(min_band)} that matters in this loop (the smaller of "
                 f"{_pct(abs_band)} of the stroke and {rel_band:g} x the controller output's "
-                f"working range of {_pct(op_range or 0.0)}): fitted {fr}.")
+                f"working range of {_pct(op_range or 0.0)}; at least {_pct(floor)}): fitted {fr}.")
     return (f"No significant valve friction: {alt} explains the record as well "
             f"(criterion {d_ic:+.1f}); fitted {fr}.")

@@ -404,6 +404,20 @@ def _grid_polish(obj: _Objective, x, c, rounds: int = 4, n_grid: int = 17):
 
 _EFFORT = {"fast": (0.7, 0.45), "normal": (1.0, 0.6), "thorough": (1.25, 1.0)}
 
+#: ``effort='auto'`` searches thoroughly up to this many samples, normally above: a thorough
+#: diagnosis of 1800 samples takes 12-17 s on two cores, of 3600 about 30 s
+#: (``benchmarks/bench_diagnosis.py --effort thorough``).
+AUTO_THOROUGH_SAMPLES = 1800
+
+
+def resolve_effort(effort: str, n_samples: int) -> str:
+    """The search budget ``effort`` stands for on a record of ``n_samples``."""
+    if effort == "auto":
+        return "thorough" if n_samples <= AUTO_THOROUGH_SAMPLES else "normal"
+    if effort not in _EFFORT:
+        raise ValueError(f"effort must be one of auto, {', '.join(_EFFORT)}, got {effort!r}")
+    return effort
+
 
 def fit_structure(structure: ModelStructure, u, y, n_fit: Optional[int] = None, *,
                   seeds=None, spread=None, free: Optional[Sequence[str]] = None,
@@ -435,7 +449,7 @@ def fit_structure(structure: ModelStructure, u, y, n_fit: Optional[int] = None, 
         scale with the number of free parameters and ``effort``).
     local : bool
         Refine the best member by least squares.
-    effort : {'fast', 'normal', 'thorough'}
+    effort : {'auto', 'fast', 'normal', 'thorough'}
     final_n_sub : bool
         Re-simulate the optimum with the smallest ``n_sub`` that passes the
         core's Euler stability check (:func:`valve_gym.core.check_dt`).
@@ -458,7 +472,7 @@ def fit_structure(structure: ModelStructure, u, y, n_fit: Optional[int] = None, 
     free_idx = [names.index(n) for n in (free if free is not None else names)]
     obj = _Objective(structure, u, y, n_fit, free_idx, w_fixed)
     kf = len(free_idx)
-    pf, gf = _EFFORT.get(effort, _EFFORT["normal"])
+    pf, gf = _EFFORT[resolve_effort(effort, len(u))]
     if kf == 0:
         w = np.asarray(w_fixed, float).copy()
     else:
@@ -478,6 +492,7 @@ def fit_structure(structure: ModelStructure, u, y, n_fit: Optional[int] = None, 
     ns = structure.stable_n_sub(w) if final_n_sub else structure.n_sub
     y_sim = structure.simulate(w[None, :], u, n_sub=ns)[:, 0]
     res = _make_result(structure, w, y, y_sim, n_fit, ns, obj.n_evals, time.perf_counter() - t0)
+    structure.__dict__.pop("_scratch", None)     # the search's scratch arrays: not kept with the result
     return res
 
 
@@ -610,7 +625,7 @@ class ModelFitter:
         Sensor range of the PV (see :class:`~valve_gym.diagnosis.model.DataScales`).
     period_hint : float, optional
         Period [s] around which ``oscillating_disturbance`` searches.
-    effort : {'fast', 'normal', 'thorough'}
+    effort : {'auto', 'fast', 'normal', 'thorough'}
         Search budget.
     popsize, maxiter : int, optional
         Override the evolution's population size and generation limit.

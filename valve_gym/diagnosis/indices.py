@@ -19,8 +19,8 @@ and PV in counter-phase).  With ``tau_l`` and ``tau_r`` the distances from lag
 is near 0 for an even and near ``pi`` for an odd function; the decision bands
 used in the stiction literature are ``< pi/3`` no stiction, ``> 2 pi/3``
 stiction, undetermined in between.  The test assumes a self-regulating
-process (flow, pressure); for integrating (level) loops it does not apply and
-says so.
+process (flow, pressure, a tank draining through an outlet); for integrating
+levels it does not apply and says so.
 
 References
 ----------
@@ -54,7 +54,8 @@ def horch_ccf(op, pv, dt: float = 1.0, plant: str = "first_order", max_lag=None)
     ----------
     op, pv : (T,) arrays, controller output and process variable (any units)
     dt : float, sample time [s]
-    plant : str, ``'integrating'`` and ``'tank'`` (level loops) are outside the test's scope
+    plant : str, ``'integrating'`` is outside the test's scope (the tank and cascade
+        plants drain through an outlet and regulate themselves)
     max_lag : int, optional, largest lag examined (default ``T // 3``)
 
     Returns
@@ -65,23 +66,41 @@ def horch_ccf(op, pv, dt: float = 1.0, plant: str = "first_order", max_lag=None)
     """
     op = np.asarray(op, float)
     pv = np.asarray(pv, float)
+    if op.ndim != 1 or pv.ndim != 1 or op.shape != pv.shape:
+        raise ValueError(f"op and pv must be 1-D arrays of the same length, got shapes {op.shape} "
+                         f"and {pv.shape}")
+    if not (np.isfinite(op).all() and np.isfinite(pv).all()):
+        raise ValueError("op and pv contain NaN or inf values; repair or drop those samples first "
+                         "(load_recording does)")
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+    if max_lag is not None and not (isinstance(max_lag, (int, np.integer)) and 1 <= max_lag < len(op)):
+        raise ValueError(f"max_lag must be a whole number from 1 to len(op) - 1 = {len(op) - 1}, "
+                         f"got {max_lag!r}")
     out = {"method": "Horch 1999, cross-correlation of OP and PV", "verdict": "undetermined",
            "phase_index": None, "tau_left_s": None, "tau_right_s": None, "ccf_at_zero": None,
            "reason": ""}
-    if plant in ("integrating", "tank"):
+    if plant == "integrating":
         out.update(verdict="not applicable",
-                   reason="the test assumes a self-regulating process; a level loop integrates")
+                   reason="the test assumes a self-regulating process; this level integrates")
         return out
     n = len(op)
-    if n < 20 or np.std(op) == 0 or np.std(pv) == 0:
-        out["reason"] = "too short or a constant signal"
+    if n < 20:
+        out["reason"] = "too short (fewer than 20 samples)"
         return out
     t = np.arange(n)
     op_d = op - np.polyval(np.polyfit(t, op, 1), t)
     pv_d = pv - np.polyval(np.polyfit(t, pv, 1), t)
+    for name, x, xd in (("OP", op, op_d), ("PV", pv, pv_d)):
+        if np.std(xd) <= 1e-9 * max(np.ptp(x), np.abs(x).max(), 1e-300):
+            out["reason"] = f"the {name} is constant or a straight ramp: nothing oscillates"
+            return out
     L = int(max_lag or max(n // 3, 2))
     lags, c = _ccf(pv_d, op_d, L)                 # c[L + k]: PV k samples after OP
     out["ccf_at_zero"] = float(c[L])
+    if c[L] == 0.0:      # an exact zero at lag 0 is the crossing of an odd function: count it once
+        c = c.copy()
+        c[L] = 1e-12 * (np.sign(c[L + 1]) or 1.0)
     bound = 2.0 / np.sqrt(n)
     if np.max(np.abs(c)) < bound:
         out["reason"] = f"no correlation between OP and PV (|ccf| < {bound:.3f})"
@@ -101,10 +120,7 @@ def horch_ccf(op, pv, dt: float = 1.0, plant: str = "first_order", max_lag=None)
     if np.max(np.abs(c[max(L - m, 0):L + m + 1])) < 1.5 * bound:
         out["reason"] = f"no significant correlation within half a period of lag 0 (< {1.5 * bound:.3f})"
         return out
-    if tl + tr == 0:
-        idx = 1.0
-    else:
-        idx = abs(tr - tl) / (tr + tl)
+    idx = abs(tr - tl) / (tr + tl)
     out["phase_index"] = float(idx)
     if idx < 1 / 3:
         out.update(verdict="no stiction",
@@ -112,8 +128,8 @@ def horch_ccf(op, pv, dt: float = 1.0, plant: str = "first_order", max_lag=None)
                           "disturbance)")
     elif idx > 2 / 3:
         out.update(verdict="stiction",
-                   reason="odd cross-correlation: the PV lags the OP by about a quarter period, as "
-                          "behind a sticking valve")
+                   reason="odd cross-correlation: OP and PV are about a quarter period out of "
+                          "phase, as behind a sticking valve")
     else:
         out["reason"] = "between odd and even"
     return out
