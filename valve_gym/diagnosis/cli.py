@@ -24,6 +24,7 @@ from typing import List, Optional
 
 from .model import ACTUATORS, CANDIDATE_EFFECTS, PLANTS
 from .recording import RecordingError, load_recording, parse_columns, parse_range
+from .report import _g
 
 __all__ = ["main", "build_parser"]
 
@@ -110,11 +111,6 @@ def _check_out(path: Optional[str], what: str, is_dir: bool):
             raise _UsageError(f"{what} {path!r} is a folder; give a file name such as out.json")
         if not os.path.isdir(parent):
             raise _UsageError(f"{what}: folder {parent!r} does not exist; create it first")
-
-
-def _g4(x) -> str:
-    """A number to 4 significant digits; "n/a" where the JSON holds none (non-finite)."""
-    return "n/a" if x is None else f"{x:.4g}"
 
 
 def main(argv: Optional[List[str]] = None) -> int:
@@ -209,12 +205,12 @@ def _print_summary(res) -> None:
           f"(fit {d['base']['fit_percent']:.1f} % -> {d['final']['fit_percent']:.1f} %)")
     h = d["holdout"]
     if h["base_rmse"] is not None:
-        print(f"  held-out RMSE base {_g4(h['base_rmse'])} -> final {_g4(h['final_rmse'])}")
+        print(f"  held-out RMSE base {_g(h['base_rmse'])} -> final {_g(h['final_rmse'])}")
     if d["validation"]:
         v = d["validation"]
-        print(f"  validation on {v['recording']}: RMSE base {_g4(v['base_rmse'])} -> final "
-              f"{_g4(v['final_rmse'])} (initial state refitted); {_g4(v['base_rmse_same_state'])} "
-              f"-> {_g4(v['final_rmse_same_state'])} from the fitted recording's initial state")
+        print(f"  validation on {v['recording']}: RMSE base {_g(v['base_rmse'])} -> final "
+              f"{_g(v['final_rmse'])} (initial state refitted); {_g(v['base_rmse_same_state'])} "
+              f"-> {_g(v['final_rmse_same_state'])} from the fitted recording's initial state")
     s = d["stiction"]
     print(f"  valve friction: {'present' if s.get('present') else 'not significant'}"
           + (f" ({s['model']}: " + ", ".join(f"{k} = {v:.4g}" for k, v in s['parameters'].items()

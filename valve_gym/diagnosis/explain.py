@@ -101,11 +101,12 @@ def _plateau_evidence(before: FitResult, mm: MismatchReport) -> str:
     return s
 
 
-def _weak(corr: float) -> str:
-    """A note when a correlation is too weak to carry the argument alone."""
-    if np.isfinite(corr) and abs(corr) >= 0.3:
-        return ""
-    return ", weak on its own: the choice rests on the information criterion and the held-out error"
+def _rate_evidence(before: FitResult, note: str = "") -> str:
+    """The residual against the model's own rate of change, the sign of a delay or a lag."""
+    dc = derivative_correlation(before.residual, before.y_sim)
+    weak = "" if np.isfinite(dc) and abs(dc) >= 0.3 else \
+        ", weak on its own: the choice rests on the information criterion and the held-out error"
+    return f"the residual follows the model's own rate of change (correlation {dc:+.2f}{weak}{note})"
 
 
 def explain_effect(effect: str, before: FitResult, after: FitResult, mm: MismatchReport,
@@ -166,17 +167,15 @@ def explain_effect(effect: str, before: FitResult, after: FitResult, mm: Mismatc
     if effect == "dead_time":
         th = p.get("dead_time.theta", float("nan"))
         t = mm.tests
-        dc = derivative_correlation(before.residual, before.y_sim)
-        return (f"Dead time. Evidence: the residual follows the model's own rate of change "
-                f"(correlation {dc:+.2f}{_weak(dc)}: the model responds too early) and correlates with the "
+        return (f"Dead time. Evidence: {_rate_evidence(before, ': the model responds too early')} "
+                f"and correlates with the "
                 f"controller output up to lag {t.ccf_peak_lag} (peak {t.ccf_peak:+.2f}, 95 % band "
                 f"+-{t.ccf_bound:.2f}). A transport delay theta = {_num(th, 's')} "
                 f"({th / dt:.1f} samples) between the valve and the process fits. {imp}.{where}")
     if effect == "sensor_lag":
         ts = p.get("sensor_lag.tau_s", float("nan"))
-        dc = derivative_correlation(before.residual, before.y_sim)
-        return (f"Sensor lag. Evidence: the residual follows the model's own rate of change "
-                f"(correlation {dc:+.2f}{_weak(dc)}): the measurement lags behind the process, smoothly "
+        return (f"Sensor lag. Evidence: {_rate_evidence(before)}: the measurement lags behind the "
+                f"process, smoothly "
                 f"rather than by a fixed delay. A first-order measurement lag tau_s = "
                 f"{_num(ts, 's')} fits. {imp}.{where}")
     if effect == "oscillating_disturbance":
