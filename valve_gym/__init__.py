@@ -18,17 +18,40 @@ registered on import as ``valve_gym/ValveTank-v0`` and
 from __future__ import annotations
 
 from . import metrics
-from .config import (ConfigError, EnvConfig, LoadSchedule, PISettings, RewardWeights,
-                     SetpointSchedule, ValveRandomisation, config_to_dict, load_config,
-                     save_config)
+from .config import (
+    ConfigError,
+    EnvConfig,
+    LoadSchedule,
+    PISettings,
+    RewardWeights,
+    SetpointSchedule,
+    ValveRandomisation,
+    config_to_dict,
+    load_config,
+    save_config,
+)
 from .control import PIParams, PIState, pi_init, pi_step
-from .core import (Packed, State, Trajectory, check_dt, initial_state, pack, run_packed,
-                   simulate, steady_input, step)
+from .core import Packed, State, Trajectory, check_dt, initial_state, pack, run_packed, simulate, steady_input, step
 from .envs import ENV_IDS, ValveTankEnv, ValveTankVectorEnv, register_envs
-from .params import (EFFECTS, PROCESSES, Actuator, Cascade, DeadTime, FirstOrderParams,
-                     IntegratingParams, Leak, ModelParams, OscillatingDisturbance, Overflow,
-                     ParameterError, SensorLag, SlipJump, TankParams, ValveCharacteristic,
-                     ValveParams)
+from .params import (
+    EFFECTS,
+    PROCESSES,
+    Actuator,
+    Cascade,
+    DeadTime,
+    FirstOrderParams,
+    IntegratingParams,
+    Leak,
+    ModelParams,
+    OscillatingDisturbance,
+    Overflow,
+    ParameterError,
+    SensorLag,
+    SlipJump,
+    TankParams,
+    ValveCharacteristic,
+    ValveParams,
+)
 
 __version__ = "0.1.0"
 

@@ -40,9 +40,9 @@ import csv
 import io
 import os
 import sys
-import tempfile
+from collections.abc import Sequence
 from dataclasses import replace
-from typing import Callable, List, NamedTuple, Optional, Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -110,7 +110,7 @@ class ValveResponse(NamedTuple):
 
 
 def valve_response(valve: ValveParams, u, sample_time: float, dt: float = 1e-3,
-                   h0: Optional[float] = None, label: str = "") -> ValveResponse:
+                   h0: float | None = None, label: str = "") -> ValveResponse:
     """Drive the valve alone with the input ``u`` and record stem and friction state.
 
     The valve is the physics core's (:mod:`valve_gym.core`) with the default
@@ -178,7 +178,7 @@ def _n_sub(sample_time: float, dt: float) -> int:
 
 
 def valve_io_data(seconds: float = 200.0, period: float = 100.0, amplitude: float = 0.3,
-                  sample_time: float = 0.05) -> List[ValveResponse]:
+                  sample_time: float = 0.05) -> list[ValveResponse]:
     """Slow sine input for the healthy and the sticky valve (input-output plot).
 
     ``i(t) = 0.5 - amplitude * cos(2 pi t / period)``, starting at rest at its
@@ -206,7 +206,7 @@ def valve_io_data(seconds: float = 200.0, period: float = 100.0, amplitude: floa
             for name, v in (("healthy", HEALTHY), ("sticky", STICKY))]
 
 
-def staircase(levels: Sequence[float], hold: float, sample_time: float) -> np.ndarray:
+def staircase(levels: Sequence[float] | np.ndarray, hold: float, sample_time: float) -> np.ndarray:
     """Piecewise-constant input: each value of ``levels`` held ``hold`` seconds.
 
     Returns
@@ -218,7 +218,7 @@ def staircase(levels: Sequence[float], hold: float, sample_time: float) -> np.nd
 
 
 def valve_steps_data(step: float = 0.05, n_steps: int = 4, hold: float = 15.0,
-                     sample_time: float = 0.05) -> List[ValveResponse]:
+                     sample_time: float = 0.05) -> list[ValveResponse]:
     """Staircase up then down (``n_steps`` steps of ``step`` each way) for both valves.
 
     Starts at 0.4, climbs to ``0.4 + n_steps*step`` and comes back.
@@ -262,7 +262,7 @@ def multi_ramp(points: Sequence[float], slopes: Sequence[float], sample_time: fl
     return np.concatenate(parts)
 
 
-def stick_slip_data(sample_time: float = 0.05) -> List[ValveResponse]:
+def stick_slip_data(sample_time: float = 0.05) -> list[ValveResponse]:
     """Multi-ramp input (up, down, up, down at different speeds) for both valves.
 
     On every reversal the sticky valve stays stuck while ``z`` crosses its band
@@ -310,7 +310,7 @@ class ClosedLoopResult(NamedTuple):
 
 def closed_loop_pi(params: ModelParams, sp, Kc, Ti, control_period: float = 1.0,
                    seconds: float = 1000.0, noise_std: float = 0.0,
-                   seed: Optional[int] = None, state=None) -> ClosedLoopResult:
+                   seed: int | None = None, state=None) -> ClosedLoopResult:
     """Level loop: the PI law of :mod:`valve_gym.control` driving the model.
 
     Every ``control_period`` seconds the controller reads the level (plus white
@@ -455,7 +455,7 @@ class LimitCycleCase(NamedTuple):
 
 def limit_cycle_data(levels=FRICTION_LEVELS, Kc: float = 1.0, Ti: float = 30.0,
                      control_period: float = 1.0, seconds: float = 3000.0, sp: float = 1.2,
-                     settle: float = 1000.0, dt: float = 0.002) -> List[LimitCycleCase]:
+                     settle: float = 1000.0, dt: float = 0.002) -> list[LimitCycleCase]:
     """Run the level loop for each friction level and measure its limit cycle.
 
     The default tank (:class:`~valve_gym.params.TankParams`) starts at rest at
@@ -488,7 +488,6 @@ def limit_cycle_data(levels=FRICTION_LEVELS, Kc: float = 1.0, Ti: float = 30.0,
     """
     from .metrics import limit_cycle
 
-    n = len(levels)
     valve = ValveParams(tau=HEALTHY.tau, v_max=HEALTHY.v_max,
                         z_max=np.array([lv[1] for lv in levels], float),
                         e_dead=np.array([lv[2] for lv in levels], float))
@@ -513,13 +512,13 @@ _TABLE_HEADER = ("friction", "z_max [s]", "e_dead [-]", "limit cycle", "amplitud
                  "period [s]", "cycles")
 
 
-def limit_cycle_rows(cases: Sequence[LimitCycleCase]) -> List[tuple]:
+def limit_cycle_rows(cases: Sequence[LimitCycleCase]) -> list[tuple]:
     """Rows ``(friction, z_max, e_dead, present, amplitude_m, period_s, n_cycles)``."""
     return [(c.name, float(c.valve.z_max), float(c.valve.e_dead), c.present, c.amplitude,
              c.period, c.n_cycles) for c in cases]
 
 
-def _fmt_row(r) -> List[str]:
+def _fmt_row(r) -> list[str]:
     name, zm, ed, present, amp, per, nc = r
     return [name, f"{zm:g}", f"{ed:g}", "yes" if present else "no",
             f"{amp:.4f}" if present else "-", f"{per:.0f}" if present else "-", str(nc)]
@@ -667,10 +666,10 @@ def plot_limit_cycles(cases: Sequence[LimitCycleCase], window: float = 800.0):
     axes[0, 0].set_ylabel("level [m]")
     axes[1, 0].set_ylabel("OP, stem position [fraction of stroke]")
     fig.suptitle(
-        "PI level control (Kc = {:g} /m, Ti = {:g} s, sampled every {:g} s) after a set-point step, "
-        "last {:g} s:\nwith friction the loop cycles -- triangular level and controller output, "
-        "stem moving in jumps".format(cases[0].Kc, cases[0].Ti,
-                                      float(cases[0].run.t[1] - cases[0].run.t[0]), window))
+        f"PI level control (Kc = {cases[0].Kc:g} /m, Ti = {cases[0].Ti:g} s, "
+        f"sampled every {float(cases[0].run.t[1] - cases[0].run.t[0]):g} s) after a set-point step, "
+        f"last {window:g} s:\nwith friction the loop cycles -- triangular level and controller output, "
+        "stem moving in jumps")
     return fig
 
 
@@ -699,7 +698,7 @@ def _save_text(text: str, path: str) -> str:
     return _write_atomic(path, lambda f: f.write(text.encode("utf-8")))
 
 
-def main(argv: Optional[Sequence[str]] = None) -> int:
+def main(argv: Sequence[str] | None = None) -> int:
     """``valve-gym figures --out DIR [--dpi N]``: write the teaching figures.
 
     Writes ``valve_io.png``, ``valve_steps.png``, ``stick_slip_ramps.png``,
