@@ -1,0 +1,37 @@
+"""Plant-scale diagnosis: a fleet of loops on Ray, ranked into a worklist of which valve to fix first.
+
+``valve-gym diagnose DIR --out OUT [--jobs N] [--address ADDR]`` runs
+:func:`run_fleet`: every loop of a folder (one CSV per loop) or of a
+historian's wide export (``TAG.PV``, ``TAG.OP``, ``TAG.SP``, ``TAG.MODE``) is
+screened (oscillation index, Horch's test), diagnosed in full where it
+oscillates, and written as it finishes; ``loops.parquet``/``loops.csv`` hold one
+row per loop and ``worklist.md``/``worklist.html`` rank the loops by the cost of
+stiction with a recommended action.  See ``docs/fleet.md``.
+
+Public API
+----------
+run_fleet, FleetRun
+    run a fleet on Ray (in this process, or on a cluster), resumable.
+FleetSettings, LoopResult, TABLE_COLUMNS
+    the settings of a run and one loop's typed result.
+discover_loops, load_loop, LoopSource, resample_loop
+    find the loops of a folder or a wide export; read one.
+analyse_loop
+    one loop's work (what a Ray task runs).
+screen_recording, oscillation_index
+    the fast screening stage.
+write_worklist, RULES
+    the ranked worklist and its action table.
+"""
+from .actions import RULES, evidence_weight, recommend, score
+from .analyse import analyse_loop, stiction_numbers
+from .result import TABLE_COLUMNS, FleetSettings, LoopResult, loop_key
+from .runner import FleetRun, run_fleet
+from .screen import oscillation_index, screen_recording
+from .sources import LoopSource, discover_loops, load_loop, resample_loop
+from .worklist import write_worklist
+
+__all__ = ["run_fleet", "FleetRun", "FleetSettings", "LoopResult", "TABLE_COLUMNS", "loop_key",
+           "discover_loops", "load_loop", "LoopSource", "resample_loop", "analyse_loop", "stiction_numbers",
+           "screen_recording", "oscillation_index", "write_worklist", "RULES", "evidence_weight", "recommend",
+           "score"]

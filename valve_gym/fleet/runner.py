@@ -1,0 +1,217 @@
+"""Run a fleet of loops on Ray: one task per loop, results streamed to disk, resumable.
+
+:func:`run_fleet` lists the loops of a folder or a wide export, skips those
+whose stored result has the same key (content of the data + tag + settings,
+:func:`~valve_gym.fleet.result.loop_key`), and runs the others as Ray tasks
+(:func:`~valve_gym.fleet.analyse.analyse_loop`), at most a few per CPU in
+flight, so only the loops being worked on are in memory.  Each result is
+written as ``OUT/loops/<loop>.json`` the moment it arrives (``ray.wait``;
+atomic), the table ``loops.parquet``/``loops.csv`` every 30 s and at the end,
+then the worklist.  Ctrl-C (or SIGTERM through the CLI) cancels the loops in
+flight and keeps every finished one; running again continues.
+
+Ray runs in this process by default (``ray.init(num_cpus=jobs)``, no dashboard,
+nothing to start); ``address`` joins an existing cluster (``valve_gym`` must be
+installed on its nodes).  A Ray session already started by the caller is used
+as it is and left running.
+"""
+from __future__ import annotations
+
+import logging
+import os
+import sys
+import time
+from collections.abc import Callable
+from typing import NamedTuple
+
+from .analyse import analyse_loop, failed_result
+from .progress import Progress
+from .result import FleetSettings, LoopResult, loop_key
+from .sources import LoopSource, discover_loops
+from .table import read_result, write_result, write_table
+
+__all__ = ["FleetRun", "run_fleet", "plan_fleet"]
+
+_TABLE_EVERY_S = 30.0
+
+
+class FleetRun(NamedTuple):
+    """Summary of one :func:`run_fleet` call.
+
+    Attributes
+    ----------
+    n_loops : int, loops found
+    done : int, loops analysed in this run
+    resumed : int, loops whose stored result was reused
+    failed : int, loops with status other than ``'ok'`` (this run and resumed)
+    interrupted : bool, stopped by Ctrl-C / SIGTERM before the end
+    remaining : int, loops left for a later run (interrupted or ``max_loops``)
+    seconds : float, wall time [s] of this call
+    results : list of LoopResult, of every loop with a result, in discovery order
+    paths : dict of str to str, ``table``, ``csv``, ``worklist_md``, ``worklist_html``
+    """
+
+    n_loops: int
+    done: int
+    resumed: int
+    failed: int
+    interrupted: bool
+    remaining: int
+    seconds: float
+    results: list
+    paths: dict
+
+
+def plan_fleet(sources: list[LoopSource], out_dir: str, settings: FleetSettings):
+    """Split ``sources`` into stored results to reuse and loops to run.
+
+    Returns
+    -------
+    keys : dict loop name -> resume key
+    stored : dict loop name -> LoopResult, reusable results (same key; status not ``'error'``)
+    todo : list of LoopSource, in discovery order
+    """
+    keys, stored, todo = {}, {}, []
+    for s in sources:
+        k = loop_key(s.fingerprint, s.kind, s.tag, settings)
+        keys[s.name] = k
+        old = read_result(os.path.join(out_dir, "loops", s.name + ".json"))
+        if old is not None and old.key == k and old.status != "error":
+            stored[s.name] = old
+        else:
+            todo.append(s)
+    return keys, stored, todo
+
+
+def _remote(settings: FleetSettings):
+    import ray
+
+    @ray.remote(num_cpus=1, max_retries=1)
+    def task(src: LoopSource, key: str) -> LoopResult:
+        try:
+            from ..diagnosis.model import set_kernel_threads
+            set_kernel_threads(1)          # one CPU per task: no threads on top
+        except (ImportError, ValueError):
+            pass
+        return analyse_loop(src, settings, key)
+
+    return task
+
+
+def _start_ray(jobs: int, address: str | None) -> bool:
+    """Start Ray unless a session exists; True if this call started it."""
+    import ray
+
+    if ray.is_initialized():
+        return False
+    kw = {"include_dashboard": False, "configure_logging": True, "logging_level": logging.ERROR,
+          "log_to_driver": False}
+    if address:
+        ray.init(address=address, **kw)
+    else:
+        ray.init(num_cpus=int(jobs), **kw)
+    return True
+
+
+def _collect(ref, src_of: dict, keys: dict) -> LoopResult:
+    import ray
+    import ray.exceptions
+
+    src = src_of[ref]
+    try:
+        return ray.get(ref)
+    except ray.exceptions.RayError as e:       # a lost worker or node, a cancelled task
+        text = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        return failed_result(src, keys[src.name], "error", f"worker lost ({type(e).__name__}): {text[:200]}; "
+                                                           f"run again to retry")
+
+
+def _stream(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs: int, out_dir: str,
+            results: dict, bar: Progress, on_result: Callable[[LoopResult], None] | None) -> list[LoopSource]:
+    """Submit ``todo`` with a bounded window, write each result as it comes; returns the loops not done."""
+    import ray
+
+    task = _remote(settings)
+    cpus = int(ray.cluster_resources().get("CPU", jobs)) or jobs
+    window = max(2 * cpus, 4)
+    pending = list(reversed(todo))
+    src_of: dict = {}
+    last_table = time.perf_counter()
+    try:
+        while pending or src_of:
+            while pending and len(src_of) < window:
+                s = pending.pop()
+                src_of[task.remote(s, keys[s.name])] = s
+            ready, _ = ray.wait(list(src_of), num_returns=1, timeout=1.0)
+            for ref in ready:
+                res = _collect(ref, src_of, keys)
+                del src_of[ref]
+                write_result(res, os.path.join(out_dir, "loops", res.loop + ".json"))
+                results[res.loop] = res
+                bar.update(failed=res.status != "ok")
+                if on_result:
+                    on_result(res)
+            if not ready:
+                bar.show()
+            if time.perf_counter() - last_table > _TABLE_EVERY_S:
+                write_table(list(results.values()), out_dir)
+                last_table = time.perf_counter()
+    except KeyboardInterrupt:
+        for ref in src_of:
+            ray.cancel(ref, force=True)
+        return list(src_of.values()) + list(reversed(pending))
+    return []
+
+
+def run_fleet(path: str, out_dir: str, settings: FleetSettings = FleetSettings(), jobs: int = 2,
+              address: str | None = None, max_loops: int | None = None, stream=sys.stderr,
+              top: int = 10, on_result: Callable[[LoopResult], None] | None = None) -> FleetRun:
+    """Diagnose every loop of ``path`` on Ray, streaming results into ``out_dir``.
+
+    Parameters
+    ----------
+    path : str, a folder of recordings / wide exports, or one wide export
+    out_dir : str, output folder (created); ``loops/``, ``loops.parquet``, ``loops.csv``,
+        ``worklist.md``, ``worklist.html``
+    settings : FleetSettings
+    jobs : int, Ray workers on this machine (ignored with ``address``)
+    address : str, optional, address of an existing Ray cluster (``'auto'`` or ``'host:port'``)
+    max_loops : int, optional, analyse at most this many new loops in this call (the rest next time)
+    stream : text stream for the progress bar, None for silence
+    top : int, loops with plots in the HTML worklist
+    on_result : callable(LoopResult), optional, told of each result as it is written
+
+    Returns
+    -------
+    FleetRun
+    """
+    from .worklist import write_worklist
+
+    t0 = time.perf_counter()
+    if jobs < 1:
+        raise ValueError(f"jobs must be at least 1, got {jobs!r}")
+    sources = discover_loops(path)
+    os.makedirs(os.path.join(out_dir, "loops"), exist_ok=True)
+    keys, stored, todo = plan_fleet(sources, out_dir, settings)
+    later: list[LoopSource] = []
+    if max_loops is not None:
+        todo, later = todo[:max_loops], todo[max_loops:]
+    results: dict[str, LoopResult] = dict(stored)
+    bar = Progress(len(todo), skipped=len(stored), stream=stream)
+    left: list[LoopSource] = []
+    if todo:
+        started = _start_ray(jobs, address)
+        try:
+            left = _stream(todo, keys, settings, jobs, out_dir, results, bar, on_result)
+        finally:
+            bar.close()
+            if started:
+                import ray
+                ray.shutdown()
+    ordered = [results[s.name] for s in sources if s.name in results]
+    p_table, p_csv = write_table(ordered, out_dir)
+    md, html = write_worklist(ordered, sources, out_dir, settings, top=top)
+    n_failed = sum(r.status != "ok" for r in ordered)
+    return FleetRun(len(sources), len(todo) - len(left), len(stored), n_failed, bool(left),
+                    len(left) + len(later), time.perf_counter() - t0, ordered,
+                    {"table": p_table, "csv": p_csv, "worklist_md": md, "worklist_html": html})

@@ -1,0 +1,482 @@
+"""Where a fleet's loops come from: one CSV per loop, or a historian's wide export split by tag.
+
+A *loop source* (:class:`LoopSource`) is a small, picklable description of
+one loop: the file, the tag and the columns.  :func:`discover_loops` lists the
+loops of a file or a folder without loading their data; :func:`load_loop`
+reads one loop (in a worker) and returns a :class:`LoadedLoop` with a
+:class:`~valve_gym.diagnosis.recording.Recording` on a uniform grid and the
+gaps found on the way.
+
+Two layouts are read:
+
+* **one recording per file** (``*.csv``): read by
+  :func:`~valve_gym.diagnosis.recording.load_recording` (same columns and
+  ranges as ``valve-gym diagnose FILE``; a gap longer than five samples keeps
+  the longest stretch without one, reported);
+* **a historian's wide export** (``*.csv`` or ``*.parquet``): one time-stamp
+  column and, per loop, columns ``TAG.PV``, ``TAG.OP``, optionally ``TAG.SP``
+  and ``TAG.MODE``.  Each tag becomes a loop.  Historians store each tag on its
+  own (irregular, exception-based) time stamps; every tag's samples are
+  resampled onto a uniform grid at the loop's scan (:func:`resample_loop`).
+
+Examples
+--------
+>>> import numpy as np
+>>> t = np.array([0.0, 1.0, 2.1, 2.9, 4.0, 5.0, 13.0, 14.0, 15.0])
+>>> x = np.arange(9.0)
+>>> grid, out, gaps, notes = resample_loop(t, {"pv": x, "op": x / 10}, max_gap=5)
+>>> float(grid[1] - grid[0]), len(gaps), round(gaps[0].seconds, 1)
+(1.0, 1, 8.0)
+"""
+from __future__ import annotations
+
+import csv
+import hashlib
+import math
+import os
+import re
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+from ..diagnosis.recording import MIN_SAMPLES, Recording, RecordingError, load_recording
+
+__all__ = ["LoopSource", "LoadedLoop", "Gap", "discover_loops", "load_loop", "resample_loop",
+           "file_fingerprint", "safe_name", "WIDE_SUFFIXES", "TIME_COLUMN_NAMES"]
+
+#: Column suffixes of a wide export and the signal role of each.
+WIDE_SUFFIXES = {"PV": "pv", "OP": "op", "SP": "sp", "MODE": "mode"}
+#: Names recognised (case-insensitively) as the time-stamp column of a wide export.
+TIME_COLUMN_NAMES = ("timestamp", "time", "t", "t_s", "datetime", "date", "ts")
+#: MODE values (upper-cased) that mean the loop is in automatic (anything else is manual).
+AUTO_MODES = frozenset({"AUTO", "AUT", "A", "CAS", "CASCADE", "RCAS", "1", "1.0", "TRUE"})
+
+_WIDE_RE = re.compile(r"^(?P<tag>.+)\.(?P<role>PV|OP|SP|MODE)$", re.IGNORECASE)
+_GAP_FACTOR = 1.5
+
+
+class Gap(NamedTuple):
+    """A stretch of a loop's record without samples.
+
+    Attributes
+    ----------
+    role : str, the signal (``'pv'``, ``'op'``, ``'sp'``, ``'mode'``)
+    t_start : float, seconds from the first sample of the loop
+    seconds : float, length of the stretch without a sample [s]
+    """
+
+    role: str
+    t_start: float
+    seconds: float
+
+
+@dataclass(frozen=True)
+class LoopSource:
+    """One loop of a fleet, before its data are read.
+
+    Attributes
+    ----------
+    name : str, unique loop name (the tag, or the file name without extension)
+    kind : {'csv', 'wide', 'bad'}, one recording per file, a tag of a wide export,
+        or a file that cannot be used (``problem`` says why)
+    path : str, the file
+    tag : str, the tag of a wide export ('' otherwise)
+    time_column : str, the time-stamp column of a wide export
+    columns : tuple of (role, column) pairs of a wide export
+    fingerprint : str, SHA-256 of the file's bytes (hex)
+    problem : str, why a ``'bad'`` source cannot be read
+    """
+
+    name: str
+    kind: str
+    path: str
+    tag: str = ""
+    time_column: str = ""
+    columns: tuple[tuple[str, str], ...] = ()
+    fingerprint: str = ""
+    problem: str = ""
+
+
+@dataclass(frozen=True)
+class LoadedLoop:
+    """A loop's recording and what loading it found.
+
+    Attributes
+    ----------
+    recording : Recording, uniform grid, OP normalised to 0..1
+    gaps : tuple of Gap, stretches without samples longer than ``max_gap`` scans
+    notes : tuple of str, every resampling or repair done (also in ``recording.repairs``)
+    """
+
+    recording: Recording
+    gaps: tuple[Gap, ...]
+    notes: tuple[str, ...]
+
+
+def safe_name(name: str) -> str:
+    """``name`` made safe as a file name: anything but letters, digits, ``._-`` becomes ``_``."""
+    s = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._") or "loop"
+    return s[:150]
+
+
+def file_fingerprint(path: str, chunk: int = 1 << 20) -> str:
+    """SHA-256 (hex) of a file's bytes, read in chunks of ``chunk`` bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        while True:
+            b = f.read(chunk)
+            if not b:
+                break
+            h.update(b)
+    return h.hexdigest()
+
+
+# --------------------------------------------------------------------------- discovery
+def _header(path: str) -> list[str]:
+    """Column names of a CSV or Parquet file (raises RecordingError if unreadable)."""
+    if path.lower().endswith(".parquet"):
+        import pyarrow.parquet as pq
+        try:
+            return list(pq.read_schema(path).names)
+        except Exception as e:  # pyarrow raises several types for a bad file
+            raise RecordingError(f"{path}: not a readable Parquet file ({e}); export it again") from None
+    with open(path, newline="", encoding="utf-8-sig", errors="replace") as f:
+        head = f.read(65536)
+    line = next((ln for ln in head.splitlines() if ln.strip()), "")
+    if not line:
+        raise RecordingError(f"{path}: file is empty; expected a header row and data rows")
+    try:
+        dialect = csv.Sniffer().sniff(line, delimiters=",;\t")
+        delim = dialect.delimiter
+    except csv.Error:
+        delim = ","
+    return [c.strip() for c in next(csv.reader([line], delimiter=delim))]
+
+
+def _wide_tags(header: list[str]) -> dict[str, dict[str, str]]:
+    tags: dict[str, dict[str, str]] = {}
+    for col in header:
+        m = _WIDE_RE.match(col)
+        if m:
+            tags.setdefault(m["tag"], {})[WIDE_SUFFIXES[m["role"].upper()]] = col
+    return tags
+
+
+def _time_column(header: list[str], tags: dict[str, dict[str, str]]) -> str:
+    used = {c for roles in tags.values() for c in roles.values()}
+    low = {c.lower(): c for c in header}
+    for n in TIME_COLUMN_NAMES:
+        if n in low and low[n] not in used:
+            return low[n]
+    rest = [c for c in header if c not in used]
+    return rest[0] if rest else ""
+
+
+def _file_sources(path: str, fp: str) -> list[LoopSource]:
+    stem = os.path.splitext(os.path.basename(path))[0]
+    try:
+        header = _header(path)
+    except (RecordingError, OSError) as e:
+        return [LoopSource(stem, "bad", path, fingerprint=fp, problem=str(e))]
+    tags = _wide_tags(header)
+    if not tags:
+        if path.lower().endswith(".parquet"):
+            return [LoopSource(stem, "bad", path, fingerprint=fp,
+                               problem=f"{path}: a Parquet file must be a wide export with columns TAG.PV, "
+                                       f"TAG.OP (found {', '.join(header[:6])}); write single loops as CSV")]
+        return [LoopSource(stem, "csv", path, fingerprint=fp)]
+    tcol = _time_column(header, tags)
+    out = []
+    for tag, roles in sorted(tags.items()):
+        problem = ""
+        if not tcol:
+            problem = f"{path}: no time-stamp column (name one of {', '.join(TIME_COLUMN_NAMES)})"
+        elif "pv" not in roles or "op" not in roles:
+            miss = " and ".join(f"{tag}.{r.upper()}" for r in ("pv", "op") if r not in roles)
+            problem = f"{path}: tag {tag!r} has no column {miss}; a loop needs TAG.PV and TAG.OP"
+        out.append(LoopSource(tag, "bad" if problem else "wide", path, tag=tag, time_column=tcol,
+                              columns=tuple(sorted(roles.items())), fingerprint=fp, problem=problem))
+    return out
+
+
+def discover_loops(path: str) -> list[LoopSource]:
+    """The loops of a file or a folder (``*.csv``, ``*.parquet``, sorted; not recursive).
+
+    Parameters
+    ----------
+    path : str, a folder, a wide export, or one recording
+
+    Returns
+    -------
+    list of LoopSource, names unique and file-safe (a name seen twice gets ``@file`` appended).
+    A file that cannot be read becomes a source of kind ``'bad'`` (a failed row later), never an
+    exception, so one bad file does not stop a fleet.
+
+    Raises
+    ------
+    RecordingError
+        ``path`` does not exist, or a folder holds no ``.csv``/``.parquet`` file.
+    """
+    if os.path.isdir(path):
+        files = sorted(os.path.join(path, f) for f in os.listdir(path)
+                       if f.lower().endswith((".csv", ".parquet")) and not f.startswith("."))
+        if not files:
+            raise RecordingError(f"folder {path!r} holds no .csv or .parquet files")
+    elif os.path.isfile(path):
+        files = [path]
+    else:
+        raise RecordingError(f"{path}: no such file or folder")
+    out: list[LoopSource] = []
+    seen: set[str] = set()
+    for f in files:
+        try:
+            fp = file_fingerprint(f)
+        except OSError as e:
+            fp = ""
+            srcs = [LoopSource(os.path.basename(f), "bad", f, problem=f"{f}: cannot be read ({e})")]
+        else:
+            srcs = _file_sources(f, fp)
+        for s in srcs:
+            name = safe_name(s.name)
+            if name in seen:
+                name = safe_name(f"{s.name}@{os.path.splitext(os.path.basename(f))[0]}")
+            k = 2
+            base = name
+            while name in seen:
+                name, k = f"{base}-{k}", k + 1
+            seen.add(name)
+            out.append(s if name == s.name else LoopSource(name, s.kind, s.path, s.tag, s.time_column,
+                                                           s.columns, s.fingerprint, s.problem))
+    return out
+
+
+# --------------------------------------------------------------------------- loading
+def _read_wide_columns(src: LoopSource) -> dict[str, np.ndarray]:
+    """The time column (as read) and the loop's columns of a wide export."""
+    cols = dict(src.columns)
+    names = [src.time_column] + list(cols.values())
+    try:
+        if src.path.lower().endswith(".parquet"):
+            import pyarrow.parquet as pq
+            table = pq.read_table(src.path, columns=names)
+        else:
+            import pyarrow as pa
+            import pyarrow.csv as pcsv
+            delim = ";" if ";" in open(src.path, encoding="utf-8-sig", errors="replace").readline() else ","
+            types = {c: (pa.string() if r == "mode" else pa.float64()) for r, c in cols.items()}
+            types[src.time_column] = pa.string()
+            table = pcsv.read_csv(src.path, parse_options=pcsv.ParseOptions(delimiter=delim),
+                                  convert_options=pcsv.ConvertOptions(include_columns=names,
+                                                                      column_types=types))
+    except Exception as e:  # pyarrow: ArrowInvalid, OSError, ...
+        msg = str(e).splitlines()[0][:300]
+        raise RecordingError(f"{src.path}: cannot read the columns of tag {src.tag!r} ({msg}); "
+                             f"check that they hold numbers") from None
+    out = {"t": table.column(src.time_column).to_numpy(zero_copy_only=False)}
+    for role, c in cols.items():
+        a = table.column(c).to_numpy(zero_copy_only=False)
+        out[role] = a if role == "mode" else np.asarray(a, dtype=float)
+    return out
+
+
+def _seconds(t_raw: np.ndarray, where: str) -> tuple[np.ndarray, str | None]:
+    """Time stamps as float seconds (and the first stamp as ISO text when they are dates)."""
+    if t_raw.dtype.kind in "fiu":
+        return np.asarray(t_raw, float), None
+    if t_raw.dtype.kind == "M":
+        ns = t_raw.astype("datetime64[ns]")
+    else:
+        try:
+            return np.asarray(t_raw, dtype=float), None
+        except (TypeError, ValueError):
+            import pandas as pd
+            ns = pd.to_datetime(pd.Series(t_raw), errors="coerce", utc=True).dt.tz_localize(None).to_numpy()
+    ok = ~np.isnat(ns)
+    if not ok.any():
+        raise RecordingError(f"{where}: the time column holds neither numbers nor dates")
+    t0 = ns[ok][0]
+    sec = np.full(len(ns), np.nan)
+    sec[ok] = (ns[ok] - t0) / np.timedelta64(1, "s")
+    return sec, str(t0)[:19].replace("T", " ")
+
+
+def _role_on_grid(t: np.ndarray, x: np.ndarray, grid: np.ndarray, hold: bool) -> np.ndarray:
+    if hold:
+        j = np.clip(np.searchsorted(t, grid, side="right") - 1, 0, len(t) - 1)
+        return x[j]
+    return np.interp(grid, t, x)
+
+
+def resample_loop(t: np.ndarray, signals: dict[str, np.ndarray], max_gap: int = 5,
+                  scan: float | None = None):
+    """Put one loop's signals, each on its own irregular time stamps, on a uniform grid.
+
+    Parameters
+    ----------
+    t : (N,) float array, time stamps [s] of the export's rows (sorted or not)
+    signals : dict role -> (N,) array, NaN (float) or None/'' (mode) where a tag has no
+        sample in a row.  Roles ``'pv'`` and ``'op'`` are required; ``'sp'``, ``'mode'`` optional.
+    max_gap : int, longest stretch without a sample that is bridged, in scans
+    scan : float, optional, the grid step [s]; default the median step between the PV's samples
+
+    Returns
+    -------
+    grid : (n,) float array [s], uniform with step ``scan``
+    values : dict role -> (n,) array, PV linearly interpolated, OP, SP and MODE held
+        (a controller output and a set point are held between updates)
+    gaps : list of Gap, stretches longer than ``max_gap`` scans; the grid is cut to the
+        longest stretch of the record free of them
+    notes : list of str, what was done, in words
+
+    Notes
+    -----
+    A grid point inside a gap is unknown; the longest run of known grid points is kept.
+    """
+    t = np.asarray(t, float)
+    order = np.argsort(t, kind="stable")
+    per = {}
+    for role, x in signals.items():
+        x = np.asarray(x)[order]
+        ts = t[order]
+        ok = np.isfinite(ts) & (_present(x))
+        ts, x = ts[ok], x[ok]
+        keep = np.concatenate(([True], np.diff(ts) > 0)) if len(ts) else np.zeros(0, bool)
+        per[role] = (ts[keep], x[keep])
+    for role in ("pv", "op"):
+        if len(per[role][0]) < 2:
+            raise RecordingError(f"the {role.upper()} has fewer than 2 samples")
+    tp = per["pv"][0]
+    steps = np.diff(tp)
+    dt = float(scan) if scan else float(np.median(steps))
+    if not (math.isfinite(dt) and dt > 0):
+        raise RecordingError("the PV's time stamps do not advance; check the time column")
+    lo = max(v[0][0] for r, v in per.items() if r in ("pv", "op"))
+    hi = min(v[0][-1] for r, v in per.items() if r in ("pv", "op"))
+    if hi <= lo:
+        raise RecordingError("the PV and OP samples do not overlap in time")
+    grid = lo + dt * np.arange(int(np.floor((hi - lo) / dt + 1e-9)) + 1)
+    known = np.ones(len(grid), bool)
+    gaps: list[Gap] = []
+    notes: list[str] = []
+    irregular = float(np.max(np.abs(steps - dt))) > 1e-6 * dt
+    values = {}
+    for role, (ts, x) in per.items():
+        if len(ts) == 0:
+            continue
+        values[role] = _role_on_grid(ts, x, grid, hold=role != "pv")
+        if role not in ("pv", "op"):
+            continue        # set point and mode are stored on change: a long step is no gap
+        d = np.diff(ts)
+        for i in np.flatnonzero(d > max(max_gap, _GAP_FACTOR) * dt):
+            gaps.append(Gap(role, float(ts[i] - lo), float(d[i])))
+            known &= ~((grid > ts[i]) & (grid < ts[i + 1]))
+    if irregular:
+        notes.append(f"time stamps irregular (steps {steps.min():g}..{steps.max():g} s): resampled to the "
+                     f"scan {dt:g} s (PV linear; OP, SP, MODE held)")
+    if gaps:
+        a, b = _longest_run(known)
+        notes.append(f"{len(gaps)} gap(s) longer than {max_gap} scans (longest {max(g.seconds for g in gaps):g} s); "
+                     f"kept the longest stretch without one: {grid[a] - lo:g}-{grid[b - 1] - lo:g} s")
+        grid = grid[a:b]
+        values = {r: v[a:b] for r, v in values.items()}
+    return grid, values, gaps, notes
+
+
+def _present(x: np.ndarray) -> np.ndarray:
+    if x.dtype.kind == "f":
+        return np.isfinite(x)
+    return np.array([v is not None and str(v).strip() not in ("", "nan", "None") for v in x], bool)
+
+
+def _longest_run(mask: np.ndarray) -> tuple[int, int]:
+    if not mask.any():
+        raise RecordingError("no stretch of the record is free of gaps")
+    d = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
+    starts, stops = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    i = int(np.argmax(stops - starts))
+    return int(starts[i]), int(stops[i])
+
+
+def _automatic_stretch(values: dict[str, np.ndarray], grid: np.ndarray, notes: list[str]):
+    mode = values.pop("mode", None)
+    if mode is None:
+        return grid, values
+    auto = np.array([str(v).strip().upper() in AUTO_MODES for v in mode], bool)
+    if auto.all():
+        return grid, values
+    if not auto.any():
+        raise RecordingError("the loop is never in automatic (MODE never AUTO/CAS): nothing closed-loop to diagnose")
+    a, b = _longest_run(auto)
+    notes.append(f"MODE manual in {int((~auto).sum())} of {len(auto)} samples: kept the longest automatic "
+                 f"stretch, {grid[a] - grid[0]:g}-{grid[b - 1] - grid[0]:g} s")
+    return grid[a:b], {r: v[a:b] for r, v in values.items()}
+
+
+def _normalise_op(op: np.ndarray, op_range, where: str, notes: list[str]) -> tuple[np.ndarray, tuple]:
+    if op_range is None:
+        if op.min() < 0.0 or op.max() > 1.0:
+            raise RecordingError(f"{where}: OP values {op.min():g}..{op.max():g} lie outside 0..1; give the "
+                                 f"controller-output range with --op-range LO,HI (e.g. 0,100 for percent)")
+        return op, (0.0, 1.0)
+    lo, hi = (float(v) for v in op_range)
+    tol = 0.05 * (hi - lo)
+    if op.min() < lo - tol or op.max() > hi + tol:
+        raise RecordingError(f"{where}: OP values {op.min():g}..{op.max():g} lie more than 5 % outside the range "
+                             f"{lo:g}..{hi:g}; pass the right range with --op-range LO,HI")
+    if op.min() < lo or op.max() > hi:
+        notes.append(f"clipped OP values slightly outside {lo:g}..{hi:g}")
+    return np.clip((op - lo) / (hi - lo), 0.0, 1.0), (lo, hi)
+
+
+def _load_wide(src: LoopSource, op_range, max_gap: int) -> LoadedLoop:
+    where = f"{src.path}: tag {src.tag!r}"
+    cols = _read_wide_columns(src)
+    t, start = _seconds(cols.pop("t"), where)
+    try:
+        grid, values, gaps, notes = resample_loop(t, cols, max_gap=max_gap)
+    except RecordingError as e:
+        raise RecordingError(f"{where}: {e}") from None
+    grid, values = _automatic_stretch(values, grid, notes)
+    if len(grid) < MIN_SAMPLES:
+        raise RecordingError(f"{where}: only {len(grid)} usable samples after resampling (need {MIN_SAMPLES}); "
+                             f"export a longer stretch")
+    op, rng = _normalise_op(values["op"], op_range, where, notes)
+    for role in ("op", "pv"):
+        x = values[role]
+        if np.ptp(x) <= 1e-12 * max(1.0, float(np.abs(x).max())):
+            raise RecordingError(f"{where}: the {role.upper()} is constant; nothing to diagnose")
+    cols_used = {"t": src.time_column, **dict(src.columns)}
+    cols_used.pop("mode", None)
+    rec = Recording(t=grid - grid[0], op=op, pv=values["pv"], sp=values.get("sp"), dt=float(grid[1] - grid[0]),
+                    name=src.name, op_range=rng, repairs=tuple(notes), columns=cols_used, start=start)
+    return LoadedLoop(rec, tuple(gaps), tuple(notes))
+
+
+def load_loop(src: LoopSource, columns=None, op_range=None, max_gap: int = 5) -> LoadedLoop:
+    """Read one loop.
+
+    Parameters
+    ----------
+    src : LoopSource, from :func:`discover_loops`
+    columns : dict, optional, role -> column name for one-recording CSV files (as ``--columns``)
+    op_range : (lo, hi), optional, raw controller-output range that maps to 0..1
+    max_gap : int, longest stretch without samples bridged by interpolation, in scans
+
+    Returns
+    -------
+    LoadedLoop
+
+    Raises
+    ------
+    RecordingError
+        The file, the tag or its data cannot be used; the message names the file, the tag or
+        column, and what to do.
+    """
+    if src.kind == "bad":
+        raise RecordingError(src.problem)
+    if src.kind == "wide":
+        return _load_wide(src, op_range, max_gap)
+    rec = load_recording(src.path, columns=columns, op_range=op_range, name=src.name, max_gap=max_gap,
+                         gaps="longest")
+    return LoadedLoop(rec, (), tuple(rec.repairs))
