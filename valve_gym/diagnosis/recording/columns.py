@@ -1,0 +1,188 @@
+"""Column mapping: which column of a file holds which signal role.
+
+:func:`parse_columns` reads the CLI form ``"t=t_s,op=OP,pv=PV"``;
+:func:`resolve_columns` maps roles to the columns of a file's header, by the
+names given or by :data:`DEFAULT_COLUMN_NAMES`, into a :class:`ColumnMap`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+from ._base import DEFAULT_COLUMN_NAMES, REQUIRED, ROLE_WORDS, ROLES, RecordingError
+
+__all__ = ["ColumnMap", "parse_columns", "resolve_columns"]
+
+
+@dataclass(frozen=True)
+class ColumnMap:
+    """Where each signal role is in a file.
+
+    Attributes
+    ----------
+    index : dict of str to int
+        Role to the 0-based column position in the header, for the roles
+        present (always ``t``, ``op``, ``pv``), in the order of :data:`ROLES`.
+    names : dict of str to str
+        Role to the column name as written in the header.
+    """
+
+    index: dict[str, int]
+    names: dict[str, str]
+
+    @property
+    def roles(self) -> list[str]:
+        """Roles present, in the order of :data:`ROLES`."""
+        return [r for r in ROLES if r in self.index]
+
+    @property
+    def signal_roles(self) -> list[str]:
+        """Roles present other than time."""
+        return [r for r in self.roles if r != "t"]
+
+
+def parse_columns(text: str) -> dict[str, str | None]:
+    """Parse a column mapping such as ``"t=t_s,op=OP,pv=PV,sp=SP"``.
+
+    Parameters
+    ----------
+    text : str
+        Comma-separated ``role=COLUMN`` items; roles are ``t, op, pv, sp, mv``.
+        An empty column (``sp=``) means "do not use this role".  Column names
+        cannot contain commas.
+
+    Returns
+    -------
+    dict
+        Role to column name (or None), suitable for ``load_recording(columns=...)``.
+
+    Raises
+    ------
+    RecordingError
+        For an item without ``=``, an unknown or repeated role, or an empty
+        column for ``t``, ``op`` or ``pv``.
+
+    Examples
+    --------
+    >>> parse_columns("t=t_s, op=OP, pv=PV, sp=")
+    {'t': 't_s', 'op': 'OP', 'pv': 'PV', 'sp': None}
+    """
+    usage = "expected --columns role=COLUMN[,role=COLUMN...] with roles t, op, pv, sp, mv, e.g. t=t_s,op=OP,pv=PV"
+    if text is None or not str(text).strip():
+        raise RecordingError(f"empty column mapping: {usage}")
+    out: dict[str, str | None] = {}
+    for item in str(text).split(","):
+        item = item.strip()
+        if not item:
+            continue
+        if "=" not in item:
+            raise RecordingError(f"column mapping item {item!r} has no '=': {usage}")
+        role, col = (s.strip() for s in item.split("=", 1))
+        role = role.lower()
+        if role not in ROLES:
+            raise RecordingError(f"unknown role {role!r} in column mapping {text!r}: {usage}")
+        if role in out:
+            raise RecordingError(f"role {role!r} given twice in column mapping {text!r}: {usage}")
+        if not col and role in REQUIRED:
+            raise RecordingError(
+                f"role {role!r} ({ROLE_WORDS[role]}) needs a column name in {text!r}: {usage}"
+            )
+        out[role] = col or None
+    if not out:
+        raise RecordingError(f"empty column mapping {text!r}: {usage}")
+    return out
+
+
+def _named(header: Sequence[str], lower: dict[str, list[int]], role: str, name: str, src: str) -> int:
+    """Position of the column `name` given for `role` (exact match, else case-insensitive)."""
+    avail = ", ".join(repr(h) for h in header)
+    exact = [j for j, h in enumerate(header) if h == name]
+    hits = exact or lower.get(name.lower(), [])
+    if not hits:
+        raise RecordingError(
+            f"{src}: column {name!r} given for the {ROLE_WORDS[role]} ({role}) is not in the "
+            f"file; available columns: {avail}"
+        )
+    if len(hits) > 1:
+        raise RecordingError(
+            f"{src}: column name {name!r} ({role}) appears {len(hits)} times in the header; "
+            f"rename the duplicates in the file"
+        )
+    return hits[0]
+
+
+def _default(lower: dict[str, list[int]], role: str, taken: set[int]) -> int | None:
+    """Position of the first default name of `role` found once in the header, else None."""
+    for cand in DEFAULT_COLUMN_NAMES[role]:
+        hits = lower.get(cand, [])
+        if len(hits) == 1 and hits[0] not in taken:
+            return hits[0]
+    return None
+
+
+def resolve_columns(
+    header: Sequence[str], columns: Mapping[str, str | None] | None, src: str
+) -> ColumnMap:
+    """Map the signal roles to columns of `header`.
+
+    Parameters
+    ----------
+    header : sequence of str
+        Column names of the file, in order.
+    columns : mapping, optional
+        Role to column name (None or "" switches an optional role off); the
+        roles left out are looked up among :data:`DEFAULT_COLUMN_NAMES`.
+    src : str
+        The file, for messages.
+
+    Returns
+    -------
+    ColumnMap
+
+    Raises
+    ------
+    RecordingError
+        Unknown role; a required role switched off or not found; a named
+        column absent (the message lists the available ones) or repeated in
+        the header; one column used for two roles.
+    """
+    header = list(header)
+    columns = dict(columns or {})
+    avail = ", ".join(repr(h) for h in header)
+    for role in columns:
+        if role not in ROLES:
+            raise RecordingError(f"{src}: unknown role {role!r} in columns; roles are {', '.join(ROLES)}")
+    lower: dict[str, list[int]] = {}
+    for j, h in enumerate(header):
+        lower.setdefault(h.lower(), []).append(j)
+    out: dict[str, int] = {}
+    for role in ROLES:
+        if role not in columns:
+            j = _default(lower, role, set(out.values()))
+            if j is None and role in REQUIRED:
+                raise RecordingError(
+                    f"{src}: no column for the {ROLE_WORDS[role]} ({role}): none of the default "
+                    f"names {', '.join(DEFAULT_COLUMN_NAMES[role])} is among the columns {avail}; "
+                    f"pass columns={{'{role}': NAME}} (CLI: --columns {role}=NAME)"
+                )
+        elif columns[role] is None or not str(columns[role]).strip():
+            if role in REQUIRED:
+                raise RecordingError(
+                    f"{src}: the {ROLE_WORDS[role]} ({role}) cannot be switched off; "
+                    f"name its column (available: {avail})"
+                )
+            j = None
+        else:
+            j = _named(header, lower, role, str(columns[role]).strip(), src)
+        if j is not None:
+            out[role] = j
+    seen: dict[int, str] = {}
+    for role, j in out.items():
+        if j in seen:
+            raise RecordingError(
+                f"{src}: column {header[j]!r} is used for both {seen[j]} and {role}; "
+                f"map each role to its own column"
+            )
+        seen[j] = role
+    return ColumnMap(index=out, names={r: header[j] for r, j in out.items()})

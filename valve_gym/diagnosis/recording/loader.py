@@ -1,0 +1,215 @@
+"""The recording loader: sniff, map columns, parse, validate, repair, condition."""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Mapping
+from datetime import datetime, timezone
+
+import numpy as np
+
+from ._base import RecordingError
+from .data import data_path  # noqa: F401  (used in the docstring's example)
+from .decimate import DEFAULT_MAX_SAMPLES, condition
+from .parse import Parsed, parse_raw
+from .read import CHUNK_ROWS, RawColumns, read_columns
+from .record import Recording
+from .repair import Grid, drop_duplicates, fill_gaps, regrid
+from .sniff import Sniffed, sniff
+from .validate import LoadOptions, check_constant, check_options, check_time_order, mark_absurd, normalise
+
+__all__ = ["load_recording"]
+
+
+def load_recording(
+    path: str | os.PathLike,
+    columns: Mapping[str, str | None] | None = None,
+    op_range: tuple[float, float] | None = None,
+    name: str | None = None,
+    max_gap: int = 5,
+    resample: bool | str = "auto",
+    gaps: str = "error",
+    mv_range: tuple[float, float] | None = None,
+    *,
+    max_samples: int | None = DEFAULT_MAX_SAMPLES,
+    engine: str = "auto",
+) -> Recording:
+    """Read a control-loop recording from a CSV or Parquet file.
+
+    The steps, each in its own module: :func:`~.sniff.sniff` (format),
+    :func:`~.read.read_columns` with :func:`~.columns.resolve_columns`
+    (column mapping), :func:`~.parse.parse_raw` (cells to numbers),
+    :mod:`~.validate` (time order, absurd values, ranges), :mod:`~.repair`
+    (duplicates, uniform grid, gaps) and :func:`~.decimate.condition`
+    (long records).
+
+    Parameters
+    ----------
+    path : str or path-like
+        CSV file with a header row; comma, semicolon or tab separated, UTF-8
+        (a byte-order mark is fine).  Blank cells and ``nan``, ``NA``,
+        ``null`` count as missing values.  Or a Parquet file (recognised by
+        its content, any extension): numeric, time-stamp or text columns;
+        nulls are missing values; messages count rows instead of lines.
+        Numbers that are not finite (``inf``, ``1e309``) or absurd (beyond
+        +-1e15, or a spike of at most 3 samples a million times the column's
+        typical size away from its median) count as missing values too, each
+        stated in `repairs`.
+    columns : dict, optional
+        Role to column name for the roles ``t`` (time), ``op`` (controller
+        output), ``pv`` (process variable), ``sp`` (set point), ``mv`` (valve
+        stem position).  Names match exactly, else case-insensitively.  A
+        role left out is looked up among :data:`DEFAULT_COLUMN_NAMES`
+        (case-insensitive; ``t``, ``op``, ``pv`` are required, ``sp`` and
+        ``mv`` optional); map a role to None to ignore it.
+        The time column holds seconds, or ISO 8601 date strings
+        (``2024-11-21 00:01:00``; converted to seconds since the first
+        sample, naive stamps taken as UTC).
+    op_range : (float, float), optional
+        Raw controller-output values ``(lo, hi)`` that map to 0..1, e.g.
+        ``(0, 100)`` for percent.  May be omitted only when all op values lie
+        in [0, 1]; otherwise an error asks for it.  Values outside the range
+        by up to 5 % of its span are clipped (recorded as a repair); further
+        out is an error.
+    name : str, optional
+        Label of the record; default the file name without extension.
+    max_gap : int, default 5
+        Longest run of missing samples (per column, on the uniform grid)
+        filled by linear interpolation.  Missing values at the start or end of
+        the record are dropped instead (all columns), at any length.
+    resample : {'auto', True, False}, default 'auto'
+        What to do when the time stamps are not uniformly spaced.  Jitter
+        below 10 % of the median step is always resampled onto a uniform grid
+        with the median step (pv, sp, mv linearly interpolated; op by
+        zero-order hold, as a controller output is held between updates).
+        Larger irregularity is resampled the same way with 'auto'/True, and
+        raises RecordingError with False.  A step longer than 1.5 median steps
+        counts as missing samples (handled like missing values, see
+        `max_gap`).
+    gaps : {'error', 'longest'}, default 'error'
+        What to do with a run of missing samples longer than `max_gap`:
+        'error' raises RecordingError naming its time span; 'longest' keeps
+        the longest stretch of the record free of such gaps (recorded as a
+        repair).
+    mv_range : (float, float), optional
+        Raw stem-position values that map to 0..1; default the same as the
+        controller output's range (`op_range`, or (0, 1)).
+    max_samples : int or None, default 20000
+        A longer record is decimated to the sample time its dynamics need and,
+        if still longer, windowed to its most informative `max_samples`
+        samples (see :func:`~.decimate.condition`); both stated in
+        `repairs`.  None keeps every sample.
+    engine : {'auto', 'rows', 'columns'}, default 'auto'
+        CSV reader: 'rows' parses every row with the csv module (exact line
+        numbers; rows with a wrong number of fields are an error), 'columns'
+        reads only the mapped columns in chunks with pandas (a row with too
+        few fields reads as missing values); 'auto' uses 'columns' above
+        8 MB.
+
+    Returns
+    -------
+    Recording
+        float64 arrays of shape (n,), finite, on a uniform grid of step
+        ``dt`` seconds, 50 <= n <= `max_samples`; every repair listed in
+        ``repairs``, how the file was read in ``notes``.
+
+    Raises
+    ------
+    RecordingError
+        Missing, unreadable or non-CSV file; a named column absent (the
+        message lists the available ones); non-numeric cells (first line
+        numbers given); missing time stamps; decreasing time stamps or
+        duplicate time stamps with different values (exact duplicate rows
+        are dropped as a repair); non-finite time stamps, or jumps of the
+        time stamps that would leave the record mostly gaps; a gap longer than `max_gap` (with
+        ``gaps='error'``); irregular sampling with ``resample=False``;
+        op values outside [0, 1] without `op_range`, or far outside it
+        (the first time named);
+        constant op or pv (nothing to identify); fewer than 50 samples.
+
+    Examples
+    --------
+    >>> rec = load_recording(data_path("stictiongpt_plant_loops/csv/"
+    ...                                "stiction__2411AIC90201_1002_0004.csv"),
+    ...                      columns={"t": "t_s", "op": "OP", "pv": "PV", "sp": "SP"},
+    ...                      op_range=(0, 100))
+    >>> len(rec), rec.dt, rec.columns["op"]
+    (751, 10.0, 'OP')
+    """
+    src = os.fspath(path)
+    opts = check_options(src, max_gap, resample, gaps, op_range, mv_range, max_samples, engine)
+    sn = sniff(src, opts.engine)
+    raw = read_columns(sn, columns)
+    p = parse_raw(raw, src)
+    repairs: list[str] = []
+    notes = _reader_notes(sn, raw)
+    check_time_order(p)
+    p = drop_duplicates(p, repairs)
+    p = mark_absurd(p, repairs)
+    p, grid = regrid(p, opts, repairs)
+    grid = fill_gaps(grid, opts, p.columns.names, src, repairs, _time_formatter(p.start, p.epoch0))
+    signals, op_range_used = _normalised(grid, p, opts, repairs)
+    t, signals, cond = condition(grid.t, signals, grid.dt, opts.max_samples)
+    dt = grid.dt
+    if cond is not None:
+        repairs.extend(cond.statements(float(t[0])))
+        notes.append(f"dominant time scale of the record: {cond.time_scale:.4g} s (autocorrelation of op "
+                     f"and pv); {cond.n_out} samples of dt={cond.dt_out:g} s kept of {cond.n_in}")
+        dt = cond.dt_out
+    return Recording(
+        t=t, op=signals["op"], pv=signals["pv"], sp=signals.get("sp"), mv=signals.get("mv"), dt=dt,
+        name=name if name is not None else sn.path.stem, op_range=op_range_used,
+        repairs=tuple(repairs), columns=dict(p.columns.names), start=p.start, notes=tuple(notes),
+    )
+
+
+def _reader_notes(sn: Sniffed, raw: RawColumns) -> list[str]:
+    n = len(raw.lines)
+    if sn.kind == "parquet":
+        return [f"read {n} rows of the Parquet columns {', '.join(map(repr, raw.columns.names.values()))}"]
+    if sn.engine == "columns":
+        return [f"read {n} lines of the CSV columns {', '.join(map(repr, raw.columns.names.values()))} "
+                f"column-wise (pandas C parser, chunks of {CHUNK_ROWS} rows)"]
+    return []
+
+
+def _time_formatter(start: str | None, epoch0: float | None):
+    """A function formatting a time for messages: seconds, plus the date for date-stamped files."""
+
+    def fmt_t(x: float) -> str:
+        s = f"t={x:g} s"
+        if start is not None and epoch0 is not None and math.isfinite(epoch0):
+            try:
+                s += " (" + datetime.fromtimestamp(epoch0 + x, timezone.utc).strftime("%Y-%m-%d %H:%M:%S") + ")"
+            except (OverflowError, OSError, ValueError):
+                pass
+        return s
+
+    return fmt_t
+
+
+def _normalised(grid: Grid, p: Parsed, opts: LoadOptions,
+                repairs: list[str]) -> tuple[dict[str, np.ndarray], tuple[float, float]]:
+    """Map op and mv to 0..1 (range errors and clipping); refuse a constant op or pv."""
+    names = p.columns.names
+    op_raw = grid.values["op"]
+    op_range = opts.op_range
+    if op_range is None:
+        lo_v, hi_v = float(op_raw.min()), float(op_raw.max())
+        if lo_v < 0.0 or hi_v > 1.0:
+            raise RecordingError(
+                f"{p.where('op')}: values span {lo_v:g}..{hi_v:g}, outside 0..1, so the controller "
+                f"output's range must be given: pass --op-range LO,HI (op_range=(LO, HI)), "
+                f"e.g. --op-range 0,100 for percent"
+            )
+        op_range = (0.0, 1.0)
+    out = dict(grid.values)
+    out["op"] = normalise(op_raw, op_range, "op", p.where("op"), "--op-range", repairs, names["op"], grid.t)
+    if "mv" in out:
+        mvr = opts.mv_range if opts.mv_range is not None else op_range
+        out["mv"] = normalise(grid.values["mv"], mvr, "mv", p.where("mv"), "--mv-range", repairs,
+                              names["mv"], grid.t)
+    for r in ("op", "pv"):
+        check_constant(grid.values[r], r, p.where(r))
+    return out, op_range

@@ -1,0 +1,319 @@
+"""Reading a sniffed recording file into raw columns (one array per signal role).
+
+Three readers share one result, :class:`RawColumns`:
+
+* :func:`read_rows` parses every row of a CSV file with :mod:`csv` (exact line
+  numbers in messages, rows with a wrong number of fields are an error);
+* :func:`read_csv_columns` reads only the mapped columns of a large CSV file
+  with pandas' C parser in chunks of :data:`CHUNK_ROWS` rows;
+* :func:`read_parquet` reads only the mapped columns of a Parquet file, batch
+  by batch.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._base import MISSING_TOKENS, RecordingError, fmt_lines
+from .columns import ColumnMap, resolve_columns
+from .sniff import Sniffed, decode, sniff_dialect
+
+__all__ = ["CHUNK_ROWS", "RawColumns", "read_columns", "read_csv_columns", "read_parquet", "read_rows"]
+
+#: Rows per chunk of the column-wise readers.
+CHUNK_ROWS = 250_000
+
+# pandas matches missing-value tokens exactly: the usual spellings of MISSING_TOKENS.
+_NA_VALUES = sorted({v for tok in MISSING_TOKENS for v in (tok, tok.upper(), tok.capitalize())})
+
+
+@dataclass(frozen=True)
+class RawColumns:
+    """The mapped columns of a recording file, as read.
+
+    Attributes
+    ----------
+    columns : ColumnMap
+        Role to column.
+    data : dict of str to ndarray, shape (n,)
+        Role to its cells: float64 (NaN = missing), datetime64 (Parquet time
+        stamps) or object (text cells, or floats where a chunk was numeric).
+    lines : ndarray of int64, shape (n,)
+        1-based line number in the file (CSV) or row number (Parquet) of
+        each data row.
+    unit : {'line', 'row'}
+        What `lines` counts, for messages.
+    drop_blank : bool
+        True when rows whose mapped cells are all missing are blank lines to
+        drop (column-wise CSV reading keeps blank lines to count lines).
+    """
+
+    columns: ColumnMap
+    data: dict[str, np.ndarray]
+    lines: np.ndarray
+    unit: str
+    drop_blank: bool = False
+
+
+def _read_text(sn: Sniffed) -> str:
+    try:
+        raw = sn.path.read_bytes()
+    except OSError as e:
+        raise RecordingError(f"{sn.src}: cannot be read ({e.strerror or e}); check the file's permissions") from None
+    if not raw.strip():
+        raise RecordingError(f"{sn.src}: file is empty; expected a CSV file with a header row and data rows")
+    return decode(raw)[0]
+
+
+def _rows(text: str, src: str) -> tuple[list[str] | None, list[list[str]], list[int]]:
+    """Header, data rows (as strings) and their file line numbers; blank rows skipped."""
+    reader = csv.reader(io.StringIO(text, newline=""), sniff_dialect(text))
+    header: list[str] | None = None
+    rows: list[list[str]] = []
+    lines: list[int] = []
+    try:
+        for rec in reader:
+            if not rec or all(not c.strip() for c in rec):
+                continue
+            if header is None:
+                header = [c.strip() for c in rec]
+                continue
+            rows.append(rec)
+            lines.append(reader.line_num)
+    except csv.Error as e:
+        raise RecordingError(
+            f"{src}: not a valid CSV file near line {reader.line_num} ({e}); check quoting and separators"
+        ) from None
+    return header, rows, lines
+
+
+def _check_shape(header: list[str] | None, rows: list[list[str]], lines: list[int], src: str) -> list[str]:
+    """The header; rows with too many (non-blank) or too few fields are an error."""
+    if header is None:
+        raise RecordingError(f"{src}: file has no header row; the first line must name the columns")
+    if len(header) < 2:
+        raise RecordingError(
+            f"{src}: only one column ({header[0]!r}) found; expected a CSV file with a header row and "
+            f"comma-, semicolon- or tab-separated columns for time, controller output and process variable"
+        )
+    ncol = len(header)
+    bad = []
+    for i, (rec, ln) in enumerate(zip(rows, lines)):
+        if len(rec) < ncol:
+            bad.append(ln)
+        elif len(rec) > ncol:
+            if any(c.strip() for c in rec[ncol:]):
+                bad.append(ln)
+            else:
+                rows[i] = rec[:ncol]
+    if bad:
+        raise RecordingError(
+            f"{src}: the header has {ncol} columns but lines {fmt_lines(bad)} have a different number "
+            f"of fields; fix or delete those lines"
+        )
+    if not rows:
+        raise RecordingError(f"{src}: no data rows under the header; the file holds no samples")
+    return header
+
+
+def read_rows(sn: Sniffed, columns: Mapping[str, str | None] | None) -> RawColumns:
+    """Read a CSV file row by row with :mod:`csv`.
+
+    Parameters
+    ----------
+    sn : Sniffed
+        A CSV file.
+    columns : mapping, optional
+        Role to column name (see :func:`resolve_columns`).
+
+    Returns
+    -------
+    RawColumns
+        Object arrays of the cells as text; exact line numbers.
+
+    Raises
+    ------
+    RecordingError
+        Invalid CSV, no header, one column only, rows with a different number
+        of fields than the header, no data rows, or a column mapping problem.
+    """
+    header, rows, lines = _rows(_read_text(sn), sn.src)
+    header = _check_shape(header, rows, lines, sn.src)
+    cmap = resolve_columns(header, columns, sn.src)
+    data = {}
+    for r, j in cmap.index.items():
+        a = np.empty(len(rows), dtype=object)
+        a[:] = [row[j] for row in rows]
+        data[r] = a
+    return RawColumns(cmap, data, np.asarray(lines, dtype=np.int64), "line")
+
+
+def _merge(chunks: list[np.ndarray]) -> np.ndarray:
+    """One array of the chunks of a column: float64 if all numeric, else object."""
+    if all(c.dtype.kind in "fiub" for c in chunks):
+        return np.concatenate([c.astype(np.float64, copy=False) for c in chunks]) if chunks else np.empty(0)
+    return np.concatenate([c.astype(object) for c in chunks])
+
+
+def _header_checks(sn: Sniffed) -> None:
+    header = list(sn.header)
+    if not header:
+        raise RecordingError(f"{sn.src}: file has no header row; the first line must name the columns")
+    if len(sn.header) < 2:
+        raise RecordingError(
+            f"{sn.src}: only one column ({header[0]!r}) found; expected a CSV file with a header row and "
+            f"comma-, semicolon- or tab-separated columns for time, controller output and process variable"
+        )
+
+
+def read_csv_columns(sn: Sniffed, columns: Mapping[str, str | None] | None) -> RawColumns:
+    """Read only the mapped columns of a CSV file, in chunks, with pandas' C parser.
+
+    Parameters
+    ----------
+    sn : Sniffed
+        A CSV file (its header and dialect from :func:`sniff`).
+    columns : mapping, optional
+        Role to column name.
+
+    Returns
+    -------
+    RawColumns
+        float64 columns where every cell is a number or a missing-value
+        token, object columns otherwise; line numbers count every physical
+        line after the header (blank lines are kept and dropped later, so
+        quoted cells spanning lines would shift them).
+
+    Raises
+    ------
+    RecordingError
+        No header or one column; a line with more fields than the header
+        (pandas' message names the line); a column mapping problem.
+
+    Notes
+    -----
+    A line with fewer fields than the header is read with its last cells
+    missing, not rejected as by :func:`read_rows`.
+    """
+    import pandas as pd
+
+    _header_checks(sn)
+    cmap = resolve_columns(sn.header, columns, sn.src)
+    pos = sorted(cmap.index.values())
+    chunks: dict[int, list[np.ndarray]] = {j: [] for j in pos}
+    d = sn.dialect
+    try:
+        reader = pd.read_csv(
+            sn.path, sep=d.delimiter, quotechar=d.quotechar or '"', header=None, skiprows=sn.header_line,
+            usecols=pos, na_values=_NA_VALUES, keep_default_na=False, skip_blank_lines=False,
+            encoding=sn.encoding, chunksize=CHUNK_ROWS, engine="c", low_memory=True,
+        )
+        with reader:
+            for chunk in reader:
+                for j in pos:
+                    chunks[j].append(chunk[j].to_numpy())
+    except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as e:
+        msg = str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__
+        raise RecordingError(f"{sn.src}: not a valid CSV file ({msg}); fix or delete that line") from None
+    data = {r: _merge(chunks[j]) for r, j in cmap.index.items()}
+    n = len(data["t"])
+    if n == 0:
+        raise RecordingError(f"{sn.src}: no data rows under the header; the file holds no samples")
+    lines = sn.header_line + 1 + np.arange(n, dtype=np.int64)
+    return RawColumns(cmap, data, lines, "line", drop_blank=True)
+
+
+def _arrow_to_numpy(col, name: str, src: str) -> np.ndarray:
+    """A pyarrow column as float64 (NaN = null), datetime64[ns] or object text."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    ty = col.type
+    if pa.types.is_integer(ty) or pa.types.is_floating(ty) or pa.types.is_boolean(ty) or pa.types.is_decimal(ty):
+        return pc.cast(col, pa.float64()).to_numpy(zero_copy_only=False)
+    if pa.types.is_timestamp(ty) or pa.types.is_date(ty):
+        return _times(col)
+    if pa.types.is_string(ty) or pa.types.is_large_string(ty) or pa.types.is_dictionary(ty):
+        out = np.asarray(pc.fill_null(pc.cast(col, pa.string()), "").to_pylist(), dtype=object)
+        return out
+    raise RecordingError(
+        f"{src}: column {name!r} has the Parquet type {ty}; expected numbers, time stamps or text"
+    )
+
+
+def _times(col) -> np.ndarray:
+    """Time stamps (UTC) as datetime64[ns], nulls as NaT."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    return pc.cast(col, pa.timestamp("ns")).to_numpy(zero_copy_only=False).astype("datetime64[ns]")
+
+
+def read_parquet(sn: Sniffed, columns: Mapping[str, str | None] | None) -> RawColumns:
+    """Read only the mapped columns of a Parquet file, batch by batch.
+
+    Parameters
+    ----------
+    sn : Sniffed
+        A Parquet file.
+    columns : mapping, optional
+        Role to column name.
+
+    Returns
+    -------
+    RawColumns
+        Row numbers (1-based) instead of line numbers.
+
+    Raises
+    ------
+    RecordingError
+        Not a readable Parquet file; a column of a type other than numbers,
+        time stamps or text; no rows; a column mapping problem.
+    """
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    try:
+        pf = pq.ParquetFile(sn.path)
+        header = [str(n) for n in pf.schema_arrow.names]
+        cmap = resolve_columns(header, columns, sn.src)
+        names = [header[j] for j in cmap.index.values()]
+        parts: dict[str, list[np.ndarray]] = {r: [] for r in cmap.index}
+        for batch in pf.iter_batches(batch_size=CHUNK_ROWS, columns=names):
+            for r, j in cmap.index.items():
+                parts[r].append(_arrow_to_numpy(batch.column(batch.schema.get_field_index(header[j])),
+                                                header[j], sn.src))
+    except (pa.ArrowException, OSError) as e:
+        raise RecordingError(
+            f"{sn.src}: not a readable Parquet file ({e}); check the file or export it again"
+        ) from None
+    data = {r: (np.concatenate(p) if p else np.empty(0)) for r, p in parts.items()}
+    n = len(data["t"])
+    if n == 0:
+        raise RecordingError(f"{sn.src}: no data rows; the file holds no samples")
+    return RawColumns(cmap, data, np.arange(1, n + 1, dtype=np.int64), "row")
+
+
+def read_columns(sn: Sniffed, columns: Mapping[str, str | None] | None) -> RawColumns:
+    """Read a sniffed file with the reader its format and engine call for.
+
+    Parameters
+    ----------
+    sn : Sniffed
+    columns : mapping, optional
+        Role to column name.
+
+    Returns
+    -------
+    RawColumns
+    """
+    if sn.kind == "parquet":
+        return read_parquet(sn, columns)
+    if sn.engine == "columns":
+        return read_csv_columns(sn, columns)
+    return read_rows(sn, columns)

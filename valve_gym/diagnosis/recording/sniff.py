@@ -1,0 +1,171 @@
+"""Format sniffing: what kind of file a recording is, before it is read.
+
+:func:`sniff` looks at the first bytes of a file only (it never reads a large
+file whole) and returns a :class:`Sniffed` record: CSV (text encoding,
+delimiter, header row) or Parquet (by its ``PAR1`` magic number), or raises
+:class:`RecordingError` for a missing, unreadable, empty or binary file.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from ._base import RecordingError
+
+__all__ = ["COLUMNWISE_BYTES", "ENGINES", "Sniffed", "sniff"]
+
+#: CSV files larger than this (bytes) are read column-wise (``engine='auto'``).
+COLUMNWISE_BYTES = 8 * 1024 * 1024
+
+#: Readers :func:`load_recording` can use: ``'rows'`` parses every row with
+#: the :mod:`csv` module (exact line numbers, ragged rows detected), ``'columns'``
+#: reads only the mapped columns in chunks with pandas' C parser.
+ENGINES = ("auto", "rows", "columns")
+
+_PREFIX = 65536
+_PARQUET_MAGIC = b"PAR1"
+
+
+@dataclass(frozen=True)
+class Sniffed:
+    """What :func:`sniff` found out about a recording file.
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The file.
+    src : str
+        The path as given, for messages.
+    kind : {'csv', 'parquet'}
+        File format.
+    size : int
+        File size in bytes.
+    encoding : str or None
+        Text encoding of a CSV file (``'utf-8-sig'`` or ``'latin-1'``).
+    dialect : type of csv.Dialect or None
+        Delimiter and quoting of a CSV file.
+    header : tuple of str
+        Column names (stripped), from the first non-blank row of a CSV file
+        or the schema of a Parquet file; empty if a CSV prefix had none.
+    header_line : int
+        1-based line number of the CSV header row (0 for Parquet).
+    engine : {'rows', 'columns'}
+        The reader to use (see :data:`ENGINES`).
+    """
+
+    path: Path
+    src: str
+    kind: str
+    size: int
+    encoding: str | None
+    dialect: Any
+    header: tuple[str, ...]
+    header_line: int
+    engine: str
+
+
+def _open_prefix(path: Path, src: str) -> tuple[bytes, int]:
+    """First bytes of the file and its size; errors for missing, folder, unreadable."""
+    if not path.exists():
+        raise RecordingError(f"{src}: file not found; check the path (relative paths start at {os.getcwd()})")
+    if path.is_dir():
+        raise RecordingError(f"{src}: is a folder, not a CSV file; give the path of a .csv file in it")
+    try:
+        size = path.stat().st_size
+        with open(path, "rb") as f:
+            raw = f.read(_PREFIX)
+    except OSError as e:
+        raise RecordingError(f"{src}: cannot be read ({e.strerror or e}); check the file's permissions") from None
+    return raw, size
+
+
+def decode(raw: bytes, partial: bool = False) -> tuple[str, str]:
+    """Text of CSV bytes and the encoding used: UTF-8 (BOM allowed), else Latin-1.
+
+    Parameters
+    ----------
+    raw : bytes
+        File content (or its first bytes).
+    partial : bool
+        True when `raw` is a prefix: a multi-byte character cut at its end is
+        dropped instead of switching to Latin-1.
+
+    Returns
+    -------
+    text, encoding : str, str
+    """
+    try:
+        return raw.decode("utf-8-sig"), "utf-8-sig"
+    except UnicodeDecodeError as e:
+        if partial and e.start >= len(raw) - 3:
+            try:
+                return raw[: e.start].decode("utf-8-sig"), "utf-8-sig"
+            except UnicodeDecodeError:
+                pass
+    return raw.decode("latin-1"), "latin-1"
+
+
+def sniff_dialect(text: str) -> Any:
+    """The CSV dialect of a text sample (comma, semicolon or tab; excel if undecided)."""
+    try:
+        return csv.Sniffer().sniff(text[:8192], delimiters=",;\t")
+    except csv.Error:
+        return csv.excel
+
+
+def _csv_header(text: str, dialect: Any) -> tuple[tuple[str, ...], int]:
+    """Header cells and their 1-based line number from a CSV prefix (empty if none)."""
+    reader = csv.reader(io.StringIO(text, newline=""), dialect)
+    try:
+        for rec in reader:
+            if rec and any(c.strip() for c in rec):
+                return tuple(c.strip() for c in rec), reader.line_num
+    except csv.Error:
+        pass
+    return (), 0
+
+
+def sniff(path: str | os.PathLike, engine: str = "auto") -> Sniffed:
+    """Find the format of a recording file from its first bytes.
+
+    Parameters
+    ----------
+    path : str or path-like
+        The file.
+    engine : {'auto', 'rows', 'columns'}
+        Reader for CSV files; ``'auto'`` reads files above
+        :data:`COLUMNWISE_BYTES` column-wise.  Parquet is always read
+        column-wise.
+
+    Returns
+    -------
+    Sniffed
+
+    Raises
+    ------
+    RecordingError
+        File missing, a folder, unreadable, empty, or binary and not Parquet.
+    """
+    src = os.fspath(path)
+    p = Path(src)
+    raw, size = _open_prefix(p, src)
+    if raw.startswith(_PARQUET_MAGIC):
+        return Sniffed(p, src, "parquet", size, None, None, (), 0, "columns")
+    if not raw.strip() and size <= len(raw):
+        raise RecordingError(f"{src}: file is empty; expected a CSV file with a header row and data rows")
+    if b"\x00" in raw:
+        raise RecordingError(
+            f"{src}: not a text CSV file (binary content); if it is a spreadsheet, export it as CSV "
+            f"(or save the table as Parquet)"
+        )
+    text, encoding = decode(raw, partial=size > len(raw))
+    dialect = sniff_dialect(text)
+    header, line = _csv_header(text, dialect)
+    if engine == "auto":
+        engine = "columns" if size > COLUMNWISE_BYTES else "rows"
+    return Sniffed(p, src, "csv", size, encoding, dialect, header, line, engine)
