@@ -1,0 +1,51 @@
+"""``choudhury``: the two-parameter data-driven stiction model of Choudhury, Thornhill & Shah (2005).
+
+The core's ``slip_jump`` block (:class:`valve_gym.params.SlipJump`), run once per
+controller sample on the input ``u``; its output ``x`` drives the positioner lag
+``dh/dt = (x - h)/tau_p``. ``S`` and ``J`` are the model's own parameters.
+
+Notes
+-----
+State: stuck flag, stuck input ``u_s``, direction of the last motion ``d``.
+While moving ``x = u - d (S - J)/2``. The valve sticks when the input stops
+(``du = 0``) or reverses (sign of ``du`` differs from ``d``) and slips when
+``|u - u_s| > S`` after a reversal or ``|u - u_s| > J`` when the input goes on in
+the direction of the last motion; the slip is a jump of ``J`` (with ``S`` of
+input travel after a reversal). The direction is judged by the sign of the
+current input increment and the distance by ``|u - u_s|``, as in the paper's
+flow chart; Kano et al. (2004) judge both by the signed ``u - u_s``
+(:mod:`valve_gym.friction.kano`).
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+
+from ..params import ModelParams, SlipJump
+from .spec import FrictionSpec, ParamSpec, register
+
+__all__ = ["SPEC", "build"]
+
+
+def build(base: ModelParams, S, J) -> ModelParams:
+    """``base`` (friction removed) with the Choudhury block ``SlipJump(S, J, tau_p = base.valve.tau)``."""
+    return replace(base, slip_jump=SlipJump(S=S, J=J, tau_p=base.valve.tau))
+
+
+SPEC = register(FrictionSpec(
+    name="choudhury",
+    title="Choudhury, Thornhill & Shah two-parameter stiction",
+    params=(ParamSpec("S", "-", 0.0, 0.99, 0.02, "sq", "dead band + stick band, fraction of stroke"),
+            ParamSpec("J", "-", 0.0, 0.99, 0.01, "lin", "slip jump, fraction of stroke"),
+            ParamSpec("tau_p", "s", 1e-3, 10.0, 0.1, "fixed", "positioner time constant (from the base valve)")),
+    kernel="slip_jump block of the core, once per controller sample on the saturated input; its output is "
+           "the target of the positioner lag, integrated every Euler step.",
+    signature="Flat stem after every reversal until the controller output has moved S, then a jump J; "
+              "while moving the stem lags the output by (S - J)/2 (parallelogram with vertical jumps in "
+              "the OP-MV plot).",
+    report="Stiction (Choudhury, Thornhill & Shah 2005): stick band + dead band S = {S} % of stroke, slip "
+           "jump J = {J} %; after each reversal the valve stays stuck until the controller output has "
+           "moved S, then jumps J.",
+    citation="M.A.A.S. Choudhury, N.F. Thornhill, S.L. Shah, \"Modelling valve stiction\", Control "
+             "Engineering Practice 13 (2005) 641-658, doi:10.1016/j.conengprac.2004.05.005.",
+    build=build,
+))

@@ -1,0 +1,192 @@
+"""Specs and registry of the valve friction models.
+
+A friction model is one module of :mod:`valve_gym.friction` that declares a
+:class:`FrictionSpec`: its parameters (name, unit, range, default, prior for
+fitting), how it enters the physics core, its diagnostic signature, its report
+text, the full citation, and ``build``, the rule that sizes it from the two
+numbers every model shares, the stick band ``S`` and the slip jump ``J``
+(fractions of the stroke). The registry maps names to specs; nothing outside a
+model's module names its parameters.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ..params import ModelParams, ParameterError
+
+__all__ = ["ParamSpec", "FrictionSpec", "register", "friction_spec", "registered", "as_band", "frictionless"]
+
+Band = float | np.ndarray
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One parameter of a friction model.
+
+    Attributes
+    ----------
+    name : str
+        Field name in the model's parameter block.
+    unit : str
+        Unit (``"-"`` for fractions of the stroke).
+    lo, hi : float
+        Physical range accepted by the model.
+    default : float
+        Value used when the model is built without it.
+    prior : str
+        Prior for fitting: ``"lin"`` uniform on [lo, hi], ``"log"`` uniform in
+        log, ``"sq"`` uniform in the square root (dense near ``lo``), or
+        ``"fixed"`` (not fitted; set by the S/J mapping or left at the default).
+    doc : str
+        One line: what the parameter is.
+    """
+
+    name: str
+    unit: str
+    lo: float
+    hi: float
+    default: float
+    prior: str
+    doc: str
+
+    def __post_init__(self):
+        if self.prior not in ("lin", "log", "sq", "fixed"):
+            raise ValueError(f"ParamSpec {self.name!r}: prior must be 'lin', 'log', 'sq' or 'fixed', "
+                             f"got {self.prior!r}")
+        if not self.lo <= self.default <= self.hi:
+            raise ValueError(f"ParamSpec {self.name!r}: default {self.default} outside [{self.lo}, {self.hi}]")
+
+
+@dataclass(frozen=True)
+class FrictionSpec:
+    """Declaration of one friction model.
+
+    Attributes
+    ----------
+    name : str
+        Registry name (``valve_model(name, S, J)``).
+    title : str
+        Short human name.
+    params : tuple of ParamSpec
+        The model's own parameters.
+    kernel : str
+        How the model enters the physics core (which block, when it runs).
+    signature : str
+        What the model looks like in operating data (for the diagnosis text).
+    report : str
+        Report template; ``{S}`` and ``{J}`` are replaced by the band and the
+        jump in % of stroke.
+    citation : str
+        Full reference of the paper the model implements.
+    build : callable ``(base, S, J) -> ModelParams``
+        Sizes the model from ``S`` and ``J`` (fractions of stroke, floats or
+        ``(n,)`` arrays, already checked) on ``base``, whose friction has been
+        removed.
+    """
+
+    name: str
+    title: str
+    params: tuple[ParamSpec, ...]
+    kernel: str
+    signature: str
+    report: str
+    citation: str
+    build: Callable[[ModelParams, Band, Band], ModelParams]
+
+    def describe(self, S, J) -> str:
+        """Report text for stick band ``S`` and slip jump ``J`` (fractions of stroke, scalars)."""
+        s = float(np.mean(S)) * 100.0
+        j = float(np.mean(J)) * 100.0
+        return self.report.format(S=f"{s:.3g}", J=f"{j:.3g}")
+
+    def param(self, name: str) -> ParamSpec:
+        """The :class:`ParamSpec` called ``name`` (``KeyError`` listing the names otherwise)."""
+        for p in self.params:
+            if p.name == name:
+                return p
+        raise KeyError(f"{self.name} has no parameter {name!r}; it has {[p.name for p in self.params]}")
+
+
+_REGISTRY: dict[str, FrictionSpec] = {}
+
+
+def register(spec: FrictionSpec) -> FrictionSpec:
+    """Add ``spec`` to the registry (a name can be registered once); returns it."""
+    if not isinstance(spec, FrictionSpec):
+        raise TypeError(f"register() takes a FrictionSpec, got {type(spec).__name__}")
+    if spec.name in _REGISTRY and _REGISTRY[spec.name] is not spec:
+        raise ValueError(f"a friction model called {spec.name!r} is already registered")
+    _REGISTRY[spec.name] = spec
+    return spec
+
+
+def registered() -> tuple[str, ...]:
+    """Names of the registered friction models, in registration order."""
+    return tuple(_REGISTRY)
+
+
+def friction_spec(name: str) -> FrictionSpec:
+    """The :class:`FrictionSpec` of model ``name``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown name; the message lists the known models.
+    """
+    try:
+        return _REGISTRY[name]
+    except (KeyError, TypeError):
+        raise ValueError(f"unknown friction model {name!r}; known models: {', '.join(_REGISTRY)}") from None
+
+
+def as_band(S, J) -> tuple[Band, Band]:
+    """Check and broadcast a stick band ``S`` and slip jump ``J`` (fractions of stroke).
+
+    Returns floats when both are scalars, else two ``(n,)`` float arrays.
+
+    Raises
+    ------
+    ParameterError
+        When a value is not finite, negative, ``S >= 1``, ``J > S``, or the
+        shapes do not broadcast to one ``(n,)`` batch.
+    """
+    try:
+        s = np.asarray(S, dtype=float)
+        j = np.asarray(J, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(f"S and J must be numbers or (n,) arrays (fraction of stroke), got "
+                             f"{S!r} and {J!r}") from None
+    if s.ndim > 1 or j.ndim > 1:
+        raise ParameterError(f"S and J must be scalars or (n,) arrays, got shapes {s.shape} and {j.shape}")
+    try:
+        s, j = np.broadcast_arrays(s, j)
+    except ValueError:
+        raise ParameterError(f"S has {s.size} values and J has {j.size}: give one value or the same "
+                             f"number (n,) for both") from None
+    if not (np.isfinite(s).all() and np.isfinite(j).all()):
+        raise ParameterError("S and J must be finite numbers (fraction of stroke)")
+    if (s < 0).any() or (j < 0).any():
+        raise ParameterError(f"S and J must be >= 0 (fraction of stroke), got min S {s.min()}, min J {j.min()}")
+    if (s >= 1).any():
+        raise ParameterError(f"S must be a fraction of the stroke below 1 (0.02 = 2 %), got {s.max()}")
+    if (j > s * (1 + 1e-12)).any():
+        k = int(np.argmax(j - s))
+        raise ParameterError(f"J <= S is required (a slip jump larger than the stick band is not supported "
+                             f"by every model), got S = {float(s.reshape(-1)[k])}, J = {float(j.reshape(-1)[k])}")
+    if s.ndim == 0:
+        return float(s), float(j)
+    return s.astype(float).copy(), j.astype(float).copy()
+
+
+def frictionless(base: ModelParams) -> ModelParams:
+    """``base`` with every friction removed: no slip-jump block, ``e_dead = z_max = 0``.
+
+    The valve keeps its positioner lag ``tau`` and speed limit ``v_max``, and
+    the plant and every other block are unchanged.
+    """
+    if not isinstance(base, ModelParams):
+        raise ParameterError(f"base must be a valve_gym.params.ModelParams, got {type(base).__name__}")
+    return replace(base, valve=replace(base.valve, e_dead=0.0, z_max=0.0), slip_jump=None)
