@@ -471,3 +471,280 @@ def test_iso_timestamps(tmp_path):
     p = write_csv(tmp_path / "iso2.csv", ["timestamp", "op", "pv"], zip(stamps, op, pv))
     with pytest.raises(RecordingError, match=r"neither numbers \(seconds\) nor ISO date strings, at line\(s\) 9"):
         load_recording(p, op_range=(0, 100))
+
+
+# --------------------------------------------------------------------------
+# non-finite and absurd values, time axis extremes
+# --------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("engine", ["rows", "columns"])
+@pytest.mark.parametrize("cell,kind", [("inf", "non-finite"), ("-inf", "non-finite"), ("1e309", "non-finite"),
+                                       ("1e308", "absurd"), ("-3.4e38", "absurd")])
+def test_non_finite_and_absurd_values_repaired(tmp_path, engine, cell, kind):
+    t, op, pv = signals()
+    bad = pv.astype(object)
+    bad[100] = cell
+    p = write_csv(tmp_path / "x.csv", ["t", "op", "pv"], zip(t, op, bad))
+    rec = load_recording(p, op_range=(0, 100), engine=engine)
+    assert len(rec) == 200 and np.all(np.isfinite(rec.pv))
+    np.testing.assert_allclose(rec.pv[100], 0.5 * (pv[99] + pv[101]))
+    assert any(f"{kind} value(s)" in r and "'pv' (pv) at line(s) 102" in r for r in rec.repairs)
+    assert any("filled 1 missing value(s) in 'pv'" in r for r in rec.repairs)
+
+
+def test_absurd_spike_relative_rule(tmp_path):
+    t, op, pv = signals()
+    bad = pv.copy()
+    bad[60:62] = 3e9  # two samples, 1e8 times the signal's size: a spike of an error code
+    rec = load_recording(write_loop(tmp_path, pv=bad), op_range=(0, 100))
+    assert rec.pv.max() < 60
+    assert any("absurd value(s) of 'pv'" in r and "line(s) 62, 63" in r for r in rec.repairs)
+    # a long plateau at a huge but finite level is data, not a spike: no repair, no error
+    odd = pv.copy()
+    odd[60:160] += 1e9
+    rec = load_recording(write_loop(tmp_path, pv=odd, name="odd.csv"), op_range=(0, 100))
+    assert rec.pv.max() > 1e9 and not any("absurd" in r for r in rec.repairs)
+
+
+def test_long_run_of_absurd_values_is_a_gap_error(tmp_path):
+    t, op, pv = signals()
+    bad = pv.copy()
+    bad[80:90] = 1e30
+    with pytest.raises(RecordingError, match=r"longer than max_gap=5.*10 missing samples between t=79 s "
+                                             r"and t=90 s in 'pv'"):
+        load_recording(write_loop(tmp_path, pv=bad), op_range=(0, 100))
+
+
+def test_non_finite_time_stamp(tmp_path):
+    t, op, pv = signals()
+    tt = t.astype(object)
+    tt[50] = "inf"
+    with pytest.raises(RecordingError, match=r"column 't' \(t\): 1 non-finite time stamp\(s\).*line\(s\) 52"):
+        load_recording(write_loop(tmp_path, t=tt), op_range=(0, 100))
+
+
+def test_absurd_time_jump(tmp_path):
+    t, op, pv = signals()
+    tt = t.copy()
+    tt[-1] = 1e308
+    p = write_loop(tmp_path, t=tt)
+    with pytest.raises(RecordingError, match=r"mostly gaps.*line 201: t=198 s to t=1e\+308 s.*gaps='longest'"):
+        load_recording(p, op_range=(0, 100))
+    rec = load_recording(p, op_range=(0, 100), gaps="longest")
+    assert len(rec) == 199 and rec.t[-1] == 198.0
+    assert any("longest stretch" in r and "1 jump(s)" in r for r in rec.repairs)
+
+
+def test_op_far_outside_names_time(tmp_path):
+    t, op, pv = signals()
+    op = op.copy()
+    op[120] = 400.0
+    with pytest.raises(RecordingError, match=r"outside the range 0\.\.100 \(1 sample\(s\), first at t=120 s: 400\)"):
+        load_recording(write_loop(tmp_path, op=op), op_range=(0, 100))
+
+
+def test_header_only(tmp_path):
+    (tmp_path / "h.csv").write_text("t,op,pv\n")
+    for engine in ("rows", "columns"):
+        with pytest.raises(RecordingError, match="no data rows"):
+            load_recording(tmp_path / "h.csv", engine=engine)
+
+
+def test_all_missing_column(tmp_path):
+    t, op, pv = signals()
+    p = write_csv(tmp_path / "m.csv", ["t", "op", "pv"], zip(t, op, ["nan"] * len(t)))
+    with pytest.raises(RecordingError, match=r"column 'pv' \(pv\): has no numeric values at all"):
+        load_recording(p, op_range=(0, 100))
+
+
+def test_bad_new_options(tmp_path):
+    p = write_loop(tmp_path)
+    with pytest.raises(RecordingError, match="max_samples must be"):
+        load_recording(p, op_range=(0, 100), max_samples=3)
+    with pytest.raises(RecordingError, match="engine must be one of"):
+        load_recording(p, op_range=(0, 100), engine="fast")
+    with pytest.raises(RecordingError, match="op_range must be finite"):
+        load_recording(p, op_range=(-1e308, 1e308))
+
+
+# --------------------------------------------------------------------------
+# the column-wise reader gives the same recording as the row reader
+# --------------------------------------------------------------------------
+
+
+def test_columnwise_reader_matches_rows(tmp_path):
+    t, op, pv = signals()
+    pvb = pv.astype(object)
+    pvb[50:53] = ""
+    text = "\ufeffTime;CO;PV;Setpoint\n" + "".join(f"{a};{b};{c};20\n" for a, b, c in zip(t, op, pvb))
+    text = text.replace("\n10;", "\n\n10;")  # a blank line before t=10
+    (tmp_path / "s.csv").write_text(text, encoding="utf-8")
+    a = load_recording(tmp_path / "s.csv", op_range=(0, 100), engine="rows")
+    b = load_recording(tmp_path / "s.csv", op_range=(0, 100), engine="columns")
+    assert a.columns == b.columns and a.repairs == b.repairs
+    for r in ("t", "op", "pv", "sp"):
+        np.testing.assert_array_equal(getattr(a, r), getattr(b, r))
+    assert any("column-wise" in n for n in b.notes) and a.notes == ()
+
+
+def test_columnwise_reader_messages(tmp_path):
+    t, op, pv = signals()
+    pvb = pv.astype(object)
+    pvb[3] = "bad"
+    p = write_csv(tmp_path / "n.csv", ["t", "op", "pv"], zip(t, op, pvb))
+    with pytest.raises(RecordingError, match=r"1 non-numeric cell\(s\) at line\(s\) 5 \(e.g. 'bad'\)"):
+        load_recording(p, op_range=(0, 100), engine="columns")
+    p = write_loop(tmp_path)
+    with open(p, "a") as f:
+        f.write('200,"50,1\n201,50,1\n')
+    with pytest.raises(RecordingError, match=r"not a valid CSV file \(.*EOF inside string.*\)"):
+        load_recording(p, op_range=(0, 100), engine="columns")
+
+
+# --------------------------------------------------------------------------
+# Parquet
+# --------------------------------------------------------------------------
+
+
+def _parquet(path, **cols):
+    import pandas as pd
+
+    pd.DataFrame(cols).to_parquet(path)
+    return path
+
+
+def test_parquet_numeric_and_csv_agree(tmp_path):
+    t, op, pv = signals()
+    p = _parquet(tmp_path / "loop.parquet", t=t, op=op, pv=pv)
+    rec = load_recording(p, op_range=(0, 100))
+    ref = load_recording(write_loop(tmp_path), op_range=(0, 100))
+    np.testing.assert_array_equal(rec.pv, ref.pv)
+    np.testing.assert_array_equal(rec.op, ref.op)
+    assert rec.name == "loop" and rec.repairs == () and "Parquet" in rec.notes[0]
+
+
+def test_parquet_timestamps_nulls_and_bad_cells(tmp_path):
+    import pandas as pd
+
+    t, op, pv = signals()
+    stamps = pd.date_range("2024-03-01 10:00:00", periods=len(t), freq="1s")
+    pvn = pv.copy()
+    pvn[10] = np.nan
+    rec = load_recording(_parquet(tmp_path / "a.parquet", timestamp=stamps, op=op, pv=pvn), op_range=(0, 100))
+    np.testing.assert_array_equal(rec.t, t)
+    assert rec.start == "2024-03-01 10:00:00"
+    assert any("filled 1 missing value(s) in 'pv'" in r for r in rec.repairs)
+    txt = pv.astype(str).astype(object)
+    txt[20] = "oops"
+    with pytest.raises(RecordingError, match=r"b.parquet: column 'pv' \(pv\): 1 non-numeric cell\(s\) at row\(s\) 21"):
+        load_recording(_parquet(tmp_path / "b.parquet", t=t, op=op, pv=txt), op_range=(0, 100))
+
+
+def test_parquet_bad_files(tmp_path):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    (tmp_path / "c.parquet").write_bytes(b"PAR1 not really")
+    with pytest.raises(RecordingError, match="not a readable Parquet file"):
+        load_recording(tmp_path / "c.parquet")
+    t, op, pv = signals()
+    table = pa.table({"t": t, "op": op, "pv": pa.array([[x] for x in pv])})
+    pq.write_table(table, tmp_path / "l.parquet")
+    with pytest.raises(RecordingError, match=r"column 'pv' has the Parquet type list<.*expected numbers"):
+        load_recording(tmp_path / "l.parquet", op_range=(0, 100))
+    pq.write_table(pa.table({"t": pa.array([], pa.float64()), "op": pa.array([], pa.float64()),
+                             "pv": pa.array([], pa.float64())}), tmp_path / "e.parquet")
+    with pytest.raises(RecordingError, match="no data rows"):
+        load_recording(tmp_path / "e.parquet")
+
+
+# --------------------------------------------------------------------------
+# long records: decimation to the dominant time scale, window
+# --------------------------------------------------------------------------
+
+
+def _slow_loop(n, dt, T=30.0, seed=0):
+    """First-order response (time constant T seconds) to a random square-wave op, with noise."""
+    rng = np.random.default_rng(seed)
+    hold = int(round(4 * T / dt))
+    levels = rng.uniform(20, 80, n // hold + 1)
+    op = np.repeat(levels, hold)[:n]
+    a = np.exp(-dt / T)
+    pv = np.empty(n)
+    pv[0] = op[0]
+    for k in range(1, n):
+        pv[k] = a * pv[k - 1] + (1 - a) * op[k - 1]
+    return np.arange(n) * dt, op, pv + rng.normal(0, 0.2, n)
+
+
+def test_time_scale_first_order():
+    from valve_gym.diagnosis.recording.decimate import time_scale
+
+    t, op, pv = _slow_loop(40_000, 0.1, T=30.0)
+    ts = time_scale(pv, 0.1)
+    assert 30.0 < ts < 200.0  # pv follows held op levels (4 T long) through a lag of T
+    rng = np.random.default_rng(1)
+    assert time_scale(rng.normal(size=5000), 0.1) <= 0.2  # white noise: a sample or two
+
+
+def test_long_record_decimated(tmp_path):
+    t, op, pv = _slow_loop(60_000, 0.1, T=30.0)
+    p = write_loop(tmp_path, t=t, op=op, pv=pv)
+    rec = load_recording(p, op_range=(0, 100), max_samples=20_000)
+    assert 2_000 <= len(rec) <= 20_000
+    assert rec.dt > 0.1 and np.allclose(np.diff(rec.t), rec.dt)
+    q = int(round(rec.dt / 0.1))
+    np.testing.assert_allclose(rec.pv[:5], pv[: 5 * q].reshape(5, q).mean(axis=1))
+    assert rec.t[0] == pytest.approx((q - 1) / 2 * 0.1)  # block centre
+    assert any(r.startswith(f"decimated by {q} from dt=0.1 s") for r in rec.repairs)
+    assert any("dominant time scale" in n for n in rec.notes)
+    full = load_recording(p, op_range=(0, 100), max_samples=None)
+    assert len(full) == 60_000 and full.repairs == ()
+
+
+def test_long_fast_record_windowed(tmp_path):
+    from valve_gym.diagnosis.recording import condition
+
+    rng = np.random.default_rng(0)
+    n = 30_000
+    t = np.arange(n) * 1.0
+    op = np.clip(0.5 + 0.01 * rng.normal(size=n), 0, 1)
+    op[20_000:21_000] += 0.3 * np.sign(np.sin(np.arange(1000) / 20))  # the informative part
+    pv = np.convolve(op, np.ones(3) / 3, mode="same") + 0.01 * rng.normal(size=n)
+    t2, sig, cond = condition(t, {"op": op, "pv": pv}, 1.0, max_samples=5_000)
+    assert cond is not None and cond.factor == 1 and cond.window is not None
+    i0, i1 = cond.window
+    assert i1 - i0 == 5_000 and len(t2) == 5_000 and i0 <= 20_000 and i1 >= 21_000
+    assert any("most informative window" in s for s in cond.statements(float(t2[0])))
+    assert condition(t, {"op": op, "pv": pv}, 1.0, max_samples=None)[2] is None
+
+
+# --------------------------------------------------------------------------
+# the parts alone
+# --------------------------------------------------------------------------
+
+
+def test_sniff_and_columns(tmp_path):
+    from valve_gym.diagnosis.recording import resolve_columns
+    from valve_gym.diagnosis.recording.sniff import sniff
+
+    p = write_loop(tmp_path)
+    sn = sniff(p)
+    assert (sn.kind, sn.engine, sn.header, sn.header_line, sn.dialect.delimiter) == ("csv", "rows", ("t", "op", "pv"),
+                                                                                     1, ",")
+    assert sniff(p, engine="columns").engine == "columns"
+    t, op, pv = signals()
+    assert sniff(_parquet(tmp_path / "a.parquet", t=t, op=op, pv=pv)).kind == "parquet"
+    cm = resolve_columns(["Time", "CO", "PV", "Stem"], {"mv": None}, "f")
+    assert cm.index == {"t": 0, "op": 1, "pv": 2} and cm.names["op"] == "CO"
+    assert cm.signal_roles == ["op", "pv"]
+    with pytest.raises(RecordingError, match="used for both op and pv"):
+        resolve_columns(["t", "a"], {"op": "a", "pv": "a"}, "f")
+
+
+def test_recording_notes_roundtrip():
+    t = np.arange(10.0)
+    rec = Recording(t=t, op=np.zeros(10), pv=t, notes=["read somehow"])
+    assert rec.notes == ("read somehow",)
+    assert rec.slice(2, 5).notes == rec.notes and rec.to_dataframe().attrs["notes"] == ["read somehow"]

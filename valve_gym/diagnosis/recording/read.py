@@ -192,13 +192,14 @@ def read_csv_columns(sn: Sniffed, columns: Mapping[str, str | None] | None) -> R
     Raises
     ------
     RecordingError
-        No header or one column; a line with more fields than the header
-        (pandas' message names the line); a column mapping problem.
+        No header or one column; invalid CSV such as an unterminated quote
+        (pandas' message names the place); a column mapping problem.
 
     Notes
     -----
-    A line with fewer fields than the header is read with its last cells
-    missing, not rejected as by :func:`read_rows`.
+    Unlike :func:`read_rows`, a line with more or fewer fields than the
+    header is not rejected: its mapped cells are read as they stand (missing
+    where the line is short).
     """
     import pandas as pd
 
@@ -217,9 +218,12 @@ def read_csv_columns(sn: Sniffed, columns: Mapping[str, str | None] | None) -> R
             for chunk in reader:
                 for j in pos:
                     chunks[j].append(chunk[j].to_numpy())
+    except pd.errors.EmptyDataError:
+        raise RecordingError(f"{sn.src}: no data rows under the header; the file holds no samples") from None
     except (pd.errors.ParserError, UnicodeDecodeError, ValueError) as e:
         msg = str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__
-        raise RecordingError(f"{sn.src}: not a valid CSV file ({msg}); fix or delete that line") from None
+        raise RecordingError(f"{sn.src}: not a valid CSV file ({msg}); check quoting and separators there, "
+                             f"or read it with engine='rows' for a check of every line") from None
     data = {r: _merge(chunks[j]) for r, j in cmap.index.items()}
     n = len(data["t"])
     if n == 0:

@@ -42,8 +42,8 @@ ABSURD_ABS = 1e15
 
 #: An isolated spike (at most :data:`SPIKE_SAMPLES` samples in a row) further
 #: from the column's median than this many times the column's typical size
-#: (the larger of its 1-99 % percentile spread and its median's magnitude,
-#: when that is not zero) is absurd.
+#: (the larger of its interquartile range and its median's magnitude, when
+#: that is not zero) is absurd.
 ABSURD_REL = 1e6
 
 #: Longest run of samples counted as a spike by the relative rule.
@@ -238,8 +238,8 @@ def _absurd_mask(v: np.ndarray) -> tuple[np.ndarray, float]:
     mag = np.abs(ok) <= ABSURD_ABS
     base = ok[mag] if mag.any() else ok
     med = float(np.median(base))
-    q01, q99 = (float(x) for x in np.percentile(base, [1.0, 99.0]))
-    size = max(q99 - q01, abs(med))
+    q25, q75 = (float(x) for x in np.percentile(base, [25.0, 75.0]))
+    size = max(q75 - q25, abs(med))
     lim = ABSURD_REL * size if size > 0 else math.inf
     with np.errstate(invalid="ignore", over="ignore"):
         far = np.isfinite(v) & (np.abs(v - med) > lim)
