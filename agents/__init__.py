@@ -1,11 +1,22 @@
 """Controllers for sticky-valve level loops and the compensator benchmark.
 
-All controllers answer Stable-Baselines3's batched
+Controllers are DCS function blocks, built by name::
+
+    from agents import load_controller, available_controllers
+    ctrl = load_controller("two_move", S=0.03)   # "pi", "knocker", "constant_reinforcement", ...
+    ctrl.reset(sp, pv, op)                        # bumpless start
+    op = ctrl.step(sp, pv)                        # one scan (ctrl.scan_s)
+
+(:mod:`agents.controllers`). RL code calls Stable-Baselines3's batched
 ``predict(obs, state, episode_start, deterministic) -> (actions, state)``
-(:class:`Controller`), so PI, PI + knocker and PPO policies are evaluated by
-the same code (:func:`rollout`, :func:`run_benchmark`).
+(:class:`Controller`); :class:`BlockPolicy` gives any block that call, and
+PI, PI + knocker and PPO policies are evaluated by the same code
+(:func:`rollout`, :func:`run_benchmark`).
 
 ==========================  ================================================
+:func:`load_controller`     a controller block by name (settings checked)
+:func:`available_controllers`  the names load_controller accepts
+:class:`BlockPolicy`        SB3 ``predict`` over any controller block
 :class:`PIController`       the plant's PI (SIMC tuning, anti-windup, bumpless)
 :class:`KnockerController`  PI + Hägglund's knocker pulses
 :class:`PPOController`      a trained SB3 policy with its observation transform
@@ -21,11 +32,13 @@ same name, so they are not re-exported here.
 The PPO, training and benchmark parts import stable-baselines3/torch on first
 use only.
 """
-from .base import Controller
+from .base import BlockPolicy, Controller
+from .controllers import available_controllers, load_controller
 from .knocker import KNOCKER_DEFAULTS, KnockerController
 from .pi import PIController, default_tuning
 
-__all__ = ["Controller", "PIController", "default_tuning", "KnockerController", "KNOCKER_DEFAULTS",
+__all__ = ["load_controller", "available_controllers", "BlockPolicy", "Controller", "PIController",
+           "default_tuning", "KnockerController", "KNOCKER_DEFAULTS",
            "PPOController", "ObsTransform", "load_policy", "rollout", "Rollout",
            "run_benchmark", "load_benchmark_config", "load_train_config"]
 

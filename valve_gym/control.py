@@ -1,5 +1,7 @@
-"""The PI control law, batched: the one implementation used by the environment's
-residual mode, the PI and knocker controllers of ``agents/`` and the figures.
+"""The PI control law, batched: the one implementation of the PI in valve_gym.
+
+Used by the environment's residual mode, the controller blocks of
+``agents/controllers`` and the figures.
 
 Velocity (incremental) form, as run by distributed control systems::
 
@@ -8,6 +10,16 @@ Velocity (incremental) form, as run by distributed control systems::
 The saturation of the accumulated output is the anti-windup (the integral
 cannot run past the output limits), and starting from the current output
 ``u0`` with ``e_{-1} = e_0`` makes the start bumpless.
+
+The same law in positional form with an explicit integral ``I`` (the form of
+the DCS function blocks in :mod:`agents.controllers`) is :func:`pi_scan` and
+:func:`pi_track`::
+
+    I_k = I_{k-1} + Kc*Ts/Ti * e_k,     v_k = Kc*e_k + I_k,     u_k = sat(v_k + b_k)
+    I_k <- u_k - b_k - Kc*e_k           (output tracking, only where sat() acted)
+
+with ``b`` what a compensator adds to the PI output. With ``b = 0`` the two
+forms give the same outputs: :func:`pi_step` is written with them.
 
 References
 ----------
@@ -21,7 +33,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["PIParams", "PIState", "pi_init", "pi_step"]
+__all__ = ["PIParams", "PIState", "pi_init", "pi_step", "pi_scan", "pi_track"]
 
 
 @dataclass(frozen=True)
@@ -70,6 +82,52 @@ def pi_init(u0, e0) -> PIState:
     return PIState(u=u0.copy(), e=e0)
 
 
+def pi_scan(integral, e, Kc, Ti, Ts, integrate=True):
+    """One scan of the positional PI law, before the output limits.
+
+    Parameters
+    ----------
+    integral : (n,) array, integral part ``I_{k-1}`` [output fraction]
+    e : (n,) array, control error ``sp - pv`` [PV unit]
+    Kc : float or (n,), gain [output fraction per PV unit]
+    Ti : float or (n,), integral time [s]
+    Ts : float, scan time [s]
+    integrate : bool or (n,) bool array, where the integral advances (False
+        freezes it: a dead zone in the integral)
+
+    Returns
+    -------
+    p : (n,) array, proportional part ``Kc e_k``
+    integral : (n,) array, ``I_k = I_{k-1} + Kc Ts/Ti e_k`` (where integrating)
+    v : (n,) array, unlimited PI output ``p + I_k``
+
+    Examples
+    --------
+    >>> p, i, v = pi_scan(np.array([0.5]), np.array([0.1]), 1.0, 10.0, 1.0)
+    >>> float(p[0]), round(float(i[0]), 6), round(float(v[0]), 6)
+    (0.1, 0.51, 0.61)
+    """
+    e = np.asarray(e, float)
+    p = Kc * e
+    integral = np.where(integrate, integral + (Kc * Ts / Ti) * e, integral)
+    return p, integral, p + integral
+
+
+def pi_track(applied, bias, p):
+    """Integral part that reproduces the applied output (external reset).
+
+    ``I = u_applied - b - Kc e``: the integrator follows the output actually
+    sent to the valve, minus what a compensator added (``bias``), so it cannot
+    wind up while the limits clamp, and restarts bumplessly from any output.
+
+    Examples
+    --------
+    >>> float(pi_track(1.0, 0.0, 0.3))
+    0.7
+    """
+    return np.asarray(applied, float) - bias - p
+
+
 def pi_step(state: PIState, e, p: PIParams):
     """One sample of the PI law: ``(state, e (n,)) -> (state, u (n,))``.
 
@@ -81,7 +139,8 @@ def pi_step(state: PIState, e, p: PIParams):
     0.61
     """
     e = np.asarray(e, float)
-    u = state.u + p.Kc * (e - state.e) + (p.Kc * p.Ts / p.Ti) * e
+    integral = pi_track(state.u, 0.0, p.Kc * state.e)
+    _, _, u = pi_scan(integral, e, p.Kc, p.Ti, p.Ts)
     u = np.minimum(np.maximum(u, p.u_lo), p.u_hi)
     e_new = e.copy() if e.shape == u.shape else np.full(u.shape, e)
     return PIState(u=u, e=e_new), u

@@ -1,0 +1,267 @@
+"""The DCS function-block interface shared by every controller of valve_gym.
+
+A controller is a block a plant would run once per scan (IEC 61131-3 PID
+block, simple-pid's ``PID(...)(pv)`` feel)::
+
+    ctrl.reset(sp, pv, op)     # bumpless start from the valve input op now applied
+    op = ctrl.step(sp, pv)     # one scan of ctrl.scan_s seconds
+
+``sp`` and ``pv`` are levels [m], ``op`` the valve input as a fraction of the
+stroke (0..1). Scalars give a float back; ``(n,)`` arrays run ``n``
+independent loops in one object and give an ``(n,)`` array back (a scalar
+``sp`` is shared by all loops). The block's memory is an explicit named tuple
+of ``(n,)`` arrays (:attr:`FunctionBlock.state`), advanced by the pure methods
+:meth:`FunctionBlock.initial_state` and :meth:`FunctionBlock.advance`;
+``reset``/``step`` only keep it between calls.
+
+Settings are declared per block as :class:`Setting` rows; :func:`resolve_settings`
+checks names, types and ranges and fills defaults, so a typo or an
+out-of-range value is a :class:`ValueError` that lists what is allowed.
+"""
+from __future__ import annotations
+
+import math
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+__all__ = ["Setting", "FunctionBlock", "resolve_settings", "check_inputs", "merge_rows",
+           "whole_scans"]
+
+ArrayOrFloat = float | np.ndarray
+
+
+@dataclass(frozen=True)
+class Setting:
+    """One setting of a block: name, unit, default and allowed range.
+
+    Attributes
+    ----------
+    name : str
+    unit : str, unit of the value ('-' for fractions of the stroke)
+    default : float or None, None means "set by the block's rule" (documented
+        in ``doc``) once the other settings are known
+    lo, hi : float, allowed closed range ``[lo, hi]`` (``lo`` excluded when
+        ``lo_open``)
+    doc : str, one line for error messages and listings
+    lo_open : bool
+    """
+
+    name: str
+    unit: str
+    default: float | None
+    lo: float
+    hi: float
+    doc: str
+    lo_open: bool = False
+
+    def describe(self) -> str:
+        """``name [unit] in [lo, hi]`` for error messages."""
+        left = "(" if self.lo_open else "["
+        return f"{self.name} [{self.unit}] in {left}{self.lo:g}, {self.hi:g}]"
+
+    def check(self, block: str, value: Any) -> float:
+        """The value as a float, or a ValueError naming the allowed range."""
+        ok_type = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+        if not ok_type:
+            raise ValueError(f"{block}: setting {self.name} must be a number ({self.doc}), got "
+                             f"{value!r} of type {type(value).__name__}; allowed: {self.describe()}")
+        v = float(value)
+        below = v <= self.lo if self.lo_open else v < self.lo
+        if not math.isfinite(v) or below or v > self.hi:
+            raise ValueError(f"{block}: setting {self.name} = {value!r} is out of range; "
+                             f"allowed: {self.describe()} ({self.doc})")
+        return v
+
+
+def resolve_settings(block: str, table: tuple[Setting, ...], given: dict) -> dict:
+    """Check ``given`` against ``table``; defaults filled (None stays None for rules).
+
+    Raises
+    ------
+    ValueError
+        For an unknown key (listing the known ones), a non-number or a value out
+        of range (naming the range).
+
+    Examples
+    --------
+    >>> t = (Setting("a", "-", 0.5, 0.0, 1.0, "amplitude"),)
+    >>> resolve_settings("x", t, {})
+    {'a': 0.5}
+    >>> resolve_settings("x", t, {"b": 1})
+    Traceback (most recent call last):
+    ...
+    ValueError: x: unknown setting(s) ['b']; known settings: a [-] in [0, 1]
+    """
+    known = {s.name: s for s in table}
+    unknown = sorted(set(given) - set(known))
+    if unknown:
+        listing = ", ".join(s.describe() for s in table)
+        raise ValueError(f"{block}: unknown setting(s) {unknown}; known settings: {listing}")
+    out = {}
+    for s in table:
+        v = given.get(s.name, s.default)
+        out[s.name] = None if v is None else s.check(block, v)
+    return out
+
+
+def whole_scans(block: str, name: str, value: float, scan_s: float) -> int:
+    """``value`` [s] as a whole number (>= 1) of scans, or a ValueError saying so."""
+    k = value / scan_s
+    ki = int(round(k))
+    if ki < 1 or abs(k - ki) > 1e-9 * max(1.0, k):
+        raise ValueError(f"{block}: setting {name} = {value!r} s must be a whole number (>= 1) of "
+                         f"scans of scan_s = {scan_s!r} s; the block acts once per scan")
+    return ki
+
+
+def _as_array(block: str, name: str, x) -> np.ndarray:
+    try:
+        a = np.asarray(x, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"{block}: {name} must be a number or an (n,) array of numbers, "
+                         f"got {type(x).__name__}") from None
+    if a.ndim > 1:
+        raise ValueError(f"{block}: {name} must be a scalar or an (n,) array (one value per loop), "
+                         f"got shape {a.shape}; flatten it or pass one loop per entry")
+    bad = ~np.isfinite(a)
+    if bad.any():
+        where = "" if a.ndim == 0 else f" at loop(s) {np.flatnonzero(bad)[:10].tolist()}"
+        raise ValueError(f"{block}: {name} contains NaN or inf{where}; pass finite values "
+                         f"(hold the last good measurement while a signal is bad)")
+    return a
+
+
+def check_inputs(block: str, **signals) -> tuple[tuple[np.ndarray, ...], int, bool]:
+    """Signals as ``(n,)`` float arrays with one common ``n``.
+
+    Returns
+    -------
+    arrays : tuple of (n,) float64 arrays, in the order given
+    n : int, number of loops
+    scalar : bool, True when every signal was a scalar
+
+    Raises
+    ------
+    ValueError
+        For non-numbers, arrays of more than one dimension, NaN/inf, or arrays
+        of different lengths (naming each length).
+
+    Examples
+    --------
+    >>> (sp, pv), n, scalar = check_inputs("pi", sp=1.0, pv=[0.9, 1.1])
+    >>> sp, n, scalar
+    (array([1., 1.]), 2, False)
+    """
+    arrs = {k: _as_array(block, k, v) for k, v in signals.items()}
+    sizes = {k: a.shape[0] for k, a in arrs.items() if a.ndim == 1}
+    if len(set(sizes.values())) > 1:
+        raise ValueError(f"{block}: the loops' signals have different lengths {sizes}; pass (n,) arrays "
+                         "of one length n (or scalars, shared by all loops)")
+    n = next(iter(sizes.values())) if sizes else 1
+    if n == 0:
+        raise ValueError(f"{block}: got empty arrays; pass at least one loop")
+    out = tuple(np.broadcast_to(a, (n,)).astype(np.float64) for a in arrs.values())
+    return out, n, not sizes
+
+
+def merge_rows(mask: np.ndarray, fresh, old):
+    """Rows of state ``fresh`` where ``mask``, of ``old`` elsewhere (nested named tuples)."""
+    if isinstance(fresh, tuple):
+        return type(fresh)(*(merge_rows(mask, f, o) for f, o in zip(fresh, old)))
+    return np.where(mask, fresh, old)
+
+
+class FunctionBlock(ABC):
+    """Base of the controller blocks: settings, validation, reset/step.
+
+    Subclasses declare ``name`` and ``SETTINGS`` and implement
+    :meth:`initial_state` and :meth:`advance` (pure functions of explicit
+    ``(n,)`` state arrays).
+
+    Attributes
+    ----------
+    name : str, registry name of the block
+    settings : dict, the resolved settings (JSON-able floats)
+    scan_s : float, scan time [s]
+    """
+
+    name: ClassVar[str] = "block"
+    SETTINGS: ClassVar[tuple[Setting, ...]] = ()
+
+    def __init__(self, **settings):
+        self.settings = self._resolve(resolve_settings(self.name, self.SETTINGS, settings))
+        self._state: Any = None
+        self._n: int | None = None
+        self._scalar = False
+
+    def _resolve(self, settings: dict) -> dict:
+        """Fill rule-based defaults and check settings against each other."""
+        return settings
+
+    @property
+    def scan_s(self) -> float:
+        """Scan time [s]."""
+        return float(self.settings["scan_s"])
+
+    @property
+    def state(self) -> Any:
+        """The block's memory (named tuple of ``(n,)`` arrays), None before :meth:`reset`."""
+        return self._state
+
+    def __repr__(self) -> str:
+        args = ", ".join(f"{k}={v:.4g}" for k, v in self.settings.items())
+        return f"load_controller({self.name!r}, {args})"
+
+    def _check_op(self, op: np.ndarray) -> None:
+        lo, hi = self.settings["op_lo"], self.settings["op_hi"]
+        if np.any(op < lo) or np.any(op > hi):
+            raise ValueError(f"{self.name}: op must be the valve input now applied, within the output limits "
+                             f"[op_lo, op_hi] = [{lo:g}, {hi:g}], got {op.tolist()[:10]}")
+
+    def reset(self, sp, pv, op) -> None:
+        """Start bumplessly from the valve input ``op`` now applied.
+
+        Parameters
+        ----------
+        sp, pv : float or (n,) array, set point and measured level [m]
+        op : float or (n,) array, valve input now applied [0..1]
+        """
+        (sp, pv, op), n, scalar = check_inputs(self.name, sp=sp, pv=pv, op=op)
+        self._check_op(op)
+        self._state = self.initial_state(sp, pv, op)
+        self._n, self._scalar = n, scalar
+
+    def step(self, sp, pv) -> ArrayOrFloat:
+        """One scan: the valve input to apply for the next ``scan_s`` seconds.
+
+        Parameters
+        ----------
+        sp, pv : float or (n,) array, set point and measured level [m]
+
+        Returns
+        -------
+        op : float (scalar inputs) or (n,) array, valve input [0..1]
+        """
+        if self._state is None:
+            raise ValueError(f"{self.name}: step() called before reset(); call reset(sp, pv, op) first "
+                             "with the valve input now applied (bumpless start)")
+        (sp, pv), n, scalar = check_inputs(self.name, sp=sp, pv=pv)
+        n_loops = int(self._n or 1)
+        if scalar:                      # scalars are shared by all loops
+            sp, pv = np.full(n_loops, sp[0]), np.full(n_loops, pv[0])
+        elif n != n_loops:
+            raise ValueError(f"{self.name}: reset() was given {n_loops} loop(s) but step() {n}; "
+                             "call reset(sp, pv, op) again for the new set of loops")
+        self._state, op = self.advance(self._state, sp, pv)
+        return float(op[0]) if (scalar and self._scalar) else op
+
+    @abstractmethod
+    def initial_state(self, sp: np.ndarray, pv: np.ndarray, op: np.ndarray) -> Any:
+        """Bumpless memory for loops at ``sp``, ``pv`` [m] with input ``op``, all ``(n,)``."""
+
+    @abstractmethod
+    def advance(self, state: Any, sp: np.ndarray, pv: np.ndarray) -> tuple[Any, np.ndarray]:
+        """One scan, pure: ``(state, sp (n,), pv (n,)) -> (state, op (n,))``."""

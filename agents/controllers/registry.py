@@ -1,0 +1,101 @@
+"""Controllers by name: :func:`load_controller` and :func:`available_controllers`.
+
+One table maps each name to the block that implements it; the benchmark, the
+environment wrappers and the training evaluation build controllers only
+through :func:`load_controller`, so a controller added here is available to all
+of them. ``"learned"`` is loaded lazily from ``agents.learned`` (its
+``load_learned(path=None, **settings)``), so this module never imports torch.
+"""
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+
+from .block import FunctionBlock
+from .constant_reinforcement import ConstantReinforcement
+from .integral_freeze import IntegralFreeze
+from .knocker import Knocker
+from .pi import PIBlock
+from .two_move import TwoMove
+
+__all__ = ["load_controller", "available_controllers", "ControllerLoadError"]
+
+
+class ControllerLoadError(ValueError):
+    """A named controller exists but could not be built (e.g. the learned weights are missing)."""
+
+
+def _load_learned(**settings):
+    try:
+        mod = importlib.import_module("agents.learned")
+    except ImportError as exc:
+        raise ControllerLoadError(
+            "the learned compensator could not be loaded: module agents.learned is not available "
+            f"({exc}); install valve_gym with its agents package, or use another controller: "
+            f"{', '.join(available_controllers())}") from exc
+    loader = getattr(mod, "load_learned", None)
+    if loader is None:
+        raise ControllerLoadError("the learned compensator could not be loaded: agents.learned has no "
+                                  "load_learned(path=None, **settings)")
+    try:
+        return loader(**settings)
+    except ValueError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - any failure of the loader is reported with its cause
+        raise ControllerLoadError(f"the learned compensator could not be loaded: {type(exc).__name__}: {exc}") \
+            from exc
+
+
+_BLOCKS: dict[str, type] = {cls.name: cls for cls in (PIBlock, Knocker, ConstantReinforcement, TwoMove,
+                                                       IntegralFreeze)}
+_LOADERS: dict[str, Callable[..., object]] = {**_BLOCKS, "learned": _load_learned}
+
+
+def available_controllers() -> tuple[str, ...]:
+    """Names :func:`load_controller` accepts.
+
+    Examples
+    --------
+    >>> available_controllers()
+    ('pi', 'knocker', 'constant_reinforcement', 'two_move', 'integral_freeze', 'learned')
+    """
+    return tuple(_LOADERS)
+
+
+def load_controller(name: str, **settings) -> FunctionBlock:
+    """Build the controller ``name`` with ``settings`` (defaults: module docs of each block).
+
+    Parameters
+    ----------
+    name : str, one of :func:`available_controllers`
+    **settings
+        The block's settings (``Kc`` [1/m], ``Ti`` [s], ``scan_s`` [s], ``op_lo``,
+        ``op_hi``, and for compensators the stiction estimate ``S`` [fraction
+        of stroke] and their own); ``"learned"`` takes ``path`` (None: the
+        shipped compensator).
+
+    Returns
+    -------
+    FunctionBlock
+        ``reset(sp, pv, op)``, ``step(sp, pv)``, ``name``, ``scan_s``, ``settings``.
+
+    Raises
+    ------
+    ValueError
+        Unknown name (listing the names), unknown setting, wrong type or value
+        out of range (listing the allowed ones); :class:`ControllerLoadError`
+        (a ValueError) when ``"learned"`` cannot be loaded, saying why.
+
+    Examples
+    --------
+    >>> ctrl = load_controller("knocker", S=0.03)
+    >>> ctrl.settings["a"], ctrl.settings["h_k"]
+    (0.015, 3.0)
+    >>> load_controller("pid")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    ValueError: unknown controller 'pid'; available: pi, knocker, constant_reinforcement, two_move, ...
+    """
+    if not isinstance(name, str) or name not in _LOADERS:
+        raise ValueError(f"unknown controller {name!r}; available: {', '.join(available_controllers())}")
+    return _LOADERS[name](**settings)  # type: ignore[return-value]
