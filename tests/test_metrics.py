@@ -377,3 +377,83 @@ def test_loop_metrics_bad_input():
 def test_docstring_examples():
     res = doctest.testmod(metrics, optionflags=doctest.NORMALIZE_WHITESPACE)
     assert res.attempted > 10 and res.failed == 0
+
+
+# --------------------------------------------------------------------------- #
+# ACF limit-cycle detector (Thornhill 2003 regularity + Miao & Seborg 1999 decay ratio)
+# --------------------------------------------------------------------------- #
+def _ar2(rng, n, zeta, period, sigma=1.0):
+    """A damped second-order response to white noise (damping zeta, natural period [samples])."""
+    w = 2 * np.pi / period
+    a1, a2 = 2 * np.exp(-zeta * w) * np.cos(w * np.sqrt(1 - zeta**2)), -np.exp(-2 * zeta * w)
+    return signal.lfilter([sigma], [1.0, -a1, -a2], rng.standard_normal(n))
+
+
+def test_acf_oscillation_false_alarm_rates():
+    """White noise, a slow OU drift and a damped (zeta = 0.5) loop response: at most a few % false alarms."""
+    def rate(make, n=60):
+        return np.mean([metrics.acf_oscillation(make(np.random.default_rng(s)), 1.0).present for s in range(n)])
+
+    assert rate(lambda g: 0.002 * g.standard_normal(3600)) == 0.0
+    assert rate(lambda g: signal.lfilter([1.0], [1.0, -0.98], g.standard_normal(3600))) <= 0.05
+    assert rate(lambda g: _ar2(g, 3600, 0.5, 120.0)) <= 0.07
+    # ... while a lightly damped one (zeta = 0.05, Miao & Seborg's "excessively oscillatory") fires
+    assert rate(lambda g: _ar2(g, 3600, 0.05, 120.0), 20) >= 0.9
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_acf_oscillation_silent_on_setpoint_step(seed):
+    rng = np.random.default_rng(seed)
+    t = np.arange(3600.0)
+    # error of a PI loop after a 0.2 m step at t = 300 s (closed loop time constant 25 s) plus 2 mm noise
+    e = np.where(t >= 300, 0.2 * np.exp(-(t - 300) / 25.0) * (1 + (t - 300) / 25.0), 0.0)
+    e = e + 0.002 * rng.standard_normal(t.size)
+    assert not metrics.acf_oscillation(e, 1.0).present
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("wave", ["sine", "triangle", "square"])
+def test_acf_oscillation_fires_on_cycle_with_amplitude_and_period(seed, wave):
+    rng = np.random.default_rng(seed)
+    T, A = 150.0, 0.01
+    t = np.arange(3600.0)
+    ph = 2 * np.pi * t / T
+    x = {"sine": A * np.sin(ph), "triangle": A * signal.sawtooth(ph, 0.5),
+         "square": A * np.sign(np.sin(ph + 0.1))}[wave]
+    noisy = x + 0.002 * rng.standard_normal(t.size) + 0.004 * np.sin(2 * np.pi * t / 7200.0)  # noise + slow drift
+    osc = metrics.acf_oscillation(noisy, 1.0)
+    assert osc.present
+    assert osc.period == pytest.approx(T, rel=0.03)
+    assert osc.amplitude == pytest.approx(A, rel=0.12)
+    assert osc.regularity > 1.0 and osc.decay_ratio > 0.5
+
+
+def test_acf_oscillation_fires_on_weakly_damped_but_not_on_damped():
+    rng = np.random.default_rng(3)
+    # a sustained cycle vs the Miao & Seborg border: decay ratio rises with falling damping
+    dr = [metrics.acf_oscillation(_ar2(rng, 20000, z, 100.0), 1.0).decay_ratio for z in (0.3, 0.1, 0.02)]
+    assert dr[0] < dr[1] < dr[2]
+    assert metrics.acf_oscillation(_ar2(rng, 20000, 0.01, 100.0), 1.0).present
+
+
+def test_acf_oscillation_bad_input():
+    with pytest.raises(ValueError, match="at least 16"):
+        metrics.acf_oscillation(np.zeros(5), 1.0)
+    with pytest.raises(ValueError, match="dt"):
+        metrics.acf_oscillation(np.zeros(100), 0.0)
+    with pytest.raises(ValueError, match="max_lag_frac"):
+        metrics.acf_oscillation(np.zeros(100), 1.0, max_lag_frac=2.0)
+    with pytest.raises(ValueError, match="min_intervals"):
+        metrics.acf_oscillation(np.zeros(100), 1.0, min_intervals=2)
+    assert metrics.acf_oscillation(np.ones(100), 1.0) == metrics.AcfOscillation(False, 0.0, math.inf, 0.0, 0.0, 0)
+
+
+@pytest.mark.parametrize("deadband", [0.0, 0.05, 0.3])
+def test_reversal_counts_match_reversals(deadband):
+    rng = np.random.default_rng(0)
+    x = np.cumsum(rng.standard_normal((400, 7)), axis=0) * 0.1
+    x[50:80, 2] = x[50, 2]  # a flat stretch
+    got = metrics.reversal_counts(x, deadband)
+    assert got.tolist() == [reversals(x[:, i], deadband) for i in range(7)]
+    with pytest.raises(ValueError, match=r"\(T, n\)"):
+        metrics.reversal_counts(x[:, 0])

@@ -1044,6 +1044,20 @@ def _decay_ratio(r: np.ndarray, z: np.ndarray) -> float:
     return float(a / b) if b > 0.0 and a > 0.0 else 0.0
 
 
+def _lobes_significant(r: np.ndarray, z: np.ndarray, n: int) -> bool:
+    """Both first lobes of the ACF (the negative one and the positive one) exceed twice their standard error.
+
+    Bartlett's formula ``var r_k = (1 + 2 sum_{j<k} r_j^2) / N`` (Box & Jenkins), with the ACF itself as the
+    model: a lobe that sampling noise of a non-oscillating signal could make is not evidence of a cycle.
+    """
+    zi = np.ceil(z[:3]).astype(int)
+    k_min = zi[0] + int(np.argmin(r[zi[0]:zi[1] + 1]))
+    k_max = zi[1] + int(np.argmax(r[zi[1]:zi[2] + 1]))
+    cum = np.concatenate([[0.0], np.cumsum(r[1:] ** 2)])
+    se = np.sqrt((1.0 + 2.0 * cum[np.array([k_min, k_max]) - 1]) / n)
+    return bool(-r[k_min] > 2.0 * se[0] and r[k_max] > 2.0 * se[1])
+
+
 def _window_amplitude(y: np.ndarray, period_samples: float) -> float:
     """Median over windows one period long of half the range of ``y`` smoothed over period/10."""
     p = max(2, int(round(period_samples)))
@@ -1115,10 +1129,12 @@ def acf_oscillation(e: ArrayLike, dt: float, *, max_lag_frac: float = 0.5, min_i
 
     A limit cycle is **present** when at least ``min_intervals`` intervals are
     found within the searched lags, ``r_T > regularity_min`` (a regular
-    period), ``R > decay_min`` (it does not die out) and the positive lobe
-    exceeds ``3/sqrt(N)`` (it stands out of the ACF's sampling noise). White
-    noise fails the regularity test, a damped disturbance response and a
-    set-point step fail the decay test.
+    period), ``R > decay_min`` (it does not die out) and the first negative
+    and positive lobes each exceed twice their standard error by Bartlett's
+    formula ``var r_k = (1 + 2 sum_{j<k} r_j^2)/N`` (they stand out of the
+    ACF's sampling noise; Box & Jenkins). White noise fails the regularity
+    test, a damped disturbance response and a set-point step fail the decay
+    or the significance test.
 
     The **amplitude** is the median over consecutive windows one period long of
     half the range of the detrended error, smoothed by a centred moving
@@ -1134,6 +1150,9 @@ def acf_oscillation(e: ArrayLike, dt: float, *, max_lag_frac: float = 0.5, min_i
     .. [2] R. Miao, D.E. Seborg, "Automatic detection of excessively
        oscillatory feedback control loops", Proc. IEEE Int. Conf. on Control
        Applications, Hawaii, 359-364, 1999.
+    .. [3] G.E.P. Box, G.M. Jenkins, G.C. Reinsel, "Time Series Analysis:
+       Forecasting and Control", 4th ed., Wiley, 2008, sec. 2.1.6 (Bartlett's
+       standard error of the sample autocorrelation).
 
     Examples
     --------
@@ -1167,8 +1186,7 @@ def acf_oscillation(e: ArrayLike, dt: float, *, max_lag_frac: float = 0.5, min_i
     sd = float(np.std(tp))
     reg = math.inf if sd == 0.0 else float(np.mean(tp)) / (3.0 * sd)
     dr = _decay_ratio(r, z)
-    lobe = float(np.max(r[int(math.ceil(z[1])):int(math.floor(z[2])) + 1], initial=0.0))
-    present = reg > regularity_min and dr > decay_min and lobe > 3.0 / math.sqrt(x.size)
+    present = reg > regularity_min and dr > decay_min and _lobes_significant(r, z, x.size)
     if not present:
         return AcfOscillation(False, 0.0, math.inf, reg, dr, int(z.size))
     period_samples = float(np.mean(tp))
