@@ -2,7 +2,7 @@
 
 Sub-commands (each module's ``main(argv)`` does the work)::
 
-    valve-gym benchmark  [--quick] [--out DIR]      compensator benchmark (the main job)
+    valve-gym benchmark  --out DIR [--quick] [--config FILE] [--jobs N]   compensator benchmark (the main job)
     valve-gym train      --config configs/ppo_residual.yaml [--out DIR] [--resume ZIP]
     valve-gym figures    --out DIR                  teaching figures of valve friction
     valve-gym diagnose   REC.csv [options]          model-mismatch diagnosis of a recording
@@ -13,7 +13,7 @@ import importlib
 import sys
 
 _COMMANDS = {
-    "benchmark": ("agents.benchmark", "compare PI, PI + knocker and PPO on randomised sticky valves"),
+    "benchmark": ("agents.bench.cli", "compensator benchmark: regulation and servo on sticky valves"),
     "train": ("agents.train", "train a PPO policy from a YAML config"),
     "figures": ("valve_gym.figures", "write the teaching figures (PNG)"),
     "diagnose": ("valve_gym.diagnosis.cli", "diagnose a recording: locate the mismatch, name the missing physics"),
@@ -28,6 +28,7 @@ def _usage() -> str:
 
 
 def main(argv=None) -> int:
+    """Run ``valve-gym COMMAND [options]``; returns the exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help"):
         print(_usage())

@@ -1,0 +1,72 @@
+"""``valve-gym benchmark --out DIR [--quick] [--config FILE] [--jobs N]``: the compensator benchmark."""
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+import time
+from pathlib import Path
+
+from valve_gym.config import ConfigError
+
+from .config import BenchConfig, load_bench_config
+from .pipeline import default_jobs, print_progress, run_benchmark
+
+__all__ = ["main", "build_parser"]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command's argument parser."""
+    p = argparse.ArgumentParser(
+        prog="valve-gym benchmark",
+        description="Compensator benchmark: every controller on sticky valves at a constant set point "
+                    "(regulation) and on set-point steps (servo). See docs/benchmark.md.")
+    p.add_argument("--out", default="results", help="output folder (default: results)")
+    p.add_argument("--quick", action="store_true", help="a few short loops (seconds; a smoke test)")
+    p.add_argument("--config", default=None, help="benchmark YAML (default: the built-in = configs/benchmark.yaml)")
+    p.add_argument("--jobs", type=int, default=None, help="worker processes (default: the cores available)")
+    p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
+    p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
+    return p
+
+
+def _load(args) -> BenchConfig:
+    cfg = load_bench_config(args.config) if args.config else BenchConfig()
+    return cfg.quick_version() if args.quick else cfg
+
+
+def main(argv=None) -> int:
+    """Run the benchmark; 0 on success, 2 on a bad config or option (message on stderr)."""
+    args = build_parser().parse_args(argv)
+    try:
+        cfg = _load(args)
+    except (ConfigError, OSError) as exc:  # bad file or value: one line, no traceback
+        print(f"valve-gym benchmark: {exc}", file=sys.stderr)
+        return 2
+    jobs = default_jobs() if args.jobs is None else args.jobs
+    if jobs < 1:
+        print(f"valve-gym benchmark: --jobs must be >= 1, got {jobs}", file=sys.stderr)
+        return 2
+    command = "valve-gym benchmark " + " ".join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[2:]))
+    t0 = time.perf_counter()
+    try:
+        res = run_benchmark(cfg, jobs=jobs, progress=None if args.no_progress else print_progress)
+    except ConfigError as exc:
+        print(f"valve-gym benchmark: {exc}", file=sys.stderr)
+        return 2
+    from .report import write_report
+
+    files = list(write_report(res, Path(args.out), command.strip()))
+    if not args.no_figures:
+        from .figures import write_figures
+
+        files += list(write_figures(res, Path(args.out)))
+    for n in res.notes:
+        print(f"note: {n}", file=sys.stderr)
+    print(f"benchmark done in {time.perf_counter() - t0:.0f} s ({jobs} job(s)); wrote "
+          + ", ".join(str(f) for f in files))
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,230 @@
+"""The benchmark run: scenarios -> runs -> scores, every controller on both parts.
+
+:func:`run_benchmark` draws the scenarios once, runs each (controller, part)
+as one task (in ``jobs`` worker processes), scores it at once and keeps only
+the per-loop scores and the trend of one example loop, then summarises.
+Progress goes to ``progress`` (one line per finished task).
+"""
+from __future__ import annotations
+
+import os
+import sys
+import time
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
+
+import numpy as np
+
+from valve_gym.config import ConfigError
+
+from .config import BenchConfig
+from .runner import ControllerSpec, lineup, make_controller, run_spec, valve_model
+from .scenarios import PARTS, BenchScenarios, Scenarios, benchmark_scenarios
+from .scores import Comparison, LoopScores, SummaryRow, compare_learned, score_runs, summarise
+
+__all__ = ["Trend", "TaskResult", "BenchmarkResult", "run_benchmark", "example_loop"]
+
+
+@dataclass(frozen=True, eq=False)
+class Trend:
+    """Trajectory of the example loop under one controller, each ``(T,)``.
+
+    Attributes
+    ----------
+    label : str
+    t : s; sp, pv : m (pv measured); op, stem : fraction of stroke
+    """
+
+    label: str
+    t: np.ndarray
+    sp: np.ndarray
+    pv: np.ndarray
+    op: np.ndarray
+    stem: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class TaskResult:
+    """One controller on one part: per-loop scores, the example trend (regulation), run time [s]."""
+
+    spec: ControllerSpec
+    part: str
+    scores: LoopScores
+    trend: Trend | None
+    seconds: float
+
+
+@dataclass(frozen=True, eq=False)
+class BenchmarkResult:
+    """Everything the report and the figures need.
+
+    Attributes
+    ----------
+    config : BenchConfig
+    scenarios : BenchScenarios
+    specs : tuple of ControllerSpec
+        The controllers that ran, in report order.
+    scores : tuple of TaskResult
+    summary : tuple of SummaryRow
+        Both parts.
+    comparison : Comparison or None
+        Learned vs the best classical block within its travel budget (regulation).
+    example : int
+        Index of the example (sticky) loop of the regulation part.
+    notes : tuple of str
+        Controllers skipped and why.
+    seconds : float
+        Wall time of the run [s].
+    jobs : int
+    """
+
+    config: BenchConfig
+    scenarios: BenchScenarios
+    specs: tuple[ControllerSpec, ...]
+    scores: tuple[TaskResult, ...]
+    summary: tuple[SummaryRow, ...]
+    comparison: Comparison | None
+    example: int
+    notes: tuple[str, ...]
+    seconds: float
+    jobs: int
+
+    def part_scores(self, part: str) -> dict[str, LoopScores]:
+        """``{label: LoopScores}`` of one part, in report order."""
+        by = {(r.spec.label, r.part): r.scores for r in self.scores}
+        return {s.label: by[(s.label, part)] for s in self.specs if (s.label, part) in by}
+
+    def trends(self) -> tuple[Trend, ...]:
+        """Example-loop trends in report order."""
+        by = {r.spec.label: r.trend for r in self.scores if r.trend is not None}
+        return tuple(by[s.label] for s in self.specs if s.label in by)
+
+
+def example_loop(scen: Scenarios) -> int:
+    """The sticky loop of the first friction model whose ``S`` is nearest the sticky loops' median."""
+    m = (scen.band == "sticky") & (scen.model == scen.model[0])
+    if not m.any():
+        m = scen.band != "healthy" if (scen.band != "healthy").any() else np.ones(scen.n, bool)
+    idx = np.flatnonzero(m)
+    return int(idx[np.argmin(np.abs(scen.S[idx] - np.median(scen.S[idx])))])
+
+
+# Set in the parent before the workers fork, so that they inherit the scenarios instead of receiving them.
+_STATE: dict = {}
+
+
+def _task(spec: ControllerSpec, part: str) -> TaskResult:
+    t0 = time.perf_counter()
+    cfg: BenchConfig = _STATE["config"]
+    scen: Scenarios = _STATE["scenarios"].part(part)
+    runs = run_spec(spec, scen)
+    trend = None
+    if part == "regulation":
+        i = _STATE["example"]
+        trend = Trend(spec.label, np.arange(scen.n_steps) * scen.scan_s, runs.sp[:, i].copy(),
+                      runs.pv[:, i].copy(), runs.op[:, i].copy(), runs.stem[:, i].copy())
+    return TaskResult(spec, part, score_runs(runs, cfg), trend, time.perf_counter() - t0)
+
+
+def _available(specs, scen: Scenarios) -> tuple[tuple[ControllerSpec, ...], tuple[str, ...]]:
+    """The specs whose block can be made, and a note for each one that cannot."""
+    ok, notes = [], []
+    for s in specs:
+        sub = scen.subset(np.arange(min(2, scen.n)))
+        try:
+            c = make_controller(s, sub)
+            c.reset(sub.sp[0], sub.sp[0], np.full(sub.n, 0.5))
+            c.step(sub.sp[1], sub.sp[1] - 0.01)
+        except Exception as exc:  # noqa: BLE001 - any failure to load a block skips it with its reason
+            notes.append(f"{s.label}: skipped ({type(exc).__name__}: {exc})")
+            continue
+        ok.append(s)
+    return tuple(ok), tuple(notes)
+
+
+def _check_models(config: BenchConfig) -> None:
+    """A :class:`ConfigError` naming ``models`` when a friction model cannot be built."""
+    for m in config.models:
+        try:
+            valve_model(m, np.array([0.02]), np.array([0.01]))
+        except (ValueError, KeyError) as exc:
+            raise ConfigError(f"models: friction model {m!r} cannot be built ({exc})") from None
+
+
+def _progress_line(done: int, total: int, r: TaskResult, t0: float) -> str:
+    el = time.perf_counter() - t0
+    eta = el / done * (total - done)
+    return (f"[{done:>3}/{total}] {r.part:<10} {r.spec.label:<32} {r.seconds:6.1f} s  "
+            f"(elapsed {el:5.0f} s, left ~{eta:4.0f} s)")
+
+
+def _execute(tasks, jobs: int, progress: Callable[[str], None] | None) -> list:
+    t0 = time.perf_counter()
+    out = []
+    if jobs <= 1:
+        for spec, part in tasks:
+            out.append(_task(spec, part))
+            if progress:
+                progress(_progress_line(len(out), len(tasks), out[-1], t0))
+        return out
+    import multiprocessing as mp
+
+    ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else None
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=ctx) as ex:
+        futs = [ex.submit(_task, spec, part) for spec, part in tasks]
+        for f in as_completed(futs):
+            out.append(f.result())
+            if progress:
+                progress(_progress_line(len(out), len(tasks), out[-1], t0))
+    return out
+
+
+def run_benchmark(config: BenchConfig, jobs: int = 1, progress: Callable[[str], None] | None = None,
+                  ) -> BenchmarkResult:
+    """Run every controller of ``config`` on both parts and score them.
+
+    Parameters
+    ----------
+    config : BenchConfig
+        Use :meth:`BenchConfig.quick_version` for ``--quick``.
+    jobs : int, optional
+        Worker processes (default 1: in this process).
+    progress : callable, optional
+        Called with one line of text per finished task.
+
+    Returns
+    -------
+    BenchmarkResult
+    """
+    if int(jobs) < 1:
+        raise ValueError(f"jobs must be >= 1, got {jobs!r}")
+    t0 = time.perf_counter()
+    _check_models(config)
+    scen = benchmark_scenarios(config)
+    specs, notes = _available(lineup(config), scen.regulation)
+    _STATE.update(config=config, scenarios=scen, example=example_loop(scen.regulation))
+    tasks = [(s, p) for p in PARTS for s in specs]
+    # the slowest tasks (banks of compensators) first, so that the workers finish together
+    tasks.sort(key=lambda sp: sp[0].estimate <= 0.0)
+    results = tuple(_execute(tasks, min(int(jobs), len(tasks)), progress))
+    res = BenchmarkResult(config, scen, specs, results, (), None, _STATE["example"], notes, 0.0, int(jobs))
+    summary = tuple(row for p in PARTS for row in summarise(res.part_scores(p), scen.part(p), config))
+    classical = tuple(s.label for s in specs if s.family in ("pi", "detuned")
+                      or (s.family == "compensator" and s.estimate == 1.0))
+    comp = compare_learned(res.part_scores("regulation"), scen.regulation, config, classical)
+    return BenchmarkResult(config, scen, specs, results, summary, comp, res.example, notes,
+                           time.perf_counter() - t0, int(jobs))
+
+
+def default_jobs() -> int:
+    """Worker processes by default: the cores this process may use (at least 1)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def print_progress(line: str) -> None:
+    """Progress to stderr."""
+    print(line, file=sys.stderr, flush=True)
