@@ -9,16 +9,17 @@ optional first differences (``deltas``) and a stack of the last
 :class:`PPOController`, whose SB3 ``state`` carries the frame history), so a
 shipped policy sees exactly the inputs it was trained on.
 
-A policy file is SB3's ``.zip`` with one extra entry, ``valve_gym.json``,
-holding the observation transform, the environment action mode and the
-environment settings the policy was trained with (SB3 ignores the entry when
-loading); :func:`load_policy` reads both.
+A policy file is a pair ``NAME.safetensors`` (the weights of SB3's policy,
+by ``state_dict`` name) + ``NAME.json`` (architecture, observation transform,
+environment action mode and settings, training command, versions);
+:func:`load_policy` evaluates the deterministic actor in numpy and never
+unpickles anything (SB3 ``.zip`` files are refused, see
+:mod:`agents.convert` for converting a trusted one).
 """
 from __future__ import annotations
 
 import json
 import os
-import zipfile
 from dataclasses import asdict, dataclass
 from typing import NamedTuple, Optional, Tuple
 
@@ -27,9 +28,8 @@ import numpy as np
 from .base import as_obs_batch, episode_start_mask
 
 __all__ = ["ObsTransform", "ObsHistory", "PPOController", "TransformVecEnv", "load_policy",
-           "save_policy", "read_policy_meta", "POLICY_META_NAME"]
+           "save_policy", "read_policy_meta", "NumpyActor", "policy_tensors", "POLICY_FORMAT"]
 
-POLICY_META_NAME = "valve_gym.json"
 
 #: Feature scaling of the raw observation columns [level, sp, error, u, stem]:
 #: ``f = (obs - offset) * scale``; the error (a few cm) is blown up to O(1).
@@ -190,53 +190,70 @@ class TransformVecEnv(_vec_env_wrapper_base()):
 
 
 # ---------------------------------------------------------------- policy files
+#: Format tag of a PPO policy file's JSON.
+POLICY_FORMAT = "valve_gym.ppo_policy/1"
+
+
+def policy_tensors(model) -> dict:
+    """The policy's weights as float32 numpy arrays, by SB3's ``state_dict`` names."""
+    return {k: v.detach().cpu().numpy().astype(np.float32) for k, v in model.policy.state_dict().items()}
+
+
 def save_policy(model, path: str, meta: dict) -> str:
-    """Save an SB3 model plus ``meta`` atomically to ``path`` (.zip).
+    """Save an SB3 model's policy as ``path.safetensors`` + ``path.json`` (atomic; no pickle).
 
-    The zip (SB3's entries plus ``valve_gym.json``) is built in memory and
-    written through :func:`valve_gym._io.write_atomic` (temporary file, then
-    :func:`os.replace`), so a reader never sees a half-written policy.
+    The JSON holds ``meta`` (observation transform, environment settings, training command, ...)
+    and the architecture (``net_arch``, activation, observation and action sizes); returns the JSON path.
     """
-    import io
+    from .safe_files import save_model_file
 
-    from valve_gym._io import write_atomic
-
-    path = str(path)
-    if not path.endswith(".zip"):
-        path += ".zip"
-    buf = io.BytesIO()
-    model.save(buf)
-    with zipfile.ZipFile(buf, "a", compression=zipfile.ZIP_DEFLATED) as z:
-        z.writestr(POLICY_META_NAME, json.dumps(meta, indent=1, sort_keys=True, default=_json_default))
-    data = buf.getvalue()
-    write_atomic(path, lambda f: f.write(data))
-    from .benchmark import _readable
-
-    _readable(path)
-    return path
-
-
-def _json_default(o):
-    if isinstance(o, (np.integer,)):
-        return int(o)
-    if isinstance(o, (np.floating,)):
-        return float(o)
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    return str(o)
+    stem = str(path)
+    for ext in (".zip", ".json", ".safetensors"):
+        if stem.endswith(ext):
+            stem = stem[: -len(ext)]
+    pk = meta.get("train_config", {}).get("ppo", {}).get("policy_kwargs", {})
+    arch = {"net_arch": list(pk.get("net_arch", [64, 64])), "activation_fn": pk.get("activation_fn", "tanh"),
+            "obs_dim": int(model.observation_space.shape[0]), "act_dim": int(model.action_space.shape[0])}
+    full = {**meta, "format": POLICY_FORMAT, "architecture": arch}
+    _, jpath = save_model_file(stem, policy_tensors(model), full)
+    return jpath
 
 
 def read_policy_meta(path: str) -> dict:
-    """The ``valve_gym.json`` metadata of a policy zip (``{}`` if it has none)."""
-    if not os.path.isfile(path):
-        raise FileNotFoundError(f"policy file not found: {path}")
-    try:
-        with zipfile.ZipFile(path) as z:
-            if POLICY_META_NAME not in z.namelist():
-                return {}
-            return json.loads(z.read(POLICY_META_NAME).decode("utf-8"))
-    except zipfile.BadZipFile:
-        raise ValueError(f"{path} is not a policy .zip (SB3 model file)") from None
+    """The JSON metadata of a policy file (``.json`` / ``.safetensors`` / stem); refuses pickle-based files."""
+    from .safe_files import load_model_file, model_file_paths, refuse_unsafe
+
+    if os.path.isfile(path) and not str(path).endswith((".json", ".safetensors")):
+        refuse_unsafe(path)
+    _, jpath = model_file_paths(path)
+    if not jpath.is_file():
+        raise FileNotFoundError(f"policy file not found: {jpath}")
+    return load_model_file(path).meta
+
+
+class NumpyActor:
+    """Deterministic actor of an SB3 ``MlpPolicy`` evaluated in numpy (no torch, no pickle).
+
+    ``a = W_a h_L + b_a`` with ``h_i = act(W_i h_i-1 + b_i)``, the mean of SB3's Gaussian policy
+    (its deterministic action), from the ``mlp_extractor.policy_net.*`` and ``action_net`` weights.
+    """
+
+    def __init__(self, tensors: dict, activation: str = "tanh"):
+        idx = sorted({int(k.split(".")[2]) for k in tensors if k.startswith("mlp_extractor.policy_net.")})
+        self.layers = [(tensors[f"mlp_extractor.policy_net.{i}.weight"].astype(np.float64),
+                        tensors[f"mlp_extractor.policy_net.{i}.bias"].astype(np.float64)) for i in idx]
+        self.out = (tensors["action_net.weight"].astype(np.float64), tensors["action_net.bias"].astype(np.float64))
+        if activation not in ("tanh", "relu"):
+            raise ValueError(f"activation must be 'tanh' or 'relu', got {activation!r}")
+        self.act = np.tanh if activation == "tanh" else (lambda x: np.maximum(x, 0.0))
+
+    def predict(self, x, deterministic: bool = True):
+        """SB3-like ``predict``: ``(actions (n, act_dim), None)``, deterministic (the mean action)."""
+        h = np.asarray(x, dtype=np.float64)
+        for W, b in self.layers:
+            h = self.act(h @ W.T + b)
+        W, b = self.out
+        return h @ W.T + b, None
 
 
 class PPOState(NamedTuple):
@@ -290,23 +307,32 @@ class PPOController:
 
 
 def load_policy(path: str, name: Optional[str] = None, device: str = "cpu") -> PPOController:
-    """Load a policy zip written by ``valve-gym train`` as a :class:`PPOController`.
+    """Load a policy written by ``valve-gym train`` (``.json`` + ``.safetensors``) as a :class:`PPOController`.
 
     Parameters
     ----------
-    path : str, the ``.zip`` file
+    path : str, the policy's ``.json`` or ``.safetensors`` file (or their common stem)
     name : str, label (default: ``meta['name']`` or the file stem)
-    device : str, torch device (default cpu)
+    device : str, ignored (the actor runs in numpy); kept for compatibility
+
+    Raises
+    ------
+    agents.safe_files.UnsafeFileError
+        For an SB3 ``.zip`` or any pickle: never unpickled (the message says how to convert a trusted one).
     """
-    try:
-        from stable_baselines3 import PPO
-    except ImportError as exc:  # pragma: no cover
-        raise ImportError("loading a PPO policy needs stable-baselines3 (pip install "
-                          "stable-baselines3)") from exc
-    meta = read_policy_meta(path)
-    model = PPO.load(path, device=device)
+    from .safe_files import load_model_file, refuse_unsafe
+
+    if os.path.isfile(path) and not str(path).endswith((".json", ".safetensors")):
+        refuse_unsafe(path)
+    mf = load_model_file(path)
+    meta = mf.meta
+    if meta.get("format") != POLICY_FORMAT:
+        raise ValueError(f"{path} is not a PPO policy file (format {meta.get('format')!r}, expected "
+                         f"{POLICY_FORMAT!r}); a learned compensator loads with agents.learned.load_learned")
+    arch = meta.get("architecture", {})
+    model = NumpyActor(mf.tensors, arch.get("activation_fn", "tanh"))
     tf = ObsTransform.from_dict(meta.get("obs_transform"))
     if name is None:
-        name = meta.get("name") or os.path.splitext(os.path.basename(path))[0]
+        name = meta.get("name") or os.path.splitext(os.path.basename(str(path)))[0]
     return PPOController(model, transform=tf, env_mode=meta.get("env_mode", "direct"),
                          env_overrides=meta.get("env_overrides", {}), name=name, meta=meta)

@@ -1,44 +1,36 @@
-"""Train a PPO policy from a YAML config: ``valve-gym train``.
+"""Train a policy from a YAML config: ``valve-gym train``.
 
-``valve-gym train --config configs/ppo_shipped.yaml [--out DIR] [--resume CKPT]
-[--timesteps N] [--seed S] [--vec-env native|dummy|subproc] [--no-progress]``
+``valve-gym train --config CONFIG [--out DIR] [--resume [CKPT] | --overwrite] [--seed S]
+[--generations N | --timesteps N] [--vec-env native|dummy|subproc] [--no-progress]``
 
-The config (see :class:`TrainConfig`; ``configs/ppo_shipped.yaml`` made the
-shipped direct policy, ``configs/ppo_residual.yaml`` is a residual one)
-holds rl-zoo style PPO hyperparameters (``ppo``: ``n_envs``, ``n_steps``,
-``batch_size``, ``gamma``, ``gae_lambda``, ``learning_rate``, ``ent_coef``,
-``policy_kwargs.net_arch``, ...), ``total_timesteps``, environment overrides
-(``env``: any key of :class:`valve_gym.config.EnvConfig`), the observation
-wrappers (``obs``: frame stacking, deltas; :class:`agents.ppo.ObsTransform`),
-checkpointing and evaluation settings. Unknown keys and mistyped values are
-errors that name the key path.
+Two kinds of config:
 
-The training environment is the native vector env
-(:class:`valve_gym.envs.ValveTankVectorEnv`, all ``n_envs`` loops in one
-kernel call) through the SB3 adapter, wrapped by SB3's ``VecMonitor`` (episode
-statistics) and :class:`agents.ppo.TransformVecEnv`.
+* ``configs/learned.yaml`` (``algorithm: es``): the learned stiction compensator, trained by
+  evolution strategies on the regulation task (:mod:`agents.es`, :mod:`agents.learned`). Writes
+  ``best.{safetensors,json}`` (best on validation; load with :func:`agents.learned.load_learned`),
+  ``final.*``, ``curve.csv`` (learning curve), ``checkpoints/latest.*``, ``config.yaml``,
+  ``summary.json``.
+* ``configs/ppo_*.yaml`` (:class:`TrainConfig`): a PPO policy (stable-baselines3) on
+  ``valve_gym/ValveTank-v0``. Writes ``final.*`` and ``best.*`` (``.safetensors`` + ``.json``;
+  load with :func:`agents.ppo.load_policy`), ``checkpoints/ckpt_<steps>.*`` and
+  ``checkpoints/latest.*`` (model, optimiser, reward normaliser, RNG states, step count),
+  ``tb/``, ``config.yaml``, ``eval.csv``, ``summary.json``.
 
-Written to ``--out`` (default ``runs/<name>``):
+Every file is safetensors weights plus JSON, written atomically; nothing is pickled.
 
-``final.zip``
-    The policy at the end of training (SB3 zip with the observation
-    transform and environment settings embedded; load with
-    :func:`agents.ppo.load_policy`).
-``best.zip``
-    The policy with the best mean return on the validation valves.
-``checkpoints/ckpt_<steps>.zip``, ``checkpoints/latest.zip``
-    Periodic checkpoints (written to a temporary file, then renamed with
-    :func:`os.replace`), for ``--resume``.
-``tb/``
-    TensorBoard logs (``tensorboard --logdir DIR/tb``).
-``config.yaml``, ``eval.csv``, ``summary.json``
-    The exact config, the held-out evaluation per valve, wall time and scores.
+Lifecycle: a non-empty ``--out`` is refused unless ``--resume`` (continue from
+``checkpoints/latest``, or from a given checkpoint) or ``--overwrite`` (delete the previous run's
+files; files a run does not write are never deleted). Resuming a finished run says so, exits 0
+and changes nothing. SIGINT/SIGTERM write a checkpoint of the last completed step and exit 1;
+``--resume`` continues. The learned compensator's resumed run equals the uninterrupted one bit for
+bit (checkpoints at generation boundaries); a resumed PPO run restores the model, optimiser,
+normaliser, RNG states and step count, and its environments start new episodes. Exit codes:
+0 done (or already done), 1 the work failed or was interrupted, 2 bad usage.
 
-Evaluation: every ``eval.every_steps`` the policy runs on validation valves
-drawn from the training range (``best.zip`` is chosen by their mean return);
-at the end ``final.zip`` and ``best.zip`` are compared with PI on those and on
-*held-out* valves outside the training range (``eval.heldout_z_max``,
-``eval.heldout_e_dead``).
+PPO evaluation: every ``eval.every_steps`` the policy runs on validation valves drawn from the
+training range (``best`` is chosen by their mean return); at the end ``final`` and ``best`` are
+compared with PI on those and on *held-out* valves outside the training range
+(``eval.heldout_z_max``, ``eval.heldout_e_dead``).
 """
 from __future__ import annotations
 
@@ -57,14 +49,14 @@ import numpy as np
 
 from valve_gym.config import read_yaml, ConfigError, EnvConfig, config_to_dict, load_config
 
-from .ppo import ObsTransform, read_policy_meta, save_policy
+from .ppo import ObsTransform
 
 __all__ = ["TrainConfig", "PPOHyper", "PolicyKwargs", "ObsConfig", "CheckpointConfig", "EvalConfig",
            "load_train_config", "make_vec_env", "train", "main", "ENV_OVERRIDE_KEYS"]
 
 Range = Tuple[float, float]
 
-#: Environment settings a policy needs wherever it is evaluated (stored in its zip).
+#: Environment settings a policy needs wherever it is evaluated (stored in its JSON).
 ENV_OVERRIDE_KEYS = ("action_mode", "residual_scale", "pi", "measure_stem", "control_period")
 
 
@@ -425,7 +417,7 @@ def make_model(cfg: TrainConfig, env, seed: int, tb_dir: Optional[str] = None):
 
 
 def policy_meta(cfg: TrainConfig, model, command: str, seed: int, wall_s: float = None) -> dict:
-    """Metadata embedded in every policy zip of a run."""
+    """Metadata stored in the JSON of every policy file of a run."""
     import stable_baselines3
 
     return {"name": cfg.name, "env_mode": cfg.env.action_mode, "env_overrides": env_overrides(cfg),
@@ -474,47 +466,139 @@ def _compare(df, ref):
             "travel_ratio_vs_pi": float(np.median(r_tr))}
 
 
-def _callbacks(cfg: TrainConfig, out: Path, command: str, seed: int):
+CKPT_FORMAT = "valve_gym.ppo_checkpoint/1"
+
+
+def _vecnormalize(venv):
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    v = venv
+    while v is not None:
+        if isinstance(v, VecNormalize):
+            return v
+        v = getattr(v, "venv", None)
+    return None
+
+
+def save_ppo_checkpoint(model, venv, path, meta: dict, finished: bool = False) -> str:
+    """Write everything a resume needs as ``path.safetensors`` + ``path.json`` (no pickle).
+
+    Weights of the policy, Adam's moment estimates and step counts, the reward normaliser's
+    running statistics (``VecNormalize``), the RNG states of torch, numpy's global generator
+    (SB3's minibatch order) and Python's ``random``, the step and update counts.
+    """
+    import random
+
+    import torch
+
+    from .ppo import policy_tensors
+    from .safe_files import save_model_file
+
+    t = {f"policy/{k}": v for k, v in policy_tensors(model).items()}
+    opt = model.policy.optimizer.state_dict()
+    for pid, st in opt["state"].items():
+        for k, v in st.items():
+            t[f"optim/{pid}/{k}"] = v.detach().cpu().numpy() if torch.is_tensor(v) else np.asarray(v)
+    t["rng/torch"] = torch.get_rng_state().numpy()
+    nps = np.random.get_state()
+    t["rng/numpy_keys"] = np.asarray(nps[1], dtype=np.uint32)
+    pys = random.getstate()
+    t["rng/python"] = np.asarray(pys[1], dtype=np.uint64)
+    norm = _vecnormalize(venv)
+    if norm is not None:
+        t["norm/ret_mean"] = np.asarray(norm.ret_rms.mean, float)
+        t["norm/ret_var"] = np.asarray(norm.ret_rms.var, float)
+        t["norm/returns"] = np.asarray(norm.returns, float)
+    groups = [{k: (v if isinstance(v, (int, float, bool, str, list)) or v is None else
+                   (list(v) if isinstance(v, tuple) else None)) for k, v in g.items()} for g in opt["param_groups"]]
+    j = {**meta, "format": CKPT_FORMAT, "num_timesteps": int(model.num_timesteps), "n_updates": int(model._n_updates),
+         "optim_param_groups": groups, "rng_numpy": [nps[0], int(nps[2]), int(nps[3]), float(nps[4])],
+         "rng_python": [pys[0], pys[2]], "norm_count": float(norm.ret_rms.count) if norm is not None else None,
+         "finished": bool(finished)}
+    return save_model_file(path, t, j)[1]
+
+
+def load_ppo_checkpoint(model, venv, path) -> dict:
+    """Restore a checkpoint of :func:`save_ppo_checkpoint` into ``model``/``venv``; returns its JSON."""
+    import random
+
+    import torch
+
+    from .safe_files import load_model_file
+
+    mf = load_model_file(path)
+    j, t = mf.meta, mf.tensors
+    if j.get("format") != CKPT_FORMAT:
+        raise ValueError(f"{path} is not a PPO training checkpoint (format {j.get('format')!r})")
+    sd = {k[len("policy/"):]: torch.from_numpy(v.copy()) for k, v in t.items() if k.startswith("policy/")}
+    model.policy.load_state_dict(sd)
+    state: dict = {}
+    for k, v in t.items():
+        if k.startswith("optim/"):
+            _, pid, name = k.split("/", 2)
+            state.setdefault(int(pid), {})[name] = torch.from_numpy(v.copy())
+    model.policy.optimizer.load_state_dict({"state": state, "param_groups": j["optim_param_groups"]})
+    torch.set_rng_state(torch.from_numpy(t["rng/torch"].copy()))
+    a, pos, hg, cg = j["rng_numpy"]
+    np.random.set_state((a, t["rng/numpy_keys"], pos, hg, cg))
+    random.setstate((j["rng_python"][0], tuple(int(x) for x in t["rng/python"]), j["rng_python"][1]))
+    norm = _vecnormalize(venv)
+    if norm is not None and "norm/ret_mean" in t:
+        norm.ret_rms.mean, norm.ret_rms.var = t["norm/ret_mean"], t["norm/ret_var"]
+        norm.ret_rms.count = j["norm_count"]
+    model.num_timesteps = int(j["num_timesteps"])
+    model._n_updates = int(j["n_updates"])
+    return j
+
+
+def _callbacks(cfg: TrainConfig, out: Path, command: str, seed: int, venv):
     from stable_baselines3.common.callbacks import BaseCallback
+
+    from .lifecycle import STOP
+    from .ppo import save_policy
 
     ckpt_dir = out / "checkpoints"
 
     class Checkpoint(BaseCallback):
-        """Atomic periodic checkpoints (tmp file + os.replace), keeping the last ``keep``."""
+        """Atomic periodic checkpoints (safetensors + JSON), keeping the last ``keep``; stops on SIGINT/SIGTERM."""
 
         def __init__(self):
             super().__init__()
             self.last = 0
-            self.saved = []
+            self.saved: list = []
 
         def _on_training_start(self):
             self.last = self.model.num_timesteps
 
         def _on_step(self) -> bool:
+            if STOP["flag"]:
+                return False
             if self.model.num_timesteps - self.last >= cfg.checkpoint.every_steps:
                 self.save()
             return True
 
-        def save(self):
+        def save(self, finished: bool = False):
             self.last = self.model.num_timesteps
             meta = policy_meta(cfg, self.model, command, seed)
-            p = save_policy(self.model, str(ckpt_dir / f"ckpt_{self.model.num_timesteps:09d}.zip"), meta)
-            save_policy(self.model, str(ckpt_dir / "latest.zip"), meta)
-            if p not in self.saved:
-                self.saved.append(p)
+            stem = ckpt_dir / f"ckpt_{self.model.num_timesteps:09d}"
+            save_ppo_checkpoint(self.model, venv, stem, meta, finished)
+            save_ppo_checkpoint(self.model, venv, ckpt_dir / "latest", meta, finished)
+            if stem not in self.saved:
+                self.saved.append(stem)
             while len(self.saved) > cfg.checkpoint.keep:
                 old = self.saved.pop(0)
-                if os.path.exists(old):
-                    os.unlink(old)
+                for ext in (".json", ".safetensors"):
+                    if old.with_suffix(ext).exists():
+                        old.with_suffix(ext).unlink()
 
     class Validate(BaseCallback):
-        """Validation on drawn valves; keeps ``best.zip`` by mean return."""
+        """Validation on drawn valves; keeps ``best`` by mean return."""
 
         def __init__(self):
             super().__init__()
             self.last = 0
             self.best = -np.inf
-            self.history = []
+            self.history: list = []
             self.valves, self.seeds = validation_valves(cfg)
 
         def _on_training_start(self):
@@ -533,14 +617,17 @@ def _callbacks(cfg: TrainConfig, out: Path, command: str, seed: int):
                                  "median_iae": float(df["iae"].median()),
                                  "median_valve_travel": float(df["valve_travel"].median())})
             self.logger.record("eval/mean_return", ret)
-            self.logger.record("eval/median_iae", float(df["iae"].median()))
-            self.logger.record("eval/median_valve_travel", float(df["valve_travel"].median()))
             if ret > self.best:
                 self.best = ret
-                save_policy(self.model, str(out / "best.zip"),
-                            policy_meta(cfg, self.model, command, seed))
+                save_policy(self.model, str(out / "best"), policy_meta(cfg, self.model, command, seed))
 
     return Checkpoint(), Validate()
+
+
+def _write_text(path: Path, text: str) -> None:
+    from valve_gym._io import write_atomic
+
+    write_atomic(path, lambda f: f.write(text.encode("utf-8")))
 
 
 def train(cfg: TrainConfig, out: Path, resume: Optional[str] = None, seed: Optional[int] = None,
@@ -552,19 +639,27 @@ def train(cfg: TrainConfig, out: Path, resume: Optional[str] = None, seed: Optio
     ----------
     cfg : TrainConfig
     out : Path, output folder
-    resume : str, optional, checkpoint zip to continue from (its observation
-        transform and action mode must match ``cfg``)
+    resume : str, optional, checkpoint (``checkpoints/latest.json``) to continue from; the model,
+        optimiser, reward normaliser, RNG states and step count are restored, the environments
+        start new episodes (seeded from the seed and the step count)
     seed : int, optional, overrides ``cfg.seed``
-    timesteps : int, optional, overrides ``cfg.total_timesteps`` (total, counting
-        the steps already in a resumed checkpoint)
+    timesteps : int, optional, overrides ``cfg.total_timesteps`` (total, counting the steps
+        already in a resumed checkpoint)
     progress : bool, show SB3's progress bar
     command : str, the command line, stored in the policy files
     vec_env : str, optional, overrides ``cfg.vec_env``
     final_eval : bool, compare final/best policy with PI at the end
+
+    Returns
+    -------
+    dict with ``status`` ``'finished'``, ``'already finished'`` or ``'interrupted'``.
     """
     import torch
     import yaml
     from stable_baselines3.common.callbacks import CallbackList
+
+    from .lifecycle import STOP, stop_on_signals
+    from .ppo import save_policy
 
     torch.set_num_threads(1)
     if seed is not None:
@@ -576,55 +671,59 @@ def train(cfg: TrainConfig, out: Path, resume: Optional[str] = None, seed: Optio
     if vec_env is not None:
         cfg = replace(cfg, vec_env=vec_env)
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    from .benchmark import _atomic_write_text
-
-    _atomic_write_text(out / "config.yaml", yaml.safe_dump(train_config_to_dict(cfg), sort_keys=False))
-    t0 = time.perf_counter()
-    env = build_training_env(cfg, cfg.seed)
-    tb_dir = str(out / "tb")
     if resume:
-        from stable_baselines3 import PPO
+        from .safe_files import load_model_file
 
-        meta = read_policy_meta(resume)
-        want = obs_transform(cfg).to_dict()
-        if meta and (meta.get("obs_transform") != want or meta.get("env_mode") != cfg.env.action_mode):
-            raise ValueError(
-                f"checkpoint {resume} was trained with obs_transform={meta.get('obs_transform')} and "
-                f"env_mode={meta.get('env_mode')!r}, but the config asks for {want} and "
-                f"{cfg.env.action_mode!r}; resume with the config of that run")
-        model = PPO.load(resume, env=env, device="cpu", tensorboard_log=tb_dir)
-        done = int(model.num_timesteps)
-        print(f"resuming from {resume} at {done} steps")
-    else:
-        model = make_model(cfg, env, cfg.seed, tb_dir)
-        done = 0
-    remaining = cfg.total_timesteps - done
-    ckpt, val = _callbacks(cfg, out, command, cfg.seed)
-    t_learn = time.perf_counter()
-    if remaining > 0:
-        model.learn(total_timesteps=remaining, callback=CallbackList([ckpt, val]), tb_log_name=cfg.name,
-                    reset_num_timesteps=not resume, progress_bar=progress)
-    learn_s = time.perf_counter() - t_learn
+        j = load_model_file(resume).meta
+        if j.get("finished") and int(j.get("num_timesteps", 0)) >= cfg.total_timesteps:
+            return {"status": "already finished", "total_timesteps": int(j["num_timesteps"])}
+    out.mkdir(parents=True, exist_ok=True)
+    if not resume:
+        _write_text(out / "config.yaml", yaml.safe_dump(train_config_to_dict(cfg), sort_keys=False))
+    t0 = time.perf_counter()
+    done = 0
+    model, env = None, None
+    with stop_on_signals():
+        env = build_training_env(cfg, cfg.seed)
+        model = make_model(cfg, env, cfg.seed, str(out / "tb"))
+        if resume:
+            j = load_ppo_checkpoint(model, env, resume)
+            if j.get("obs_transform") != obs_transform(cfg).to_dict() or j.get("env_mode") != cfg.env.action_mode:
+                raise ValueError(f"checkpoint {resume} was trained with another observation transform or action "
+                                 f"mode; resume with the config of that run")
+            done = int(model.num_timesteps)
+            env.seed(cfg.seed + done)
+            print(f"resuming from {resume} at {done} steps")
+        ckpt, val = _callbacks(cfg, out, command, cfg.seed, env)
+        t_learn = time.perf_counter()
+        remaining = cfg.total_timesteps - done
+        if remaining > 0:
+            model.learn(total_timesteps=remaining, callback=CallbackList([ckpt, val]), tb_log_name=cfg.name,
+                        reset_num_timesteps=not resume, progress_bar=progress)
+        learn_s = time.perf_counter() - t_learn
+        if STOP["flag"]:
+            ckpt.save()
+            env.close()
+            return {"status": "interrupted", "total_timesteps": int(model.num_timesteps), "signal": STOP["signal"]}
     steps = int(model.num_timesteps) - done
     if cfg.eval.every_steps:
-        val.run()                      # the final policy competes for best.zip too
+        val.run()                      # the final policy competes for best too
     wall_train = time.perf_counter() - t0
     meta = policy_meta(cfg, model, command, cfg.seed, wall_s=wall_train)
-    final_path = save_policy(model, str(out / "final.zip"), meta)
-    ckpt.save()
-    if not (out / "best.zip").exists():
-        save_policy(model, str(out / "best.zip"), meta)
+    final_path = save_policy(model, str(out / "final"), meta)
+    if not (out / "best.json").exists():
+        save_policy(model, str(out / "best"), meta)
+    ckpt.save(finished=True)
     env.close()
-    summary = {"name": cfg.name, "command": command, "seed": cfg.seed,
+    summary = {"status": "finished", "name": cfg.name, "command": command, "seed": cfg.seed,
                "total_timesteps": int(model.num_timesteps), "steps_this_run": steps,
                "learn_seconds": learn_s, "env_steps_per_second": steps / learn_s if learn_s > 0 else None,
                "train_wall_seconds": wall_train, "validation_history": val.history,
-               "final": str(final_path), "best": str(out / "best.zip")}
+               "final": str(final_path), "best": str(out / "best.json")}
     if final_eval:
         summary.update(_final_eval(cfg, out, model))
     summary["wall_seconds"] = time.perf_counter() - t0
-    _atomic_write_text(out / "summary.json", json.dumps(summary, indent=1, default=str))
+    _write_text(out / "summary.json", json.dumps(summary, indent=1, default=str))
     return summary
 
 
@@ -635,13 +734,11 @@ def _final_eval(cfg: TrainConfig, out: Path, model) -> dict:
     from .pi import PIController
     from .ppo import load_policy
 
-    from .benchmark import _atomic_write_text
-
     sets = {"validation": validation_valves(cfg)}
     if cfg.eval.heldout_n > 0:
         sets["heldout"] = heldout_valves(cfg)
     ctrls = {"pi": PIController(Ts=cfg.env.control_period), "final": _controller(cfg, model, "final"),
-             "best": load_policy(str(out / "best.zip"), name="best")}
+             "best": load_policy(str(out / "best.json"), name="best")}
     frames, res = [], {}
     for sname, (valves, seeds) in sets.items():
         dfs = {}
@@ -655,65 +752,151 @@ def _final_eval(cfg: TrainConfig, out: Path, model) -> dict:
             res[f"{sname}_{cname}"] = _compare(dfs[cname], dfs["pi"])
         res[f"{sname}_pi"] = {"mean_return": float(dfs["pi"]["return"].mean()),
                               "median_iae": float(dfs["pi"]["iae"].median())}
-    _atomic_write_text(out / "eval.csv", pd.concat(frames, ignore_index=True).to_csv(index=False))
+    _write_text(out / "eval.csv", pd.concat(frames, ignore_index=True).to_csv(index=False))
     return {"eval": res}
 
 
 # --------------------------------------------------------------------------- CLI
+class UsageError(ValueError):
+    """Bad usage of ``valve-gym train`` (exit code 2)."""
+
+
 def _parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="valve-gym train",
-                                description="Train a PPO policy (stable-baselines3) from a YAML config.")
-    p.add_argument("--config", required=True, help="training YAML, e.g. configs/ppo_shipped.yaml")
-    p.add_argument("--out", default=None, help="output folder (default: runs/<name>)")
-    p.add_argument("--resume", default=None, metavar="CKPT", help="checkpoint .zip to continue from")
-    p.add_argument("--timesteps", type=int, default=None, help="override total_timesteps")
+    p = argparse.ArgumentParser(
+        prog="valve-gym train",
+        description="Train a policy from a YAML config: the learned stiction compensator "
+                    "(configs/learned.yaml, evolution strategies on the regulation task) or a PPO policy "
+                    "(configs/ppo_*.yaml). Exit codes: 0 done (or already done), 1 the training failed or "
+                    "was interrupted (a checkpoint was written), 2 bad usage.")
+    p.add_argument("--config", required=True, help="training YAML, e.g. configs/learned.yaml")
+    p.add_argument("--out", default=None, help="output folder (default: runs/<name>); must be empty or "
+                                                "absent unless --resume or --overwrite")
+    p.add_argument("--resume", nargs="?", const="auto", default=None, metavar="CKPT",
+                   help="continue the run in --out from its latest checkpoint (or from CKPT, a "
+                        ".safetensors/.json checkpoint); a finished run is left unchanged")
+    p.add_argument("--overwrite", action="store_true",
+                   help="delete the previous run's files in --out and start afresh")
+    p.add_argument("--timesteps", type=int, default=None, help="override total_timesteps (PPO)")
+    p.add_argument("--generations", type=int, default=None, help="override es.generations (learned compensator)")
     p.add_argument("--seed", type=int, default=None, help="override the seed")
     p.add_argument("--vec-env", choices=("native", "dummy", "subproc"), default=None,
-                   help="override the vectorisation (default from the config: native)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.add_argument("--no-final-eval", action="store_true", help="skip the comparison with PI at the end")
+                   help="override the vectorisation of PPO (default from the config: native)")
+    p.add_argument("--no-progress", action="store_true", help="no progress output")
+    p.add_argument("--no-final-eval", action="store_true", help="skip the comparison with PI at the end (PPO)")
     return p
 
 
-def _print_summary(s: dict) -> None:
-    print(f"\n{s['name']}: {s['total_timesteps']} steps; learning {s['learn_seconds']:.1f} s "
-          f"({(s['env_steps_per_second'] or 0):.0f} env-steps/s); training wall time "
-          f"{s['train_wall_seconds']:.1f} s ({s['train_wall_seconds'] / 60:.2f} min); total "
-          f"{s['wall_seconds']:.1f} s")
-    ev = s.get("eval", {})
-    if ev:
-        print("\n| set | policy | mean return | median IAE [m s] | IAE reduction vs PI | valve travel vs PI |")
-        print("|---|---|---|---|---|---|")
-        for key, v in ev.items():
-            sname, cname = key.rsplit("_", 1)
-            red = v.get("iae_reduction_vs_pi")
-            tr = v.get("travel_ratio_vs_pi")
-            print(f"| {sname} | {cname} | {v['mean_return']:.1f} | {v['median_iae']:.2f} | "
-                  f"{'' if red is None else f'{100 * red:+.1f} %'} | {'' if tr is None else f'{tr:.2f}x'} |")
-    print(f"\npolicy: {s['final']} (best on validation: {s['best']})")
+#: Files and folders a training run writes into --out (what --overwrite removes).
+RUN_FILES = ("config.yaml", "summary.json", "eval.csv", "curve.csv", "final.safetensors", "final.json",
+             "best.safetensors", "best.json", "checkpoints", "tb")
+
+
+def prepare_out(out: Path, resume: Optional[str], overwrite: bool) -> Optional[Path]:
+    """Check ``--out`` against ``--resume``/``--overwrite``; returns the checkpoint to resume from (or None).
+
+    Raises
+    ------
+    UsageError
+        A non-empty ``out`` without ``--resume`` or ``--overwrite``, both flags, a missing checkpoint,
+        or ``--overwrite`` on a folder with files a run does not write (nothing is deleted then).
+    """
+    import shutil
+
+    if resume and overwrite:
+        raise UsageError("--resume and --overwrite exclude each other: continue the run or start afresh")
+    if out.exists() and not out.is_dir():
+        raise UsageError(f"--out {out} is a file; give a folder")
+    entries = sorted(x.name for x in out.iterdir()) if out.is_dir() else []
+    if resume:
+        ck = out / "checkpoints" / "latest.json" if resume == "auto" else Path(resume)
+        if not ck.is_file():
+            raise UsageError(f"no checkpoint to resume: {ck} does not exist (train without --resume first)")
+        return ck
+    if entries and not overwrite:
+        raise UsageError(f"--out {out} is not empty ({', '.join(entries[:5])}{' ...' if len(entries) > 5 else ''}); "
+                         f"pass --resume to continue that run, --overwrite to replace it, or another --out")
+    if entries:
+        foreign = [e for e in entries if e not in RUN_FILES and not e.startswith(".")]
+        if foreign:
+            raise UsageError(f"--overwrite would delete files that a training run does not write in {out}: "
+                             f"{', '.join(foreign[:5])}; move them or choose another --out (nothing was deleted)")
+        for e in entries:
+            q = out / e
+            shutil.rmtree(q) if q.is_dir() else q.unlink()
+    return None
+
+
+def _raw_algorithm(path: str) -> str:
+    data = read_yaml(Path(path), "training config")
+    if isinstance(data, Mapping) and data.get("algorithm") is not None:
+        return str(data.get("algorithm"))
+    return "ppo"
+
+
+def _main_learned(args, command: str) -> int:
+    from .es import load_learned_train_config, summary_json, train_learned
+    from valve_gym._io import write_atomic
+
+    cfg = load_learned_train_config(args.config)
+    out = Path(args.out) if args.out else Path("runs") / cfg.name
+    ck = prepare_out(out, args.resume, args.overwrite)
+    if ck is None:
+        out.mkdir(parents=True, exist_ok=True)
+        import yaml
+
+        from valve_gym.config import config_to_dict
+
+        text = yaml.safe_dump(config_to_dict(cfg), sort_keys=False)
+        write_atomic(out / "config.yaml", lambda f: f.write(text.encode()))
+    s = train_learned(cfg, out, resume=ck, seed=args.seed, generations=args.generations, command=command,
+                      progress=not args.no_progress)
+    if s["status"] == "already finished":
+        print(f"valve-gym train: the run in {out} is already finished ({s['gen']} generations); nothing changed")
+        return 0
+    write_atomic(out / "summary.json", lambda f: f.write(summary_json(s).encode()))
+    if s["status"] == "interrupted":
+        print(f"valve-gym train: interrupted by signal {s['signal']} at generation {s['gen']}; checkpoint written "
+              f"to {out / 'checkpoints' / 'latest.json'}; continue with --resume", file=sys.stderr)
+        return 1
+    print(f"\n{cfg.name}: {s['gen']} generations, {s['env_steps']} env steps, training wall time "
+          f"{s['train_wall_s']:.1f} s ({s['train_wall_s'] / 60:.2f} min)\nlearned block: {out / 'best.json'} "
+          f"(best on validation), {out / 'final.json'} (last); learning curve: {out / 'curve.csv'}")
+    return 0
 
 
 def main(argv=None) -> int:
-    """``valve-gym train``."""
+    """``valve-gym train``; returns the exit code (0 done, 1 failed or interrupted, 2 bad usage)."""
     args = _parser().parse_args(argv)
-    try:
-        cfg = load_train_config(args.config)
-    except ConfigError as exc:
-        print(f"valve-gym train: bad config: {exc}", file=sys.stderr)
-        return 2
-    if args.resume and not os.path.isfile(args.resume):
-        print(f"valve-gym train: checkpoint not found: {args.resume}", file=sys.stderr)
-        return 2
-    out = Path(args.out) if args.out else Path("runs") / cfg.name
     argv_list = list(sys.argv[1:] if argv is None else argv)
     command = "valve-gym train " + " ".join(shlex.quote(a) for a in argv_list)
     try:
-        s = train(cfg, out, resume=args.resume, seed=args.seed, timesteps=args.timesteps,
-                  progress=not args.no_progress, command=command, vec_env=args.vec_env,
-                  final_eval=not args.no_final_eval)
-    except ValueError as exc:
+        algo = _raw_algorithm(args.config)
+        if algo == "es":
+            return _main_learned(args, command)
+        return _main_ppo(args, command)
+    except (ConfigError, UsageError) as exc:
         print(f"valve-gym train: {exc}", file=sys.stderr)
         return 2
+    except (ValueError, OSError) as exc:
+        print(f"valve-gym train: {exc}", file=sys.stderr)
+        return 1
+
+
+def _main_ppo(args, command: str) -> int:
+    cfg = load_train_config(args.config)
+    out = Path(args.out) if args.out else Path("runs") / cfg.name
+    ck = prepare_out(out, args.resume, args.overwrite)
+    s = train(cfg, out, resume=None if ck is None else str(ck), seed=args.seed, timesteps=args.timesteps,
+              progress=not args.no_progress, command=command, vec_env=args.vec_env,
+              final_eval=not args.no_final_eval)
+    if s.get("status") == "already finished":
+        print(f"valve-gym train: the run in {out} is already finished ({s['total_timesteps']} steps); "
+              f"nothing changed")
+        return 0
+    if s.get("status") == "interrupted":
+        print(f"valve-gym train: interrupted at {s['total_timesteps']} steps; checkpoint written to "
+              f"{out / 'checkpoints' / 'latest.json'}; continue with --resume", file=sys.stderr)
+        return 1
     _print_summary(s)
     return 0
 

@@ -8,8 +8,12 @@ Registered ids (after ``import valve_gym``, or as ``"valve_gym:<id>"`` without i
 ``valve_gym/ValveTankFixed-v0``
     The same task with one fixed sticky valve and deterministic episodes, for
     teaching and debugging (``preset='fixed'``).
+``valve_gym/ValveTankRegulation-v0``
+    Regulation at a constant set point with a randomised sticky valve, OU load and noise
+    (:class:`ValveTankRegulationEnv`, native vector env :class:`ValveTankRegulationVectorEnv`);
+    the agent is the inside of a PI block (task rules in :mod:`valve_gym.envs.regulation`).
 
-Both truncate after 600 steps (``max_episode_steps``) and support
+The first two truncate after 600 steps (``max_episode_steps``) and support
 ``gymnasium.make_vec(..., vectorization_mode="vector_entry_point")``.
 :class:`~valve_gym.envs.sb3.SB3VecEnv` (imported on first use, it needs
 stable-baselines3) adapts the vector env to Stable-Baselines3.
@@ -17,13 +21,14 @@ stable-baselines3) adapts the vector env to Stable-Baselines3.
 from __future__ import annotations
 
 from .valve_tank import ValveTankEnv, draw_episodes, make_config
+from .regulation_env import ValveTankRegulationEnv, ValveTankRegulationVectorEnv
 from .vector import ValveTankVectorEnv
 
-__all__ = ["ValveTankEnv", "ValveTankVectorEnv", "SB3VecEnv", "register_envs", "ENV_IDS",
+__all__ = ["ValveTankEnv", "ValveTankVectorEnv", "ValveTankRegulationEnv", "ValveTankRegulationVectorEnv", "SB3VecEnv", "register_envs", "ENV_IDS",
            "draw_episodes", "make_config"]
 
 #: The registered environment ids.
-ENV_IDS = ("valve_gym/ValveTank-v0", "valve_gym/ValveTankFixed-v0")
+ENV_IDS = ("valve_gym/ValveTank-v0", "valve_gym/ValveTankFixed-v0", "valve_gym/ValveTankRegulation-v0")
 
 
 def register_envs() -> None:
@@ -45,6 +50,15 @@ def register_envs() -> None:
             vector_entry_point="valve_gym.envs.vector:ValveTankVectorEnv",
             max_episode_steps=steps,
             kwargs=kwargs,
+        )
+    if "valve_gym/ValveTankRegulation-v0" not in gymnasium.registry:
+        from .regulation import RegulationConfig
+
+        gymnasium.register(
+            id="valve_gym/ValveTankRegulation-v0",
+            entry_point="valve_gym.envs.regulation_env:ValveTankRegulationEnv",
+            vector_entry_point="valve_gym.envs.regulation_env:ValveTankRegulationVectorEnv",
+            max_episode_steps=RegulationConfig().steps,
         )
 
 

@@ -1,0 +1,522 @@
+"""Training of the learned compensator by evolution strategies on the regulation task.
+
+``valve-gym train --config configs/learned.yaml --out runs/learned --seed S``
+
+The policy is the network inside the learned block (:mod:`agents.learned`); it is trained by
+natural evolution strategies with antithetic sampling, centred-rank fitness shaping and Adam
+(Salimans et al. 2017), a policy-search reinforcement-learning method that optimises the
+episode's return directly, with deterministic policies, common random numbers for the whole
+population (every perturbation meets the same loops), and no value function. Each generation
+runs ``2 * pairs`` perturbed networks, the current network and the plain PI on
+``scenarios`` regulation loops of the native vector env
+(:class:`valve_gym.envs.ValveTankRegulationVectorEnv`, all in one batch).
+
+Fitness of a network on a batch of loops (higher is better)::
+
+    f = -mean_b l_b - travel_penalty * mean_b travel_b / hours
+        - reversal_weight * mean_b r_b
+    l_b = log(IAE_b / IAE_PI,b)             (max(., 0) on healthy valves)
+    r_b = log((rev_b + 1) / (rev_PI,b + 1))  (0 on healthy valves)
+
+with the IAE of the true level, the stem travel (strokes) and the stem reversals (privileged
+signals: only the policy's inputs are restricted), each against the plain PI on the same loop.
+The log ratios weigh a healthy valve as much as a severe one; on healthy valves only a loss
+against the PI counts (the block is not rewarded for out-tuning the PI where there is no
+stiction), and on sticky valves fewer stem reversals than the PI's (fewer stick-slip cycles)
+are rewarded beside a lower IAE.
+
+References
+----------
+.. [1] T. Salimans, J. Ho, X. Chen, S. Sidor, I. Sutskever, "Evolution strategies as a scalable
+   alternative to reinforcement learning", arXiv:1703.03864, 2017.
+.. [2] D. Wierstra et al., "Natural evolution strategies", JMLR 15 (2014) 949-980.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import NamedTuple, Optional, Tuple
+
+import numpy as np
+
+from valve_gym.config import ConfigError, config_to_dict, load_config
+from valve_gym.envs.regulation import N_ACT, N_OBS, RegulationConfig, pi_action
+
+from .lifecycle import STOP, stop_on_signals
+from .learned import MLPSpec, mlp_forward, normalise, save_learned, unflatten
+from .safe_files import load_model_file, save_model_file
+
+__all__ = ["ESHyper", "ESEvalConfig", "LearnedTrainConfig", "load_learned_train_config", "train_learned",
+           "rollout_scores", "RolloutScores", "Interrupted"]
+
+
+@dataclass(frozen=True)
+class ESHyper:
+    """Evolution-strategies settings.
+
+    Parameters
+    ----------
+    generations : int
+        Updates of the network.
+    pairs : int
+        Antithetic perturbation pairs per generation.
+    scenarios : int
+        Loops each network runs per generation (the same for all, common random numbers).
+    sigma : float
+        Standard deviation of the parameter perturbations.
+    learning_rate : float
+        Adam step size.
+    weight_decay : float
+        L2 decay of the parameters per update (times the learning rate).
+    hidden : list of int
+        Hidden layer sizes of the tanh network.
+    travel_penalty : float
+        Fitness cost per stroke per hour of stem travel (in log-IAE units).
+    reversal_weight : float
+        Fitness weight of ``log((reversals + 1) / (reversals_PI + 1))`` of the stem on sticky valves
+        (each reversal is half a stick-slip cycle).
+    episode_s : float, s
+        Episode length used in training (the task's ``episode_s`` is used for validation).
+    """
+
+    generations: int = 300
+    pairs: int = 16
+    scenarios: int = 12
+    sigma: float = 0.05
+    learning_rate: float = 0.01
+    weight_decay: float = 0.005
+    hidden: Tuple[int, ...] = (32, 32)
+    travel_penalty: float = 0.01
+    reversal_weight: float = 0.25
+    episode_s: float = 1200.0
+
+    def __post_init__(self):
+        for nm in ("generations", "pairs", "scenarios"):
+            v = getattr(self, nm)
+            if not (isinstance(v, int) and v >= 1):
+                raise ConfigError(f"es.{nm} must be an integer >= 1, got {v!r}")
+        for nm in ("sigma", "learning_rate", "episode_s"):
+            if not getattr(self, nm) > 0:
+                raise ConfigError(f"es.{nm} must be > 0, got {getattr(self, nm)!r}")
+        if self.weight_decay < 0 or self.travel_penalty < 0 or self.reversal_weight < 0:
+            raise ConfigError("es.weight_decay, es.travel_penalty and es.reversal_weight must be >= 0")
+        if not self.hidden or any((not isinstance(h, int)) or h < 1 for h in self.hidden):
+            raise ConfigError(f"es.hidden must be a list of positive layer sizes, got {self.hidden!r}")
+
+
+@dataclass(frozen=True)
+class ESEvalConfig:
+    """Validation: every ``every`` generations on ``n_loops`` fixed loops with seeds ``seed + i``.
+
+    The seeds are disjoint from the training seeds (drawn from the run's seed) and from the
+    benchmark's; the best network on validation is kept as ``best``.
+    """
+
+    every: int = 10
+    n_loops: int = 48
+    seed: int = 700_000
+
+    def __post_init__(self):
+        if self.every < 1 or self.n_loops < 1:
+            raise ConfigError("eval.every and eval.n_loops must be >= 1")
+
+
+@dataclass(frozen=True)
+class LearnedTrainConfig:
+    """A training run of the learned compensator (YAML: ``configs/learned.yaml``).
+
+    Parameters
+    ----------
+    algorithm : 'es'
+    name : str
+    seed : int
+    checkpoint_every : int
+        Generations between checkpoints (also written on SIGINT/SIGTERM and at the end).
+    task : RegulationConfig
+    es : ESHyper
+    eval : ESEvalConfig
+    """
+
+    algorithm: str = "es"
+    name: str = "learned"
+    seed: int = 0
+    checkpoint_every: int = 10
+    task: RegulationConfig = field(default_factory=RegulationConfig)
+    es: ESHyper = field(default_factory=ESHyper)
+    eval: ESEvalConfig = field(default_factory=ESEvalConfig)
+
+    def __post_init__(self):
+        if self.algorithm != "es":
+            raise ConfigError(f"algorithm must be 'es' for the learned compensator, got {self.algorithm!r}")
+        if self.checkpoint_every < 1:
+            raise ConfigError("checkpoint_every must be >= 1")
+        if not self.name or any(c in self.name for c in "/\\ "):
+            raise ConfigError(f"name must be a word without slashes or spaces, got {self.name!r}")
+
+
+def load_learned_train_config(path_or_dict) -> LearnedTrainConfig:
+    """Load a :class:`LearnedTrainConfig` (unknown keys and bad values name the key path)."""
+    return load_config(path_or_dict, cls=LearnedTrainConfig)
+
+
+# --------------------------------------------------------------------------- rollouts
+class Interrupted(Exception):
+    """Raised inside a rollout when SIGINT/SIGTERM asked the run to stop."""
+
+
+class RolloutScores(NamedTuple):
+    """Scores of ``P`` policies on ``B`` loops.
+
+    Fields
+    ------
+    iae : (P, B) IAE of the true level [m s]
+    travel : (P, B) stem travel [strokes]
+    reversals : (P, B) stem reversals (moves back by more than :data:`REVERSAL_DEADBAND`)
+    obs : (N_OBS,) mean and (N_OBS,) std of the observations (of the last policy)
+    S : (B,) stick band of each loop [fraction of stroke]
+    """
+
+    iae: np.ndarray
+    travel: np.ndarray
+    reversals: np.ndarray
+    obs_mean: np.ndarray
+    obs_std: np.ndarray
+    S: np.ndarray
+
+
+#: Stem moves smaller than this (fraction of stroke) do not count as reversals.
+REVERSAL_DEADBAND = 0.001
+
+
+class _Reversals:
+    """Running count of direction reversals of ``n`` signals with a dead band (hysteresis)."""
+
+    def __init__(self, n: int, deadband: float):
+        self.db = deadband
+        self.ext = None
+        self.dir = np.zeros(n)
+        self.count = np.zeros(n)
+
+    def update(self, x: np.ndarray) -> None:
+        """Take the next sample ``x`` (n,)."""
+        if self.ext is None:
+            self.ext = x.copy()
+            return
+        d = x - self.ext
+        turn = ((self.dir > 0) & (d < -self.db)) | ((self.dir < 0) & (d > self.db))
+        start = (self.dir == 0) & (np.abs(d) > self.db)
+        self.count += turn
+        new_dir = np.where(turn | start, np.sign(d), self.dir)
+        follow = ((new_dir > 0) & (x > self.ext)) | ((new_dir < 0) & (x < self.ext)) | turn | start
+        self.ext = np.where(follow, x, self.ext)
+        self.dir = new_dir
+
+
+def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None) -> RolloutScores:
+    """Run ``P`` policies on the loops of ``seeds`` (B,), all in one vector env of ``P * B`` loops.
+
+    Parameters
+    ----------
+    policies : list
+        Each ``None`` (the plain PI) or a weights dict of :func:`agents.learned.mlp_forward`.
+    task : RegulationConfig
+    seeds : sequence of int
+    obs_norm : (mean, std), optional
+        Observation normaliser of the networks.
+    """
+    from valve_gym.envs.regulation_env import ValveTankRegulationVectorEnv
+
+    P, B = len(policies), len(seeds)
+    env = ValveTankRegulationVectorEnv(P * B, task)
+    obs, info = env.reset(seed=[int(s) for p in range(P) for s in seeds])
+    nets = [i for i, w in enumerate(policies) if w is not None]
+    stacked = None
+    if nets:
+        stacked = {k: np.stack([policies[i][k] for i in nets]) for k in policies[nets[0]]}
+    mean, std = (np.zeros(N_OBS), np.ones(N_OBS)) if obs_norm is None else obs_norm
+    act = np.tile(pi_action(1), (P * B, 1)).reshape(P, B, N_ACT)
+    iae = np.zeros(P * B)
+    trav = np.zeros(P * B)
+    rev = _Reversals(P * B, REVERSAL_DEADBAND)
+    stem = None
+    s1 = np.zeros(N_OBS)
+    s2 = np.zeros(N_OBS)
+    for _ in range(task.steps):
+        if STOP["flag"]:
+            raise Interrupted()
+        o = obs.reshape(P, B, N_OBS).astype(np.float64)
+        s1 += o[-1].sum(0)
+        s2 += (o[-1] ** 2).sum(0)
+        if stacked is not None:
+            act[nets] = mlp_forward(stacked, normalise(o[nets], mean, std))
+        obs, r, term, trunc, inf = env.step(act.reshape(P * B, N_ACT))
+        st = inf["final_info"]["stem"] if "final_info" in inf else inf["stem"]
+        lv = inf["final_info"]["level"] if "final_info" in inf else inf["level"]
+        sp = inf["final_info"]["setpoint"] if "final_info" in inf else inf["setpoint"]
+        iae += np.abs(sp - lv) * task.block.scan_s
+        if stem is not None:
+            trav += np.abs(st - stem)
+        rev.update(st)
+        stem = st
+    m = s1 / (B * task.steps)
+    sd = np.sqrt(np.maximum(s2 / (B * task.steps) - m * m, 0.0))
+    return RolloutScores(iae=iae.reshape(P, B), travel=trav.reshape(P, B), reversals=rev.count.reshape(P, B),
+                         obs_mean=m, obs_std=sd, S=np.asarray(info["S"]).reshape(P, B)[0])
+
+
+def fitness(sc: RolloutScores, ref_iae: np.ndarray, ref_rev: np.ndarray, hyper: ESHyper, hours: float,
+            healthy_max: float = 0.005) -> np.ndarray:
+    """Fitness (P,) of scored policies against the PI's IAE ``ref_iae`` (B,) (see the module docstring).
+
+    On healthy valves (``S <= healthy_max``) only a loss against the PI counts (``max(log ratio, 0)``),
+    and stem reversals count on the sticky valves only, against the PI's (``ref_rev``, (B,)).
+    """
+    lr = np.log(np.maximum(sc.iae, 1e-9) / np.maximum(ref_iae, 1e-9)[None, :])
+    healthy = (sc.S <= healthy_max)[None, :]
+    lr = np.where(healthy, np.maximum(lr, 0.0), lr)
+    rr = np.where(healthy, 0.0, np.log((sc.reversals + 1.0) / (ref_rev[None, :] + 1.0)))
+    return -lr.mean(1) - hyper.travel_penalty * sc.travel.mean(1) / hours - hyper.reversal_weight * rr.mean(1)
+
+
+def centered_ranks(f: np.ndarray) -> np.ndarray:
+    """Ranks of ``f`` mapped to [-0.5, 0.5] (fitness shaping)."""
+    r = np.empty(len(f))
+    r[np.argsort(f, kind="stable")] = np.arange(len(f))
+    return r / max(len(f) - 1, 1) - 0.5
+
+
+# --------------------------------------------------------------------------- state
+@dataclass
+class ESState:
+    """Everything a resume needs (written to the checkpoint)."""
+
+    theta: np.ndarray
+    m: np.ndarray
+    v: np.ndarray
+    best_theta: np.ndarray
+    obs_mean: np.ndarray
+    obs_std: np.ndarray
+    gen: int = 0
+    env_steps: int = 0
+    best_score: float = -math.inf
+    wall_s: float = 0.0
+    rng_state: dict = field(default_factory=dict)
+    curve: list = field(default_factory=list)
+    finished: bool = False
+
+    def save(self, path: Path, meta: dict) -> None:
+        """Write the checkpoint atomically (safetensors + JSON; the JSON last)."""
+        t = {"theta": self.theta, "adam_m": self.m, "adam_v": self.v, "best_theta": self.best_theta,
+             "obs_mean": self.obs_mean, "obs_std": self.obs_std}
+        j = {"format": "valve_gym.es_checkpoint/1", "gen": self.gen, "env_steps": self.env_steps,
+             "best_score": self.best_score if math.isfinite(self.best_score) else None, "wall_s": self.wall_s,
+             "rng_state": self.rng_state, "curve": self.curve, "finished": self.finished, **meta}
+        save_model_file(path, t, j)
+
+    @classmethod
+    def load(cls, path: Path) -> Tuple["ESState", dict]:
+        """Read a checkpoint written by :meth:`save` (never unpickles)."""
+        mf = load_model_file(path)
+        j, t = mf.meta, mf.tensors
+        if j.get("format") != "valve_gym.es_checkpoint/1":
+            raise ValueError(f"{path} is not a learned-compensator training checkpoint")
+        bs = j.get("best_score")
+        st = cls(theta=t["theta"], m=t["adam_m"], v=t["adam_v"], best_theta=t["best_theta"],
+                 obs_mean=t["obs_mean"], obs_std=t["obs_std"], gen=int(j["gen"]), env_steps=int(j["env_steps"]),
+                 best_score=-math.inf if bs is None else float(bs), wall_s=float(j["wall_s"]),
+                 rng_state=j["rng_state"], curve=list(j["curve"]), finished=bool(j["finished"]))
+        return st, j
+
+
+def init_state(cfg: LearnedTrainConfig, seed: int) -> ESState:
+    """A fresh run: Xavier-initialised hidden layers, output layer 0 with gate bias 3 (the plain PI)."""
+    spec = MLPSpec(cfg.es.hidden)
+    rng = np.random.default_rng([seed, 1])
+    theta = np.zeros(spec.n_params)
+    w = unflatten(spec, theta)
+    last = len(spec.sizes) - 2
+    for i, (a, b) in enumerate(zip(spec.sizes[:-1], spec.sizes[1:])):
+        if i < last:
+            w[f"W{i}"][...] = rng.standard_normal((a, b)) / math.sqrt(a)
+    w[f"b{last}"][0] = 3.0
+    # observation normaliser from PI loops on their own seeds
+    seeds = [int(s) for s in np.random.default_rng([seed, 2]).integers(0, 2**31, 16)]
+    sc = rollout_scores([None], _train_task(cfg), seeds)
+    std = np.maximum(sc.obs_std, 0.25)
+    rng_state = np.random.default_rng([seed, 3]).bit_generator.state
+    return ESState(theta=theta, m=np.zeros_like(theta), v=np.zeros_like(theta), best_theta=theta.copy(),
+                   obs_mean=sc.obs_mean, obs_std=std, rng_state=rng_state)
+
+
+def _train_task(cfg: LearnedTrainConfig) -> RegulationConfig:
+    from dataclasses import replace
+
+    return replace(cfg.task, episode_s=cfg.es.episode_s)
+
+
+# --------------------------------------------------------------------------- one generation
+def es_generation(st: ESState, cfg: LearnedTrainConfig) -> dict:
+    """One update of ``st`` in place; returns the curve row of the training batch."""
+    h = cfg.es
+    spec = MLPSpec(h.hidden)
+    rng = np.random.default_rng()
+    rng.bit_generator.state = st.rng_state
+    eps = rng.standard_normal((h.pairs, spec.n_params))
+    seeds = rng.integers(0, 2**31, h.scenarios)
+    pop = np.concatenate([st.theta + h.sigma * eps, st.theta - h.sigma * eps, st.theta[None]])
+    task = _train_task(cfg)
+    pols = [unflatten(spec, p) for p in pop] + [None]
+    sc = rollout_scores(pols, task, seeds, (st.obs_mean, st.obs_std))
+    hours = task.episode_s / 3600.0
+    f = fitness(sc, sc.iae[-1], sc.reversals[-1], h, hours, cfg.task.S_bands[1])
+    r = centered_ranks(f[:2 * h.pairs])
+    grad = ((r[:h.pairs] - r[h.pairs:]) @ eps) / (2 * h.pairs * h.sigma)
+    g = -grad + h.weight_decay * st.theta          # minimise -f
+    t = st.gen + 1
+    st.m = 0.9 * st.m + 0.1 * g
+    st.v = 0.999 * st.v + 0.001 * g * g
+    mh = st.m / (1 - 0.9 ** t)
+    vh = st.v / (1 - 0.999 ** t)
+    st.theta = st.theta - h.learning_rate * mh / (np.sqrt(vh) + 1e-8)
+    st.rng_state = rng.bit_generator.state
+    st.gen = t
+    st.env_steps += int(pop.shape[0] + 1) * h.scenarios * task.steps
+    return {"gen": t, "env_steps": st.env_steps, "train_fitness_center": float(f[-2]),
+            "train_fitness_pop_mean": float(f[:-2].mean())}
+
+
+def validate(st: ESState, cfg: LearnedTrainConfig, theta: np.ndarray, ref: Optional[RolloutScores]):
+    """Score ``theta`` against the PI on the validation loops; returns ``(row, ref)``."""
+    spec = MLPSpec(cfg.es.hidden)
+    seeds = [cfg.eval.seed + i for i in range(cfg.eval.n_loops)]
+    if ref is None:
+        ref = rollout_scores([None], cfg.task, seeds)
+    sc = rollout_scores([unflatten(spec, theta)], cfg.task, seeds, (st.obs_mean, st.obs_std))
+    hours = cfg.task.episode_s / 3600.0
+    f = float(fitness(sc, ref.iae[0], ref.reversals[0], cfg.es, hours, cfg.task.S_bands[1])[0])
+    ratio = sc.iae[0] / ref.iae[0]
+    stick = ref.S > 0.005
+    row = {"val_fitness": f, "val_iae_ratio_sticky_severe": float(np.median(ratio[stick])) if stick.any() else None,
+           "val_iae_ratio_healthy": float(np.median(ratio[~stick])) if (~stick).any() else None,
+           "val_travel_per_h": float(np.median(sc.travel[0]) / hours),
+           "val_pi_travel_per_h": float(np.median(ref.travel[0]) / hours)}
+    return row, ref
+
+
+# --------------------------------------------------------------------------- the run
+def _block_meta(cfg: LearnedTrainConfig, st: ESState, command: str, seed: int, which: str) -> dict:
+    import sys
+
+    import valve_gym
+
+    return {"name": cfg.name, "which": which, "algorithm": "evolution strategies (Salimans et al. 2017)",
+            "train_command": command, "seed": seed, "generations": st.gen, "env_steps": st.env_steps,
+            "train_wall_s": st.wall_s, "task": config_to_dict(cfg.task), "es": config_to_dict(cfg.es),
+            "versions": {"valve_gym": getattr(valve_gym, "__version__", "unknown"), "numpy": np.__version__,
+                         "python": sys.version.split()[0]}}
+
+
+def _write_outputs(out: Path, cfg: LearnedTrainConfig, st: ESState, command: str, seed: int) -> None:
+    spec = MLPSpec(cfg.es.hidden)
+    bs = cfg.task.block
+    save_learned(out / "final", st.theta, spec, st.obs_mean, st.obs_std, bs,
+                 _block_meta(cfg, st, command, seed, "final"))
+    save_learned(out / "best", st.best_theta, spec, st.obs_mean, st.obs_std, bs,
+                 _block_meta(cfg, st, command, seed, "best (highest validation fitness)"))
+    _write_curve(out, st.curve)
+
+
+def _write_curve(out: Path, curve: list) -> None:
+    from valve_gym._io import write_atomic
+
+    keys = []
+    for row in curve:
+        keys += [k for k in row if k not in keys]
+    lines = [",".join(keys)] + [",".join("" if row.get(k) is None else f"{row[k]:.6g}" if isinstance(row.get(k), float)
+                                         else str(row.get(k)) for k in keys) for row in curve]
+    text = "\n".join(lines) + "\n"
+    write_atomic(out / "curve.csv", lambda f: f.write(text.encode()))
+
+
+def train_learned(cfg: LearnedTrainConfig, out: Path, resume: Optional[Path] = None, seed: Optional[int] = None,
+                  generations: Optional[int] = None, command: str = "", progress: bool = True) -> dict:
+    """Train (or resume) the learned compensator; returns the summary (also ``summary.json``).
+
+    Returns a summary with ``status``: ``'finished'``, ``'already finished'`` (a resumed finished
+    run: nothing changed) or ``'interrupted'`` (SIGINT/SIGTERM: the checkpoint of the last
+    completed generation was written).
+    """
+    from dataclasses import replace
+
+    if seed is not None:
+        cfg = replace(cfg, seed=int(seed))
+    if generations is not None:
+        cfg = replace(cfg, es=replace(cfg.es, generations=int(generations)))
+    ck = out / "checkpoints" / "latest"
+    meta = {"config": config_to_dict(cfg), "command": command}
+    if resume is not None:
+        st, j = ESState.load(resume)
+        if j.get("config", {}).get("task") != config_to_dict(cfg.task) or \
+                j.get("config", {}).get("es", {}).get("hidden") != list(cfg.es.hidden):
+            raise ValueError(f"checkpoint {resume} was trained on another task or network; resume with the "
+                             f"config of that run")
+        if st.finished and st.gen >= cfg.es.generations:
+            return {"status": "already finished", "gen": st.gen, "out": str(out)}
+        st.finished = False
+    else:
+        st = init_state(cfg, cfg.seed)
+    ref = None
+    t_start = time.perf_counter() - st.wall_s
+    with stop_on_signals():
+        while st.gen < cfg.es.generations:
+            snap = _copy_state(st)
+            try:
+                row = es_generation(st, cfg)
+                if st.gen % cfg.eval.every == 0 or st.gen == cfg.es.generations:
+                    vrow, ref = validate(st, cfg, st.theta, ref)
+                    row.update(vrow)
+                    if vrow["val_fitness"] > st.best_score:
+                        st.best_score = vrow["val_fitness"]
+                        st.best_theta = st.theta.copy()
+            except Interrupted:
+                st = snap
+                st.wall_s = time.perf_counter() - t_start
+                st.save(ck, meta)
+                _write_outputs(out, cfg, st, command, cfg.seed)
+                return {"status": "interrupted", "gen": st.gen, "signal": STOP["signal"], "out": str(out)}
+            st.wall_s = time.perf_counter() - t_start
+            row["wall_s"] = st.wall_s
+            st.curve.append(row)
+            if progress:
+                _print_row(row, cfg.es.generations)
+            if st.gen % cfg.checkpoint_every == 0:
+                st.save(ck, meta)
+        st.finished = True
+        st.save(ck, meta)
+        _write_outputs(out, cfg, st, command, cfg.seed)
+    return {"status": "finished", "gen": st.gen, "env_steps": st.env_steps, "train_wall_s": st.wall_s,
+            "best_val_fitness": st.best_score, "out": str(out), "curve": st.curve[-1] if st.curve else None}
+
+
+def _copy_state(st: ESState) -> ESState:
+    import copy
+
+    return copy.deepcopy(st)
+
+
+def _print_row(row: dict, total: int) -> None:
+    msg = (f"gen {row['gen']}/{total}  steps {row['env_steps']:.3g}  wall {row['wall_s']:.0f} s  "
+           f"fitness {row['train_fitness_center']:+.3f}")
+    if "val_fitness" in row:
+        msg += (f"  | val fitness {row['val_fitness']:+.3f}, IAE/PI sticky+severe "
+                f"{row['val_iae_ratio_sticky_severe']:.3f}, healthy {row['val_iae_ratio_healthy']:.3f}, "
+                f"travel {row['val_travel_per_h']:.2f}/h (PI {row['val_pi_travel_per_h']:.2f}/h)")
+    print(msg, flush=True)
+
+
+def summary_json(summary: dict) -> str:
+    """The summary as JSON text."""
+    return json.dumps(summary, indent=1, default=str)

@@ -1,0 +1,240 @@
+"""The learned stiction compensator as a DCS function block (numpy inference, safetensors weights).
+
+:func:`load_learned` returns a :class:`LearnedBlock`: the PI block of the regulation task
+(:class:`valve_gym.envs.regulation.BlockLaw`, SIMC PI with a gated integrator and a bounded
+additive correction) whose gate and correction come from a small tanh network. The block sees
+what a DCS block sees: set point, measurement and its own past output; never the stem or the
+friction parameters. Its integral action is structural (the gate never goes below ``g_min``),
+so it has no steady offset.
+
+The weights are a safetensors file and everything else (architecture, observation normaliser,
+block settings, training command, seed, versions) a JSON file beside it; the forward pass is
+plain numpy, torch is not needed, nothing is unpickled.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, replace
+from pathlib import Path
+from typing import Optional, Sequence, Tuple
+
+import numpy as np
+
+from valve_gym.envs.regulation import N_ACT, N_OBS, BlockLaw, BlockSettings
+
+from .safe_files import load_model_file, save_model_file
+
+__all__ = ["MLPSpec", "LearnedBlock", "load_learned", "save_learned", "mlp_forward", "mlp_shapes", "normalise",
+           "DEFAULT_POLICY", "FORMAT"]
+
+#: The shipped learned compensator.
+DEFAULT_POLICY = Path(__file__).resolve().parent / "policies" / "learned.json"
+#: Format tag in the JSON of a learned-block file.
+FORMAT = "valve_gym.learned_block/1"
+
+
+class MLPSpec:
+    """Layer sizes of the tanh network ``N_OBS -> hidden... -> N_ACT`` (tanh on every layer)."""
+
+    def __init__(self, hidden: Sequence[int] = (32, 32)):
+        self.hidden = tuple(int(h) for h in hidden)
+        if not self.hidden or any(h < 1 for h in self.hidden):
+            raise ValueError(f"hidden layer sizes must be positive integers, got {list(hidden)!r}")
+        self.sizes = (N_OBS,) + self.hidden + (N_ACT,)
+
+    @property
+    def n_params(self) -> int:
+        """Number of weights and biases."""
+        return sum(a * b + b for a, b in zip(self.sizes[:-1], self.sizes[1:]))
+
+
+def mlp_shapes(spec: MLPSpec) -> list:
+    """``[(name, shape), ...]`` of the weights in flat-vector order (``W0, b0, W1, b1, ...``)."""
+    out = []
+    for i, (a, b) in enumerate(zip(spec.sizes[:-1], spec.sizes[1:])):
+        out += [(f"W{i}", (a, b)), (f"b{i}", (b,))]
+    return out
+
+
+def unflatten(spec: MLPSpec, theta: np.ndarray) -> dict:
+    """Named weight arrays from a flat parameter vector ``theta`` (..., n_params) (views, leading dims kept)."""
+    out, i = {}, 0
+    lead = theta.shape[:-1]
+    for name, shape in mlp_shapes(spec):
+        size = int(np.prod(shape))
+        out[name] = theta[..., i:i + size].reshape(lead + shape)
+        i += size
+    return out
+
+
+def mlp_forward(weights: dict, x: np.ndarray) -> np.ndarray:
+    """Forward pass ``tanh(... tanh(x W0 + b0) ... W_L + b_L)``.
+
+    Parameters
+    ----------
+    weights : dict
+        ``W{i}`` (in, out) and ``b{i}`` (out,), or with a leading population axis ``(P, in, out)``,
+        ``(P, out)`` when ``x`` is ``(P, B, in)``.
+    x : (B, in) or (P, B, in) array
+
+    Returns
+    -------
+    (B, out) or (P, B, out) array in (-1, 1)
+    """
+    h = x
+    i = 0
+    while f"W{i}" in weights:
+        W, b = weights[f"W{i}"], weights[f"b{i}"]
+        h = np.tanh(np.matmul(h, W) + (b[:, None, :] if b.ndim == 2 else b))
+        i += 1
+    return h
+
+
+def normalise(obs: np.ndarray, mean: np.ndarray, std: np.ndarray) -> np.ndarray:
+    """The network's input: ``clip((obs - mean) / std, -5, 5)``."""
+    return np.clip((obs - mean) / std, -5.0, 5.0)
+
+
+class LearnedBlock:
+    """The learned compensator: :class:`BlockLaw` driven by a numpy network (a DCS block).
+
+    Parameters
+    ----------
+    weights : dict
+        Network weights (see :func:`mlp_forward`).
+    obs_mean, obs_std : (N_OBS,) arrays
+        Normaliser of the observation: the network sees ``(obs - mean) / std``.
+    settings : BlockSettings
+    name : str
+
+    Examples
+    --------
+    >>> blk = load_learned()
+    >>> blk.reset(sp=1.0, pv=1.0, op=0.5)
+    >>> round(blk.step(1.0, 1.0), 3)
+    0.5
+    """
+
+    def __init__(self, weights: dict, obs_mean: np.ndarray, obs_std: np.ndarray,
+                 settings: BlockSettings = BlockSettings(), name: str = "learned", meta: Optional[dict] = None):
+        self.weights = weights
+        self.obs_mean = np.asarray(obs_mean, float)
+        self.obs_std = np.asarray(obs_std, float)
+        self.block_settings = settings
+        self.name = name
+        self.scan_s = float(settings.scan_s)
+        self.meta = meta or {}
+        self._law: Optional[BlockLaw] = None
+        self._scalar = True
+
+    @property
+    def settings(self) -> dict:
+        """The resolved settings (JSON-able)."""
+        return {**asdict(self.block_settings), "policy": self.meta.get("policy_path")}
+
+    def reset(self, sp, pv, op) -> None:
+        """Bumpless start from the current output ``op`` (fraction of stroke); ``sp``, ``pv`` in m."""
+        sp_a, pv_a, op_a = (np.asarray(v, dtype=float) for v in (sp, pv, op))
+        shape = np.broadcast_shapes(sp_a.shape, pv_a.shape, op_a.shape)
+        if len(shape) > 1:
+            raise ValueError(f"sp, pv and op must be scalars or (n,) arrays, got shape {shape}")
+        for nm, v in (("sp", sp_a), ("pv", pv_a), ("op", op_a)):
+            if not np.all(np.isfinite(v)):
+                raise ValueError(f"{nm} must be finite, got {v!r}")
+        if np.any((op_a < 0) | (op_a > 1)):
+            raise ValueError(f"op must be the valve input as a fraction 0..1, got {op!r}")
+        self._scalar = shape == ()
+        n = 1 if self._scalar else shape[0]
+        self._law = BlockLaw(self.block_settings, n)
+        self._law.reset(np.broadcast_to(sp_a, (n,)), np.broadcast_to(pv_a, (n,)), np.broadcast_to(op_a, (n,)))
+
+    def step(self, sp, pv):
+        """One scan: measurement ``pv`` [m] at set point ``sp`` [m]; returns the output (float or (n,))."""
+        law = self._law
+        if law is None:
+            raise RuntimeError("call reset(sp, pv, op) before step()")
+        sp_a = np.broadcast_to(np.asarray(sp, float), (law.n,))
+        pv_a = np.broadcast_to(np.asarray(pv, float), (law.n,))
+        if not (np.all(np.isfinite(sp_a)) and np.all(np.isfinite(pv_a))):
+            raise ValueError("sp and pv must be finite numbers (a bad measurement should be handled by the "
+                             "DCS before the block)")
+        obs = law.observe(sp_a, pv_a)
+        a = mlp_forward(self.weights, normalise(obs, self.obs_mean, self.obs_std))
+        u = law.act(a)
+        return float(u[0]) if self._scalar else u
+
+    def __repr__(self) -> str:
+        return f"LearnedBlock(name={self.name!r}, hidden={self.meta.get('hidden')})"
+
+
+def save_learned(path, theta: np.ndarray, spec: MLPSpec, obs_mean, obs_std, settings: BlockSettings,
+                 meta: dict) -> Tuple[str, str]:
+    """Write a learned block as ``path.safetensors`` + ``path.json``; returns both paths."""
+    w = {k: np.asarray(v, dtype=np.float64).copy() for k, v in unflatten(spec, np.asarray(theta, float)).items()}
+    w["obs_mean"] = np.asarray(obs_mean, float)
+    w["obs_std"] = np.asarray(obs_std, float)
+    m = {"format": FORMAT, "hidden": list(spec.hidden), "activation": "tanh", "n_obs": N_OBS, "n_act": N_ACT,
+         "block": asdict(settings), **meta}
+    return save_model_file(path, w, m)
+
+
+def _resolve(path) -> Path:
+    if path is None:
+        return DEFAULT_POLICY
+    p = Path(path)
+    if p.is_dir():
+        for cand in (p / "learned.json", p / "best.json", p / "final.json"):
+            if cand.is_file():
+                return cand
+        raise FileNotFoundError(f"no learned block in {p}: expected learned.json, best.json or final.json "
+                                f"(the output folder of `valve-gym train --config configs/learned.yaml`)")
+    return p
+
+
+def load_learned(path=None, **settings) -> LearnedBlock:
+    """Load a learned compensator (the shipped one by default) as a DCS block.
+
+    Parameters
+    ----------
+    path : str or path, optional
+        A ``.json``/``.safetensors`` learned-block file or a training output folder
+        (``best`` is used); default the shipped ``agents/policies/learned.json``.
+    **settings
+        Overrides of :class:`~valve_gym.envs.regulation.BlockSettings` (``Kc``, ``Ti``, ``scan_s``,
+        ``op_lo``, ``op_hi``; the network was trained with the stored ones) and ``name``.
+
+    Returns
+    -------
+    LearnedBlock
+
+    Raises
+    ------
+    ValueError
+        Unknown setting (listing the known ones), a pickle-based or corrupt file.
+    FileNotFoundError
+        Missing file.
+    """
+    p = _resolve(path)
+    mf = load_model_file(p)
+    meta = mf.meta
+    if meta.get("format") != FORMAT:
+        raise ValueError(f"{p} is not a learned-block file (format {meta.get('format')!r}, expected {FORMAT!r})")
+    name = settings.pop("name", "learned")
+    allowed = ("Kc", "Ti", "scan_s", "op_lo", "op_hi")
+    bad = [k for k in settings if k not in allowed]
+    if bad:
+        raise ValueError(f"unknown setting(s) {bad} for the learned compensator; known: {', '.join(allowed)}, name")
+    try:
+        bs = replace(BlockSettings(**meta["block"]), **settings)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"bad settings for the learned compensator: {exc}") from None
+    spec = MLPSpec(meta["hidden"])
+    w = {}
+    for nm, shape in mlp_shapes(spec):
+        a = mf.tensors.get(nm)
+        if a is None or a.shape != shape:
+            raise ValueError(f"{p}: weight {nm} missing or of the wrong shape (expected {shape})")
+        w[nm] = a.astype(np.float64)
+    mean, std = mf.tensors.get("obs_mean"), mf.tensors.get("obs_std")
+    if mean is None or std is None or mean.shape != (N_OBS,) or std.shape != (N_OBS,) or np.any(std <= 0):
+        raise ValueError(f"{p}: observation normaliser (obs_mean, obs_std of shape ({N_OBS},), std > 0) missing")
+    return LearnedBlock(w, mean, std, bs, name=name, meta={**meta, "policy_path": str(p)})

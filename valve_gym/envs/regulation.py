@@ -1,0 +1,532 @@
+"""The regulation task: one module for the rules the regulation envs and the learned block share.
+
+A level loop at a constant set point, a sticky valve of a randomised friction model, an
+Ornstein-Uhlenbeck load inflow and measurement noise, started at steady state: the test in
+which stiction shows as a limit cycle. This module holds, once, everything the single env
+(:class:`~valve_gym.envs.regulation_env.ValveTankRegulationEnv`), the native vector env
+(:class:`~valve_gym.envs.regulation_env.ValveTankRegulationVectorEnv`) and the learned DCS
+block (:mod:`agents.learned`) must agree on:
+
+* :class:`RegulationConfig` and its validation (the task, loadable from YAML);
+* :func:`draw_scenarios` (the per-episode draw from each sub-env's own generator);
+* :class:`LoopPlants` (the plants of a batch, grouped by friction model);
+* :class:`BlockLaw` (the observation layout and the action scaling: the PI with a gated
+  integrator and a bounded additive correction, whose inputs are SP, PV and its own OP only);
+* :func:`step_reward` (the reward).
+
+Notes
+-----
+The controller structure (:class:`BlockLaw`) with error ``e = SP - PV`` [m], action
+``a = (a_g, a_c)`` in [-1, 1]^2 and scan time ``T_s``::
+
+    g_k  = g_min + (1 - g_min) (a_g + 1) / 2            integrator gate, in [g_min, 1]
+    c_k  = c_max a_c                                     bounded correction [fraction of stroke]
+    u_k  = clip(K_c e_k + I_k + c_k, op_lo, op_hi)       output
+    I_k+1 = I_k + g_k K_c T_s / T_i e_k                  (back-calculated when u_k is clipped)
+
+``a = (1, 0)`` is the plain PI. As ``g_k >= g_min > 0`` and ``|c_k| <= c_max``, the
+integrator keeps integrating any persistent error, so the block has integral action
+whatever the network does: the mean error is zero in steady state unless the output
+saturates.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple, Optional, Sequence, Tuple
+
+import numpy as np
+
+from .. import core
+from ..config import ConfigError
+from ..params import ModelParams, SlipJump, ValveParams
+
+__all__ = ["RegulationConfig", "BlockSettings", "RegulationDraw", "draw_scenarios", "friction_params",
+           "LoopPlants", "BlockLaw", "pi_action", "step_reward", "parse_options", "available_friction_models", "FRICTION_MODELS_FALLBACK", "N_OBS", "N_ACT",
+           "OBS_NAMES"]
+
+#: Friction models available without :mod:`valve_gym.friction` (the core's two models).
+FRICTION_MODELS_FALLBACK = ("riihilahti", "choudhury")
+
+Range = Tuple[float, float]
+
+
+def _range(name: str, r, lo: float = 0.0, hi: float = math.inf, open_lo: bool = False) -> None:
+    a, b = float(r[0]), float(r[1])
+    if not (math.isfinite(a) and math.isfinite(b)) or a > b or a < lo or b > hi or (open_lo and a <= lo):
+        raise ConfigError(f"{name} must be [low, high] with {lo} {'<' if open_lo else '<='} low <= high <= {hi}, "
+                          f"got {[a, b]!r}")
+
+
+@dataclass(frozen=True)
+class BlockSettings:
+    """Settings of the block law (:class:`BlockLaw`).
+
+    Parameters
+    ----------
+    Kc : float, 1/m
+        PI gain (SIMC for the default tank: 1.89 /m).
+    Ti : float, s
+        Integral time (SIMC: 42.4 s).
+    scan_s : float, s
+        Scan time of the block.
+    c_max : float, fraction of stroke
+        Bound of the correction ``c``.
+    g_min : float
+        Smallest integrator gate (> 0: integral action is never switched off).
+    op_lo, op_hi : float, fraction of stroke
+        Output limits.
+    e_ref : float, m
+        Error scale of the observation (about the measurement noise).
+    u_ref : float, fraction of stroke
+        Output scale of the observation.
+    """
+
+    Kc: float = 1.89
+    Ti: float = 42.4
+    scan_s: float = 1.0
+    c_max: float = 0.08
+    g_min: float = 0.05
+    op_lo: float = 0.0
+    op_hi: float = 1.0
+    e_ref: float = 0.005
+    u_ref: float = 0.02
+
+    def __post_init__(self):
+        for name in ("Kc", "Ti", "scan_s", "e_ref", "u_ref"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ConfigError(f"block.{name} must be a positive number, got {v!r}")
+        if not 0 <= self.c_max <= 0.5:
+            raise ConfigError(f"block.c_max must be in [0, 0.5] (fraction of stroke), got {self.c_max!r}")
+        if not 0 < self.g_min <= 1:
+            raise ConfigError(f"block.g_min must be in (0, 1] (0 would switch integral action off), "
+                              f"got {self.g_min!r}")
+        if not 0 <= self.op_lo < self.op_hi <= 1:
+            raise ConfigError(f"block.op_lo, op_hi must satisfy 0 <= op_lo < op_hi <= 1, got "
+                              f"{self.op_lo!r}, {self.op_hi!r}")
+
+
+@dataclass(frozen=True)
+class RegulationConfig:
+    """The regulation task.
+
+    Parameters
+    ----------
+    episode_s : float, s
+        Episode length (the registered time limit is ``episode_s / block.scan_s`` steps).
+    levels : (2,) range, m
+        Operating points: the constant set point is drawn uniformly here; the loop starts at
+        steady state at it.
+    noise_std : (2,) range, m
+        Standard deviation of the white measurement noise (drawn per episode).
+    load_std : (2,) range, m^3/s
+        Stationary standard deviation of the Ornstein-Uhlenbeck load inflow (drawn per episode).
+    load_tau : (2,) range, s
+        Correlation time of the load (drawn log-uniformly per episode).
+    friction_models : list of str
+        Friction models, drawn uniformly per episode (names of :mod:`valve_gym.friction`, or
+        ``riihilahti`` and ``choudhury`` without it).
+    S_bands : list of float, fraction of stroke
+        Edges of the stiction bands: with ``[0, 0.005, 0.05, 0.10]`` a band (healthy, sticky,
+        severe) is drawn uniformly, then ``S`` uniformly in it.
+    J_frac : (2,) range
+        Slip jump as a fraction of ``S`` (``J = S * U(J_frac)``).
+    substeps : int
+        Euler steps of the plant per scan.
+    error_scale : float, m
+        Reward: 1 per step at this level error.
+    travel_weight : float
+        Reward: cost of a full stroke of stem travel, in units of ``error_scale``-seconds.
+    block : BlockSettings
+    """
+
+    episode_s: float = 1800.0
+    levels: Range = (0.6, 1.4)
+    noise_std: Range = (0.002, 0.002)
+    load_std: Range = (0.5e-4, 2.0e-4)
+    load_tau: Range = (60.0, 300.0)
+    friction_models: Tuple[str, ...] = FRICTION_MODELS_FALLBACK
+    S_bands: Tuple[float, ...] = (0.0, 0.005, 0.05, 0.10)
+    J_frac: Range = (0.0, 1.0)
+    substeps: int = 20
+    error_scale: float = 0.01
+    travel_weight: float = 2.0
+    block: BlockSettings = BlockSettings()
+
+    def __post_init__(self):
+        if not (math.isfinite(self.episode_s) and self.episode_s >= self.block.scan_s):
+            raise ConfigError(f"episode_s must be at least one scan, got {self.episode_s!r}")
+        _range("levels", self.levels, 0.05, 10.0, open_lo=True)
+        _range("noise_std", self.noise_std, 0.0, 1.0)
+        _range("load_std", self.load_std, 0.0, 1.0)
+        _range("load_tau", self.load_tau, 0.0, 1e6, open_lo=True)
+        _range("J_frac", self.J_frac, 0.0, 1.0)
+        b = [float(x) for x in self.S_bands]
+        if len(b) < 2 or any(y <= x for x, y in zip(b, b[1:])) or b[0] < 0 or b[-1] > 0.5:
+            raise ConfigError(f"S_bands must be increasing edges within [0, 0.5], at least two, got {b!r}")
+        if not self.friction_models:
+            raise ConfigError("friction_models must name at least one friction model")
+        known = available_friction_models()
+        for m in self.friction_models:
+            if m not in known or m == "none":
+                raise ConfigError(f"unknown friction model {m!r} in friction_models; available: "
+                                  f"{', '.join(x for x in known if x != 'none')}")
+        if not (isinstance(self.substeps, int) and self.substeps >= 1):
+            raise ConfigError(f"substeps must be an integer >= 1, got {self.substeps!r}")
+        if not self.error_scale > 0 or not self.travel_weight >= 0:
+            raise ConfigError("error_scale must be > 0 and travel_weight >= 0")
+
+    @property
+    def steps(self) -> int:
+        """Scans per episode."""
+        return int(round(self.episode_s / self.block.scan_s))
+
+
+# --------------------------------------------------------------------------- friction
+def available_friction_models() -> Tuple[str, ...]:
+    """Names of the friction models the task can draw."""
+    try:
+        from ..friction import FRICTION_MODELS  # type: ignore[attr-defined]
+    except ImportError:
+        return ("none",) + FRICTION_MODELS_FALLBACK
+    return tuple(FRICTION_MODELS)
+
+
+def friction_params(model: str, S, J, base: Optional[ModelParams] = None, dt: float = 0.05) -> ModelParams:
+    """Model parameters of valves of friction ``model`` sized by stick band ``S`` and slip jump ``J``.
+
+    Parameters
+    ----------
+    model : str
+        Friction model name.
+    S, J : float or (n,) array, fraction of stroke
+        Stick band (with dead band) and slip jump, ``0 <= J <= S``.
+    base : ModelParams, optional
+        Plant (default tank).
+    dt : float, s
+        Euler step of the plant.
+
+    Returns
+    -------
+    ModelParams
+
+    Notes
+    -----
+    Uses :func:`valve_gym.friction.valve_model` where it exists. Without it, ``choudhury``
+    is the core's ``slip_jump`` block, and ``riihilahti`` maps ``(S, J)`` onto the paper model
+    by a dead band ``2 e_dead = S - J`` and a friction band ``z_max = J^2 / (4 r)`` that gives
+    the slip ``J`` for an input ramp of ``r = 1e-3`` stroke/s (about a PI's ramp while stuck).
+    """
+    from dataclasses import replace
+
+    base = ModelParams() if base is None else base
+    try:
+        from ..friction import valve_model  # type: ignore[attr-defined]
+    except ImportError:
+        valve_model = None
+    if valve_model is not None:
+        p = valve_model(model, S, J, base=base)
+        return replace(p, dt=dt)
+    S = np.asarray(S, float)
+    J = np.asarray(J, float)
+    if model == "choudhury":
+        return replace(base, dt=dt).with_effect("slip_jump", SlipJump(S=S, J=J, tau_p=0.1))
+    if model == "riihilahti":
+        v = ValveParams(tau=0.1, v_max=0.5, e_dead=np.maximum(S - J, 0.0) / 2, z_max=J ** 2 / 4e-3)
+        return replace(base, valve=v, dt=dt)
+    raise ValueError(f"unknown friction model {model!r}; available: {', '.join(FRICTION_MODELS_FALLBACK)}")
+
+
+# --------------------------------------------------------------------------- draw
+class RegulationDraw(NamedTuple):
+    """The random quantities of ``n`` regulation episodes (row = episode).
+
+    Fields
+    ------
+    model : (n,) int, index into ``config.friction_models``
+    S, J : (n,) stick band and slip jump [fraction of stroke]
+    sp : (n,) constant set point [m]
+    noise : (n, H+1) measurement noise of the ``k``-th measurement [m]
+    load : (n, H+1) extra inflow during step ``k`` [m^3/s] (``load[:, 0] = 0``: steady start)
+    """
+
+    model: np.ndarray
+    S: np.ndarray
+    J: np.ndarray
+    sp: np.ndarray
+    noise: np.ndarray
+    load: np.ndarray
+
+
+def draw_scenarios(rngs: Sequence[np.random.Generator], cfg: RegulationConfig) -> RegulationDraw:
+    """Draw ``len(rngs)`` episodes, row ``j`` from ``rngs[j]`` only (a batch draw equals single draws).
+
+    Each generator gives 8 uniforms, then ``2 (H + 1)`` standard normals, whatever the values.
+    """
+    n, H = len(rngs), cfg.steps
+    U = np.empty((n, 8))
+    Z = np.empty((n, 2, H + 1))
+    for j, g in enumerate(rngs):
+        g.random(out=U[j])
+        g.standard_normal(out=Z[j])
+    nm = len(cfg.friction_models)
+    model = np.minimum((U[:, 0] * nm).astype(np.int64), nm - 1)
+    edges = np.asarray(cfg.S_bands, float)
+    nb = len(edges) - 1
+    band = np.minimum((U[:, 1] * nb).astype(np.int64), nb - 1)
+    S = edges[band] + U[:, 2] * (edges[band + 1] - edges[band])
+    J = S * (cfg.J_frac[0] + U[:, 3] * (cfg.J_frac[1] - cfg.J_frac[0]))
+    sp = cfg.levels[0] + U[:, 4] * (cfg.levels[1] - cfg.levels[0])
+    nstd = cfg.noise_std[0] + U[:, 5] * (cfg.noise_std[1] - cfg.noise_std[0])
+    lstd = cfg.load_std[0] + U[:, 6] * (cfg.load_std[1] - cfg.load_std[0])
+    lt0, lt1 = cfg.load_tau
+    ltau = lt0 * np.exp(U[:, 7] * math.log(lt1 / lt0))
+    noise = Z[:, 0] * nstd[:, None]
+    a = np.exp(-cfg.block.scan_s / ltau)
+    w = Z[:, 1] * (lstd * np.sqrt(1.0 - a * a))[:, None]
+    load = np.empty((n, H + 1))
+    load[:, 0] = 0.0
+    for k in range(1, H + 1):
+        load[:, k] = a * load[:, k - 1] + w[:, k]
+    return RegulationDraw(model=model, S=S, J=J, sp=sp, noise=noise, load=load)
+
+
+# --------------------------------------------------------------------------- plants
+class LoopPlants:
+    """The plants of a batch of loops, one packed group per friction model.
+
+    Parameters
+    ----------
+    cfg : RegulationConfig
+    draw : RegulationDraw
+        The episodes (their valves and operating points).
+
+    Attributes
+    ----------
+    level : (n,) true level [m]
+    stem : (n,) stem position [fraction of stroke]
+    op0 : (n,) the steady valve input at the set point [fraction of stroke]
+    """
+
+    def __init__(self, cfg: RegulationConfig, draw: RegulationDraw):
+        n = draw.sp.shape[0]
+        self.n = n
+        self.substeps = cfg.substeps
+        dt = cfg.block.scan_s / cfg.substeps
+        self.groups = []
+        self.level = np.empty(n)
+        self.stem = np.empty(n)
+        self.op0 = np.empty(n)
+        for m, name in enumerate(cfg.friction_models):
+            idx = np.flatnonzero(draw.model == m)
+            if idx.size == 0:
+                continue
+            params = friction_params(name, draw.S[idx], draw.J[idx], dt=dt)
+            pk = core.pack(params, idx.size)
+            st = core.initial_state(params, idx.size, level=draw.sp[idx])
+            S = core.state_to_array(st)
+            buf = np.ascontiguousarray(st.delay_buf, dtype=np.float64)
+            out = np.zeros((3, 1, idx.size))
+            self.groups.append((idx, pk, S, buf, np.zeros((1, idx.size)), np.zeros((1, idx.size)), out))
+            self.level[idx] = st.level
+            self.stem[idx] = np.clip(st.h, 0.0, 1.0)
+            self.op0[idx] = st.h
+
+    def step(self, u: np.ndarray, d: np.ndarray) -> None:
+        """Advance every loop one scan with valve input ``u`` (n,) and extra inflow ``d`` (n,) [m^3/s]."""
+        for idx, pk, S, buf, U, D, out in self.groups:
+            U[0] = u[idx]
+            D[0] = d[idx]
+            core.run_packed(pk, S, buf, U, D, self.substeps, out[0], out[1], out[2])
+            self.level[idx] = out[2, 0]
+            self.stem[idx] = out[1, 0]
+
+
+# --------------------------------------------------------------------------- block law
+#: Names of the observation entries (all from SP, PV and the block's own output).
+OBS_NAMES = ("e", "e_ema4", "e_ema16", "e_ema64", "e_ema256", "de_abs_ema64", "u_minus_ema64",
+             "u_minus_ema256", "du_ema16", "c_prev", "g_prev")
+N_OBS = len(OBS_NAMES)
+N_ACT = 2
+_E_TAUS = (4.0, 16.0, 64.0, 256.0)
+
+
+class BlockLaw:
+    """Observation and output law of the regulation block for ``n`` loops (explicit state arrays).
+
+    Parameters
+    ----------
+    settings : BlockSettings
+    n : int
+        Number of loops.
+
+    Notes
+    -----
+    Observation (``N_OBS`` values, see :data:`OBS_NAMES`), with ``e = SP - PV``, error scale
+    ``e_ref`` and output scale ``u_ref``: ``e / e_ref``; exponential moving averages of ``e``
+    with time constants 4, 16, 64 and 256 scans, over ``e_ref``; the moving average of
+    ``|e_k - e_k-1|`` (64 scans), over ``e_ref`` (a noise estimate); the last output minus its
+    moving averages (64, 256 scans), over ``u_ref``; the moving average of the output change
+    (16 scans), over ``u_ref / 10``; the last correction over ``c_max`` and the last gate
+    mapped to [-1, 1]. All clipped to [-10, 10]. The action law is in the module Notes.
+    """
+
+    def __init__(self, settings: BlockSettings, n: int):
+        self.s = settings
+        self.n = int(n)
+        self.ki = settings.Kc * settings.scan_s / settings.Ti
+        self._alpha_e = np.array([1.0 - math.exp(-settings.scan_s / t) for t in _E_TAUS])
+        self._a64 = 1.0 - math.exp(-settings.scan_s / 64.0)
+        self._a256 = 1.0 - math.exp(-settings.scan_s / 256.0)
+        self._a16 = 1.0 - math.exp(-settings.scan_s / 16.0)
+
+    def reset(self, sp, pv, op) -> None:
+        """Bumpless start: the output stays at ``op`` on the first scan if ``pv`` does not move."""
+        sp = np.broadcast_to(np.asarray(sp, float), (self.n,))
+        pv = np.broadcast_to(np.asarray(pv, float), (self.n,))
+        op = np.broadcast_to(np.asarray(op, float), (self.n,)).astype(float)
+        e = sp - pv
+        self.e = e.copy()
+        self.e_prev = e.copy()
+        self.ema_e = np.zeros((self.n, len(_E_TAUS))) + e[:, None]
+        self.de_abs = np.zeros(self.n)
+        self.u = op.copy()
+        self.u_ema64 = op.copy()
+        self.u_ema256 = op.copy()
+        self.du_ema = np.zeros(self.n)
+        self.c = np.zeros(self.n)
+        self.g = np.ones(self.n)
+        self.I = op - self.s.Kc * e
+
+    def observe(self, sp, pv) -> np.ndarray:
+        """Take a measurement; returns the observation ``(n, N_OBS)`` float64 for this scan."""
+        s = self.s
+        e = np.asarray(sp, float) - np.asarray(pv, float)
+        e = np.broadcast_to(e, (self.n,))
+        self.e_prev = self.e
+        self.e = e
+        self.ema_e += self._alpha_e * (e[:, None] - self.ema_e)
+        self.de_abs += self._a64 * (np.abs(e - self.e_prev) - self.de_abs)
+        obs = np.empty((self.n, N_OBS))
+        obs[:, 0] = e / s.e_ref
+        obs[:, 1:5] = self.ema_e / s.e_ref
+        obs[:, 5] = self.de_abs / s.e_ref
+        obs[:, 6] = (self.u - self.u_ema64) / s.u_ref
+        obs[:, 7] = (self.u - self.u_ema256) / s.u_ref
+        obs[:, 8] = self.du_ema / (0.1 * s.u_ref)
+        obs[:, 9] = self.c / s.c_max if s.c_max > 0 else 0.0
+        obs[:, 10] = 2.0 * (self.g - s.g_min) / (1.0 - s.g_min) - 1.0 if s.g_min < 1 else 1.0
+        np.clip(obs, -10.0, 10.0, out=obs)
+        return obs
+
+    def act(self, action: np.ndarray) -> np.ndarray:
+        """Apply ``action`` (n, 2) in [-1, 1] (clipped) to this scan; returns the output ``u`` (n,)."""
+        s = self.s
+        a = np.clip(np.asarray(action, float).reshape(self.n, N_ACT), -1.0, 1.0)
+        g = s.g_min + (1.0 - s.g_min) * 0.5 * (a[:, 0] + 1.0)
+        c = s.c_max * a[:, 1]
+        e = self.e
+        v = s.Kc * e + self.I + c
+        u = np.clip(v, s.op_lo, s.op_hi)
+        I_new = self.I + g * self.ki * e
+        sat = u != v
+        if sat.any():            # back-calculation: the integrator tracks the limited output
+            I_new = np.where(sat, u - s.Kc * e - c, I_new)
+        self.I = I_new
+        du = u - self.u
+        self.du_ema += self._a16 * (du - self.du_ema)
+        self.u_ema64 += self._a64 * (u - self.u_ema64)
+        self.u_ema256 += self._a256 * (u - self.u_ema256)
+        self.u = u
+        self.c = c
+        self.g = g
+        return u.copy()
+
+    def state_arrays(self) -> dict:
+        """Copies of the state arrays (for tests and checkpoints)."""
+        return {k: np.array(getattr(self, k)) for k in ("e", "e_prev", "ema_e", "de_abs", "u", "u_ema64",
+                                                         "u_ema256", "du_ema", "c", "g", "I")}
+
+
+def pi_action(n: int) -> np.ndarray:
+    """The action that makes :class:`BlockLaw` the plain PI: gate 1, no correction; shape (n, 2)."""
+    a = np.zeros((n, N_ACT))
+    a[:, 0] = 1.0
+    return a
+
+
+OPTION_KEYS = ("model", "S", "J", "level")
+
+
+def parse_options(options, cfg: RegulationConfig, n: int) -> dict:
+    """Validate ``reset(options=...)``: pins of the episode's friction model, ``S``, ``J`` and set point.
+
+    Parameters
+    ----------
+    options : mapping or None
+        ``model`` (a name of ``cfg.friction_models``), ``S`` and ``J`` (fraction of stroke,
+        ``0 <= J <= S <= 0.5``), ``level`` (set point, m, within ``cfg.levels`` widened to
+        [0.05, 10]); each a scalar or an ``(n,)`` array.
+    cfg : RegulationConfig
+    n : int
+        Number of sub-environments.
+
+    Returns
+    -------
+    dict of str to (n,) arrays (``model`` as indices)
+
+    Raises
+    ------
+    ValueError
+        Naming the option and the allowed values.
+    """
+    if options is None:
+        return {}
+    if not hasattr(options, "items"):
+        raise ValueError(f"options must be a dict, got {type(options).__name__}")
+    pins = {}
+    for key, val in options.items():
+        if key not in OPTION_KEYS:
+            raise ValueError(f"unknown reset option {key!r}; the options are {', '.join(OPTION_KEYS)} "
+                             f"(e.g. reset(options={{'model': 'choudhury', 'S': 0.03, 'J': 0.01}}))")
+        if key == "model":
+            names = [val] * n if isinstance(val, str) else list(val) if isinstance(val, (list, tuple)) else None
+            if names is None or len(names) != n or any(m not in cfg.friction_models for m in names):
+                raise ValueError(f"reset option 'model' must be one of {list(cfg.friction_models)} "
+                                 f"(or a list of {n} of them), got {val!r}")
+            pins["model"] = np.array([cfg.friction_models.index(m) for m in names])
+            continue
+        try:
+            a = np.broadcast_to(np.asarray(val, dtype=float), (n,)).copy()
+        except (TypeError, ValueError):
+            raise ValueError(f"reset option {key!r} must be a number or {n} numbers, got {val!r}") from None
+        lo, hi = (0.05, 10.0) if key == "level" else (0.0, 0.5)
+        if not np.all(np.isfinite(a)) or a.min() < lo or a.max() > hi:
+            raise ValueError(f"reset option {key!r} must be finite and within [{lo}, {hi}], got {val!r}")
+        pins[key] = a
+    if "J" in pins and np.any(pins["J"] > pins.get("S", np.full(n, np.inf)) + 1e-12):
+        raise ValueError("reset option 'J' (slip jump) must not exceed 'S' (stick band); pin both, J <= S")
+    return pins
+
+
+def step_reward(cfg: RegulationConfig, level_err: np.ndarray, stem_move: np.ndarray) -> np.ndarray:
+    """Reward of one scan: ``-(|SP - L| / error_scale + travel_weight * |dh| / error_scale * ...)``.
+
+    Parameters
+    ----------
+    cfg : RegulationConfig
+    level_err : (n,) true level error ``SP - L`` after the scan [m]
+    stem_move : (n,) stem travel during the scan [fraction of stroke]
+
+    Returns
+    -------
+    (n,) reward
+
+    Notes
+    -----
+    ``r_k = -(|SP - L_k+1| / e_s + w_h |h_k+1 - h_k|)``: the return is ``-(IAE / (e_s T_s) +
+    w_h travel)``, with IAE of the true level (not the noisy measurement) and the stem travel
+    (privileged signals: only the policy's inputs are restricted).
+    """
+    return -(np.abs(level_err) / cfg.error_scale + cfg.travel_weight * np.abs(stem_move))

@@ -1,0 +1,225 @@
+"""Regulation environments: constant set point, sticky valve, load and noise (single and native vector).
+
+Both envs are thin shells over :class:`RegulationLoops`, which runs ``n`` loops with the rules of
+the task module :mod:`valve_gym.envs.regulation` (draw, plants, block law, reward). A vector env
+sub-env seeded with ``s`` is step-for-step the single env reset with ``seed=s``.
+"""
+from __future__ import annotations
+
+from typing import Mapping, Optional, Sequence, Union
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from ..config import load_config
+from .regulation import (N_ACT, N_OBS, BlockLaw, LoopPlants, RegulationConfig, RegulationDraw, draw_scenarios,
+                         parse_options, step_reward)
+
+__all__ = ["ValveTankRegulationEnv", "ValveTankRegulationVectorEnv", "RegulationLoops", "make_regulation_config"]
+
+
+def make_regulation_config(config: Union[RegulationConfig, Mapping, str, None] = None) -> RegulationConfig:
+    """A :class:`RegulationConfig` from a config, a mapping of keys or a YAML file (``None``: defaults)."""
+    if isinstance(config, RegulationConfig):
+        return config
+    return load_config(config, cls=RegulationConfig)
+
+
+def _apply_pins(d: RegulationDraw, pins: dict) -> RegulationDraw:
+    if not pins:
+        return d
+    S = pins.get("S", d.S)
+    if "J" in pins:
+        J = pins["J"]
+    else:
+        J = S * np.where(d.S > 0, d.J / np.maximum(d.S, 1e-300), 0.0)
+    return d._replace(model=pins.get("model", d.model), S=S, J=np.minimum(J, S), sp=pins.get("level", d.sp))
+
+
+class RegulationLoops:
+    """``n`` regulation loops: plants, block laws and the episode's draw, stepped together.
+
+    Parameters
+    ----------
+    cfg : RegulationConfig
+    n : int
+    """
+
+    def __init__(self, cfg: RegulationConfig, n: int):
+        self.cfg = cfg
+        self.n = int(n)
+        self.H = cfg.steps
+        self.draw: Optional[RegulationDraw] = None
+
+    def reset(self, rngs: Sequence[np.random.Generator], pins: Optional[dict] = None) -> np.ndarray:
+        """Start all loops at steady state; returns the observation (n, N_OBS) float32."""
+        d = _apply_pins(draw_scenarios(rngs, self.cfg), pins or {})
+        self.draw = d
+        self.plants = LoopPlants(self.cfg, d)
+        self.law = BlockLaw(self.cfg.block, self.n)
+        self.k = 0
+        pv = self.plants.level + d.noise[:, 0]
+        self.law.reset(d.sp, pv, self.plants.op0)
+        return self.law.observe(d.sp, pv).astype(np.float32)
+
+    def step(self, actions: np.ndarray):
+        """One scan; returns ``(obs (n, N_OBS) float32, reward (n,), truncated (bool), info dict of (n,))``."""
+        d = self.draw
+        if d is None:
+            raise RuntimeError("call reset() before step()")
+        a = np.asarray(actions, dtype=float)
+        if a.size != self.n * N_ACT:
+            raise ValueError(f"actions must have shape ({self.n}, {N_ACT}) (gate, correction per loop), "
+                             f"got an array of shape {a.shape}")
+        if not np.all(np.isfinite(a)):
+            raise ValueError("an action is NaN or inf; pass numbers in [-1, 1] (check the policy for NaN "
+                             "outputs, e.g. from diverging training)")
+        k = self.k
+        kk = min(k, self.H)
+        u = self.law.act(a.reshape(self.n, N_ACT))
+        stem0 = self.plants.stem.copy()
+        load = d.load[:, kk]
+        self.plants.step(u, load)
+        self.k = k + 1
+        kn = min(self.k, self.H)
+        level = self.plants.level
+        pv = level + d.noise[:, kn]
+        reward = step_reward(self.cfg, d.sp - level, self.plants.stem - stem0)
+        obs = self.law.observe(d.sp, pv).astype(np.float32)
+        info = {"setpoint": d.sp.copy(), "level": level.copy(), "pv": pv, "stem": self.plants.stem.copy(),
+                "op": u, "load": load.copy(), "t": np.full(self.n, self.k * self.cfg.block.scan_s)}
+        return obs, reward, self.k >= self.H, info
+
+    def episode_info(self) -> dict:
+        """The drawn quantities of the episode (friction model name, ``S``, ``J``, set point)."""
+        d = self.draw
+        assert d is not None
+        return {"friction_model": np.array([self.cfg.friction_models[i] for i in d.model]),
+                "S": d.S.copy(), "J": d.J.copy(), "setpoint": d.sp.copy()}
+
+
+def _spaces():
+    obs = spaces.Box(-10.0, 10.0, shape=(N_OBS,), dtype=np.float32)
+    act = spaces.Box(-1.0, 1.0, shape=(N_ACT,), dtype=np.float32)
+    return obs, act
+
+
+class ValveTankRegulationEnv(gym.Env):
+    """Regulation of a level loop through a sticky valve by a learned DCS block.
+
+    ## Description
+
+    The default tank (:class:`valve_gym.params.TankParams`) at a constant set point drawn in
+    ``levels``, fed through a valve whose friction model (``friction_models``) and stiction
+    (stick band ``S`` from the healthy, sticky or severe band; slip jump ``J`` in [0, S]) are
+    drawn each episode; an Ornstein-Uhlenbeck load inflow and white measurement noise (2 mm)
+    disturb it. The agent is the inside of a PI block (:class:`~valve_gym.envs.regulation.BlockLaw`):
+    it gates the integrator and adds a bounded correction to the output.
+
+    ## Action Space
+
+    ``Box(-1, 1, (2,), float32)``: integrator gate and correction (see
+    :mod:`valve_gym.envs.regulation`); ``(1, 0)`` is the plain SIMC PI. Clipped; NaN raises.
+
+    ## Observation Space
+
+    ``Box(-10, 10, (11,), float32)``: the block's own signals (:data:`~valve_gym.envs.regulation.OBS_NAMES`)
+    computed from SP, PV and its past output only; never the stem or the friction.
+
+    ## Rewards
+
+    ``-(|SP - L| / error_scale + travel_weight * |dh|)`` per scan (true level ``L``, stem ``h``).
+
+    ## Starting State
+
+    Steady state at the set point with the valve at the steady input (stuck, friction state 0).
+
+    ## Episode End
+
+    Truncation after ``episode_s / scan_s`` scans (1800 by default, the registration's time limit).
+
+    ## Arguments
+
+    config : RegulationConfig, mapping or YAML path, optional
+
+    ``reset(options={'model': 'choudhury', 'S': 0.03, 'J': 0.01, 'level': 1.0})`` pins any subset.
+    ``info`` has ``setpoint``, ``level``, ``pv``, ``stem``, ``op``, ``load``, ``t`` and, at reset,
+    ``friction_model``, ``S``, ``J``.
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, config: Union[RegulationConfig, Mapping, str, None] = None):
+        self.config = make_regulation_config(config)
+        self.observation_space, self.action_space = _spaces()
+        self._loops = RegulationLoops(self.config, 1)
+        self.episode_steps = self.config.steps
+
+    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None):
+        """Start an episode at steady state (see the class docstring for ``options``)."""
+        pins = parse_options(options, self.config, 1)
+        super().reset(seed=seed)
+        obs = self._loops.reset([self.np_random], pins)
+        info = {k: (v[0].item() if hasattr(v[0], "item") else v[0]) for k, v in self._loops.episode_info().items()}
+        return obs[0], info
+
+    def step(self, action):
+        """One scan: returns ``(obs, reward, False, truncated, info)``."""
+        obs, r, trunc, info = self._loops.step(np.asarray(action, dtype=float).reshape(1, -1)
+                                               if np.size(action) == N_ACT else np.asarray(action, dtype=float))
+        return obs[0], float(r[0]), False, bool(trunc), {k: float(v[0]) for k, v in info.items()}
+
+
+class ValveTankRegulationVectorEnv(VectorEnv):
+    """``num_envs`` regulation loops in one batch (native vector env of ``ValveTankRegulation-v0``).
+
+    All sub-environments share the horizon, so they end together; autoreset is ``SAME_STEP``:
+    the step that truncates returns the first observation of the next episodes, with the last
+    ones in ``info['final_obs']``. Sub-env ``i`` reset with ``seed=s`` (int) is seeded ``s + i``;
+    a list gives each its seed; generators continue across autoresets.
+    """
+
+    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.SAME_STEP}
+
+    def __init__(self, num_envs: int = 1, config: Union[RegulationConfig, Mapping, str, None] = None):
+        if not (isinstance(num_envs, (int, np.integer)) and num_envs >= 1):
+            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        self.config = make_regulation_config(config)
+        self.num_envs = int(num_envs)
+        self.single_observation_space, self.single_action_space = _spaces()
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self._loops = RegulationLoops(self.config, self.num_envs)
+        self._rngs = [seeding.np_random(None)[0] for _ in range(self.num_envs)]
+        self.episode_steps = self.config.steps
+
+    def reset(self, *, seed: Union[int, Sequence[Optional[int]], None] = None, options: Optional[dict] = None):
+        """Reset all sub-envs; ``options`` as the single env's (scalars or ``(num_envs,)`` arrays)."""
+        pins = parse_options(options, self.config, self.num_envs)
+        if seed is not None:
+            seeds = [seed + i for i in range(self.num_envs)] if isinstance(seed, (int, np.integer)) else list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"seed must be an int or a list of {self.num_envs} seeds, got {len(seeds)}")
+            self._rngs = [seeding.np_random(None if s is None else int(s))[0] for s in seeds]
+        obs = self._loops.reset(self._rngs, pins)
+        return obs, self._loops.episode_info()
+
+    def step(self, actions):
+        """One scan of every loop; returns ``(obs, rewards, terminated, truncated, infos)``."""
+        obs, r, trunc, info = self._loops.step(actions)
+        terminated = np.zeros(self.num_envs, dtype=bool)
+        truncated = np.full(self.num_envs, bool(trunc))
+        if trunc:
+            info["final_obs"] = obs
+            info["final_info"] = dict(info)
+            obs = self._loops.reset(self._rngs)
+            info.update({f"next_{k}": v for k, v in self._loops.episode_info().items()})
+        return obs, r, terminated, truncated, info
