@@ -230,3 +230,167 @@ def test_choudhury_stop_then_same_direction_needs_J():
     assert np.all(h[k_stop:k_stop + 51] == h[k_stop])
     kb = k_stop + 51 + int(np.argmax(h[k_stop + 51:] != h[k_stop]))
     assert J < u[kb] - u[k_stop] <= J + step + 1e-12
+
+
+def test_choudhury_small_back_and_forth_slips_at_once():
+    """The paper's direction test (sign of the current increment, distance |u - u_s|): after a stop, a
+    back-move of a (J < a < S) and a forward move slip at once, the stem jumping backwards (the weakness
+    Kano et al. 2004 addressed)."""
+    S, J, a, step = 0.04, 0.01, 0.02, 1e-4
+    u, _, k_stop = _stop_back_forth(a, step)
+    h = simulate(valve_model("choudhury", S, J, base=fine_base()), u).h[:, 0]
+    k_fwd = k_stop + 50 + int(round(a / step))              # last sample of the back-move
+    assert np.all(h[k_stop:k_fwd + 1] == h[k_stop])         # stuck through the stop and the back-move
+    assert h[k_fwd + 1] < h[k_stop] - (a - J)               # the first forward sample jumps backwards
+
+
+# --------------------------------------------------------------------------- kano
+def _stop_back_forth(a, step, up=0.08, hold=50, fwd=0.05):
+    """Input: up by ``up`` (valve moving), hold, back by ``a``, forward by ``a + fwd``."""
+    u1 = 0.4 + step * np.arange(1, int(round(up / step)) + 1)
+    u2 = np.full(hold, u1[-1])
+    u3 = u1[-1] - step * np.arange(1, int(round(a / step)) + 1)
+    u4 = u3[-1] + step * np.arange(1, int(round((a + fwd) / step)) + 1)
+    return np.concatenate([u1, u2, u3, u4]), u1[-1], len(u1) - 1
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_kano_sine_phase_plot_numbers(case):
+    """Kano et al. (2004): on a sine the same phase plot as Choudhury's (oracle O4): stuck for S of input
+    after each reversal, jump J, peak X - (S - J)/2, lag (S - J)/2 while moving."""
+    S, J = CASES[case]
+    X = 0.2
+    p = replace(fine_base(), slip_jump=SlipJump(S=S, J=J, tau_p=DT, law="kano"))
+    u, H, delta, n_per = sine_response(p, X)
+    h = H[:, 0]
+    assert np.max(h[n_per:]) - 0.5 == pytest.approx(X - (S - J) / 2, abs=delta)
+    ev = reversal_events(u, h, n_per)
+    assert len(ev) == 2
+    for k, kb, h_stuck, h_new in ev:
+        assert S < u[k] - u[kb] <= S + delta + 1e-12
+        assert J - 1e-12 <= h_stuck - h_new <= J + delta + 1e-12
+    k0 = 2 * n_per + 10
+    assert u[k0] - h[k0] == pytest.approx((S - J) / 2, abs=1e-12)
+
+
+def test_kano_equals_choudhury_on_smooth_inputs():
+    """Oracle O5: once both have moved, Kano's and Choudhury's outputs agree sample for sample."""
+    S = np.array([0.04, 0.04, 0.04, 0.03])
+    J = np.array([0.0, 0.01, 0.04, 0.02])
+    k = np.arange(12000)
+    u = 0.5 + 0.15 * np.sin(2 * np.pi * k / 3000) + 0.05 * np.sin(2 * np.pi * k / 1700)
+    hc = simulate(valve_model("choudhury", S, J, base=fine_base()), u, n=4).h
+    hk = simulate(valve_model("kano", S, J, base=fine_base()), u, n=4).h
+    np.testing.assert_array_equal(hk[3000:], hc[3000:])
+
+
+def test_kano_stop_then_continue_needs_J():
+    S, J = 0.04, 0.01
+    p = valve_model("kano", S, J, base=fine_base())
+    step = 1e-4
+    up1 = 0.5 + step * np.arange(1, 801)
+    u = np.concatenate([up1, np.full(50, up1[-1]), up1[-1] + step * np.arange(1, 401)])
+    h = simulate(p, u).h[:, 0]
+    k_stop = len(up1) - 1
+    assert np.all(h[k_stop:k_stop + 51] == h[k_stop])
+    kb = k_stop + 51 + int(np.argmax(h[k_stop + 51:] != h[k_stop]))
+    assert J < u[kb] - u[k_stop] <= J + step + 1e-12
+    assert h[kb] - h[k_stop] == pytest.approx(u[kb] - u[k_stop], abs=1e-12)  # jump J (+ the last step)
+
+
+@pytest.mark.parametrize("a", [0.005, 0.02, 0.035])
+def test_kano_back_and_forth_inside_the_band_stays_stuck_until_J_past_the_stuck_point(a):
+    """Kano's signed test: after a stop and a back-move smaller than S, the valve stays stuck while the
+    input drifts forward again, until it is J past the stuck point; then it moves forwards."""
+    S, J, step = 0.04, 0.01, 1e-4
+    u, u_s, k_stop = _stop_back_forth(a, step)
+    h = simulate(valve_model("kano", S, J, base=fine_base()), u).h[:, 0]
+    kb = k_stop + int(np.argmax(h[k_stop:] != h[k_stop]))
+    assert kb > k_stop
+    assert J < u[kb] - u_s <= J + step + 1e-12
+    assert h[kb] > h[k_stop]
+
+
+def test_kano_starts_in_the_middle_of_its_band():
+    """From the rest state (no direction yet) the first slip needs (S + J)/2 either way and jumps J."""
+    S, J, step = 0.04, 0.01, 1e-4
+    for sign in (1.0, -1.0):
+        p = valve_model("kano", S, J, base=fine_base())
+        u = 0.5 + sign * step * np.arange(1, 601)
+        h = simulate(p, u).h[:, 0]
+        kb = int(np.argmax(h != h[0]))
+        assert (S + J) / 2 < abs(u[kb] - 0.5) <= (S + J) / 2 + step + 1e-12
+        assert abs(h[kb] - h[0]) == pytest.approx(J, abs=step + 1e-12)
+
+
+# --------------------------------------------------------------------------- karnopp
+def karnopp(S, J, zeta=None, tau=0.1, dt=DT, **kw):
+    p = valve_model("karnopp", S, J, base=ModelParams(valve=ValveParams(tau=tau), dt=dt))
+    if zeta is not None or kw:
+        p = replace(p, slip_jump=replace(p.slip_jump, **({"zeta": zeta} if zeta is not None else {}), **kw))
+    return p
+
+
+@pytest.mark.parametrize("dt", [1e-3, 0.02])
+@pytest.mark.parametrize("S,J", [(0.03, 0.01), (0.02, 0.0), (0.02, 0.02)])
+def test_karnopp_reversal_band_and_jump(S, J, dt):
+    """Quasi-static sizing fs = (S + J)/2, fc = (S - J)/2: after a reversal the input travels S (plus the
+    actuator lag's share s tau (1 + ln 2) and the viscous lag 2 zeta s / omega_n) with the stem exactly
+    still, then the stem slips by J (overdamped default stem)."""
+    s, Ts, tau = 1e-3, 0.1, 0.1
+    p = karnopp(S, J, tau=tau, dt=dt)
+    sj = p.slip_jump
+    u, k_rev = ramp_up_down(0.4, 0.1, 0.1, s, Ts)
+    h = simulate(p, u, n_sub=int(round(Ts / dt))).h[:, 0]
+    kb, h_stuck = breakaway_after(u, h, k_rev)
+    expect = S + s * tau * (1 + math.log(2)) + 2 * sj.zeta / sj.omega_n * s
+    assert abs((u[k_rev] - u[kb]) - expect) <= 2 * s * Ts + 1e-6
+    # no motion inside the band: from the stop after the reversal to the break-away the stem is still
+    k_stop = k_rev + int(round(5 * tau / Ts))
+    assert np.all(h[k_stop:kb] == h[k_stop])
+    # the slip: stem displacement beyond the input's since break-away, once the slip is over (2 s)
+    k2 = kb + int(round(2.0 / Ts))
+    jump = (h_stuck - h[k2]) - (u[kb] - u[k2])
+    assert abs(jump - J) <= s * Ts + 2e-4
+
+
+def test_karnopp_light_damping_gives_stick_slip_steps():
+    """zeta < 1: the slip overshoots to J (1 + Mp), Mp = exp(-pi zeta / sqrt(1 - zeta^2)); under a slow ramp
+    the stem moves in a staircase of such steps, sticking in between."""
+    S, J, zeta = 0.03, 0.01, 0.3
+    s, Ts = 2e-4, 0.05
+    p = karnopp(S, J, zeta=zeta)
+    u = 0.5 + s * Ts * np.arange(int(round(0.15 / (s * Ts))))
+    h = simulate(p, u, n_sub=int(round(Ts / DT))).h[:, 0]
+    dh = np.diff(h)
+    assert np.all(dh >= 0)
+    stuck = dh == 0
+    assert stuck.mean() > 0.9                                   # stuck most of the time
+    plateaus = np.unique(h[1:][stuck])                          # stem positions where it stuck
+    steps = np.diff(plateaus)
+    assert len(steps) >= 5
+    mp = math.exp(-math.pi * zeta / math.sqrt(1 - zeta ** 2))
+    # the first plateau after start-up is reached from the band's middle; the rest are full steps
+    np.testing.assert_allclose(steps[1:], J * (1 + mp), rtol=0.01)
+
+
+def test_karnopp_no_motion_while_force_inside_static_friction():
+    """A stuck stem does not move at all while |p - x| <= fs, even with input wiggles inside the band."""
+    S, J = 0.04, 0.02
+    p = karnopp(S, J)
+    k = np.arange(4000)
+    u = 0.5 + 0.8 * (S + J) / 2 * np.sin(2 * np.pi * k / 1000)   # never more than 0.8 fs from the rest point
+    h = simulate(p, u).h[:, 0]
+    assert np.all(h == 0.5)
+
+
+def test_karnopp_stiff_stem_is_refused_with_advice():
+    p = karnopp(0.02, 0.01, dt=0.02)
+    with pytest.raises(ParameterError, match="omega_n.*sub-steps.*use dt <="):
+        simulate(replace(p, slip_jump=replace(p.slip_jump, omega_n=1e4)), np.full(5, 0.5))
+    with pytest.raises(ParameterError, match="J must be <= S"):
+        SlipJump(S=0.01, J=0.02, law="karnopp")
+    with pytest.raises(ParameterError, match="law must be one of"):
+        SlipJump(law="lugre")
+    with pytest.raises(ParameterError, match="zeta"):
+        SlipJump(law="karnopp", zeta=-1.0)

@@ -24,23 +24,16 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from typing import NamedTuple, Optional
+from typing import NamedTuple
 
 import numpy as np
 
+from ._numba import HAVE_NUMBA, njit
+from .friction.choudhury import choudhury_sample
+from .friction.kano import kano_sample
+from .friction.karnopp import karnopp_step, substeps
+from .friction.riihilahti import riihilahti_step
 from .params import ModelParams, ParameterError
-
-try:  # numba is a declared dependency; the fallback keeps the code importable.
-    from numba import njit
-    HAVE_NUMBA = True
-except ImportError:  # pragma: no cover
-    HAVE_NUMBA = False
-
-    def njit(*a, **k):
-        def deco(f):
-            f.py_func = f
-            return f
-        return deco if not (a and callable(a[0])) else deco(a[0])
 
 __all__ = ["State", "Trajectory", "Packed", "pack", "initial_state", "steady_input",
            "step", "simulate", "run_packed", "check_dt", "HAVE_NUMBA"]
@@ -48,11 +41,14 @@ __all__ = ["State", "Trajectory", "Packed", "pack", "initial_state", "steady_inp
 # ---------------------------------------------------------------- layouts
 # parameter rows of the packed (NP, n) array
 TAU, VMAX, EDEAD, ZMAX, SJ_S, SJ_J, SJ_TAU, CH_R, CH_H0, P_A, P_Q, P_OUT, A2, K2, \
-    LMAX, L2MAX, SPILL, QLEAK, DELAY, TAU_S, DIST_A, DIST_P, DIST_PHI = range(23)
-NP = 23
+    LMAX, L2MAX, SPILL, QLEAK, DELAY, TAU_S, DIST_A, DIST_P, DIST_PHI, KP_W2, KP_C2, KP_DV, KP_M = range(27)
+NP = 27
 # flag slots
 F_FRIC, F_CHAR, F_ACT, F_PROC, F_DEAD, F_OVER, F_LEAK, F_SENS, F_DIST = range(9)
 NF = 9
+# friction codes of the F_FRIC slot: the seed valve (also 'none'), then the slip_jump laws
+FRIC_RIIHILAHTI, FRIC_CHOUDHURY, FRIC_KANO, FRIC_KARNOPP = range(4)
+_LAW_CODE = {"choudhury": FRIC_CHOUDHURY, "kano": FRIC_KANO, "karnopp": FRIC_KARNOPP}
 # state rows of the packed (NS, n) array
 S_Z, S_H, S_X, S_US, S_STUCK, S_SDIR, S_UPREV, S_L1, S_L2, S_Y, S_T, S_BIDX = range(12)
 NS = 12
@@ -64,12 +60,14 @@ class State(NamedTuple):
 
     Fields
     ------
-    z : friction / time-delay state of the paper's valve [s]
+    z : friction state: Riihilahti valve: integral band state [s]; ``kano``: last
+        input increment [-]; ``karnopp``: stem velocity [1/s]
     h : stem position (integrator state; the output is ``clip(h, 0, 1)``) [-]
-    x : output of the slip-jump friction block (its positioner target) [-]
+    x : output of the slip-jump friction block (its positioner target) [-];
+        ``karnopp``: actuator force / spring constant [-]
     u_s : input at which the slip-jump valve stuck [-]
     stuck : 1.0 while the slip-jump valve is stuck, else 0.0
-    s_dir : last direction of motion of the slip-jump input (-1, 0, 1)
+    s_dir : last direction of motion of the slip-jump valve (-1, 0, 1)
     u_prev : input of the previous controller sample [-]
     level : level of the (upper) tank [m], or process output for ``first_order``
     level2 : level of the lower tank (``cascade``) [m]
@@ -95,6 +93,7 @@ class State(NamedTuple):
 
     @property
     def n(self) -> int:
+        """Batch size."""
         return self.z.shape[0]
 
     def measured(self) -> np.ndarray:
@@ -122,60 +121,132 @@ class Trajectory(NamedTuple):
 
 
 # ---------------------------------------------------------------- kernel
+# One small inlined helper per block; numba inlines them into `_kernel` at the IR level, so the
+# compiled loop is the one long function it was before (benchmarks/bench_kernel.py measures it
+# against the frozen pre-split copy in benchmarks/kernel_reference.py). The friction blocks live
+# in their models' modules (valve_gym.friction.*), the others here.
+@njit(inline="always")
+def _characteristic(char, hc, R, h0):  # pragma: no cover - compiled
+    """Installed characteristic ``f(hc)``: 0 linear, 1 equal percentage, 2 quick opening."""
+    if char == 0 and h0 == 0.0:
+        return hc
+    if hc <= h0:
+        return 0.0
+    r = (hc - h0) / (1.0 - h0)
+    if char == 0:
+        return r
+    elif char == 1:
+        return R ** (r - 1.0)
+    return np.sqrt(r)
+
+
+@njit(inline="always")
+def _dead_time(buf, i, bidx, f, kdel, B):  # pragma: no cover - compiled
+    """Ring buffer of flow fractions: write ``f``, read the one ``kdel`` steps old; ``(f, bidx)``."""
+    buf[i, bidx] = f
+    f = buf[i, (bidx - kdel) % B]
+    return f, (bidx + 1) % B
+
+
+@njit(inline="always")
+def _tank(proc, over, L1, L2, qin, pa, pout, qleak, lmax, a2, k2, spill_f, l2max, dt):  # pragma: no cover
+    """Torricelli tank (``proc`` 0), or upper + lower tank (3); returns ``(L1, L2, measured level)``."""
+    q1 = pout * np.sqrt(L1) if L1 > 0.0 else 0.0
+    if proc == 0:
+        L1 = L1 + dt * (qin - q1 - qleak) / pa
+    else:
+        L1 = L1 + dt * (qin - q1) / pa
+    if L1 < 0.0:
+        L1 = 0.0
+    spill = 0.0
+    if over == 1 and L1 > lmax:
+        spill = (L1 - lmax) * pa / dt
+        L1 = lmax
+    if proc == 3:
+        q2 = k2 * np.sqrt(L2) if L2 > 0.0 else 0.0
+        L2 = L2 + dt * (q1 + spill_f * spill - q2 - qleak) / a2
+        if L2 < 0.0:
+            L2 = 0.0
+        if over == 1 and L2 > l2max:
+            L2 = l2max
+        return L1, L2, L2
+    return L1, L2, L1
+
+
+@njit(inline="always")
+def _process(proc, over, L1, L2, qin, pa, pout, qleak, lmax, a2, k2, spill_f, l2max, dt):  # pragma: no cover
+    """One Euler step of the process; returns ``(L1, L2, measured level)``."""
+    if proc == 0 or proc == 3:
+        return _tank(proc, over, L1, L2, qin, pa, pout, qleak, lmax, a2, k2, spill_f, l2max, dt)
+    if proc == 1:                                   # integrating
+        L1 = L1 + dt * (qin - pout - qleak) / pa
+    else:                                           # first order
+        L1 = L1 + dt * (qin + pout - qleak - L1) / pa
+    if over == 1 and L1 > lmax:
+        L1 = lmax
+    return L1, L2, L1
+
+
+@njit(inline="always")
+def _sensor(sens, y, lm, taus, dt):  # pragma: no cover - compiled
+    """First-order sensor lag (``sens`` 1) or the level itself."""
+    if sens == 1:
+        return y + dt * (lm - y) / taus
+    return lm
+
+
+@njit(inline="always")
+def _valve_sample(fric, u, uprev, x, us, stuck, sdir, z, sjS, sjJ):  # pragma: no cover - compiled
+    """The once-per-sample friction blocks (``slip_jump`` laws choudhury, kano); ``(x, us, stuck, sdir, z)``."""
+    if fric == FRIC_CHOUDHURY:
+        x, us, stuck, sdir = choudhury_sample(u, uprev, x, us, stuck, sdir, sjS, sjJ)
+    elif fric == FRIC_KANO:
+        x, us, stuck, sdir, z = kano_sample(u, uprev, x, us, stuck, sdir, z, sjS, sjJ)
+    return x, us, stuck, sdir, z
+
+
+@njit(inline="always")
+def _valve_step(fric, u, h, z, x, V, dt):  # pragma: no cover - compiled
+    """One Euler step of the valve stem; ``V`` the valve's parameters (see `_kernel`); ``(h, z, x)``."""
+    if fric == FRIC_RIIHILAHTI:
+        h, z = riihilahti_step(u, h, z, V[0], V[1], V[2], V[3], dt)
+    elif fric == FRIC_KARNOPP:
+        h, z, x = karnopp_step(u, h, z, x, V[4], V[5], V[6], V[7], V[8], V[9], int(V[10]), dt)
+    else:
+        h += dt * (x - h) / V[6]
+    return h, z, x
+
+
 @njit(cache=True, nogil=True)
 def _kernel(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV):  # pragma: no cover - compiled
+    """Advance the packed state ``S`` (NS, n) over the inputs ``U`` (T, n|1); see :func:`run_packed`."""
     T = U.shape[0]
     n = S.shape[1]
     pb = P.shape[1] > 1
     ub = U.shape[1] > 1
     db = D.shape[1] > 1
-    fric = flags[F_FRIC]
-    char = flags[F_CHAR]
-    act = flags[F_ACT]
-    proc = flags[F_PROC]
-    dead = flags[F_DEAD]
-    over = flags[F_OVER]
-    leak = flags[F_LEAK]
-    sens = flags[F_SENS]
-    dist = flags[F_DIST]
+    fric, char, act, proc = flags[F_FRIC], flags[F_CHAR], flags[F_ACT], flags[F_PROC]
+    dead, over, leak, sens, dist = flags[F_DEAD], flags[F_OVER], flags[F_LEAK], flags[F_SENS], flags[F_DIST]
     B = buf.shape[1]
     for i in range(n):
         j = i if pb else 0
-        tau = P[TAU, j]
-        vmax = P[VMAX, j]
-        ed = P[EDEAD, j]
-        zmax = P[ZMAX, j]
-        sjS = P[SJ_S, j]
-        sjJ = P[SJ_J, j]
-        taup = P[SJ_TAU, j]
-        R = P[CH_R, j]
-        h0 = P[CH_H0, j]
-        pa = P[P_A, j]
-        pq = P[P_Q, j]
-        pout = P[P_OUT, j]
-        a2 = P[A2, j]
-        k2 = P[K2, j]
-        lmax = P[LMAX, j]
-        l2max = P[L2MAX, j]
-        spill_f = P[SPILL, j]
+        # valve: tau, vmax, e_dead, z_max, S, J, tau_p, omega_n^2, 2 zeta omega_n, dv, sub-steps
+        V = (P[TAU, j], P[VMAX, j], P[EDEAD, j], P[ZMAX, j], P[SJ_S, j], P[SJ_J, j], P[SJ_TAU, j],
+             P[KP_W2, j], P[KP_C2, j], P[KP_DV, j], P[KP_M, j])
+        sjS, sjJ = P[SJ_S, j], P[SJ_J, j]
+        R, h0 = P[CH_R, j], P[CH_H0, j]
+        pa, pq, pout = P[P_A, j], P[P_Q, j], P[P_OUT, j]
+        a2, k2, lmax, l2max, spill_f = P[A2, j], P[K2, j], P[LMAX, j], P[L2MAX, j], P[SPILL, j]
         qleak = P[QLEAK, j] if leak == 1 else 0.0
         kdel = int(P[DELAY, j])
         taus = P[TAU_S, j]
-        da = P[DIST_A, j]
-        dw = 2.0 * np.pi / P[DIST_P, j]
-        dphi = P[DIST_PHI, j]
-        z = S[S_Z, i]
-        h = S[S_H, i]
-        x = S[S_X, i]
-        us = S[S_US, i]
-        stuck = S[S_STUCK, i]
-        sdir = S[S_SDIR, i]
-        uprev = S[S_UPREV, i]
-        L1 = S[S_L1, i]
-        L2 = S[S_L2, i]
-        y = S[S_Y, i]
-        t = S[S_T, i]
+        da, dw, dphi = P[DIST_A, j], 2.0 * np.pi / P[DIST_P, j], P[DIST_PHI, j]
+        z, h, x, us = S[S_Z, i], S[S_H, i], S[S_X, i], S[S_US, i]
+        stuck, sdir, uprev = S[S_STUCK, i], S[S_SDIR, i], S[S_UPREV, i]
+        L1, L2, y, t = S[S_L1, i], S[S_L2, i], S[S_Y, i], S[S_T, i]
         bidx = int(S[S_BIDX, i])
+        hc = h
+        lm = L1
         for k in range(T):
             u = U[k, i if ub else 0]
             if u < 0.0:
@@ -183,153 +254,59 @@ def _kernel(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV):  # pragma: no cover - 
             elif u > 1.0:
                 u = 1.0
             dk = D[k, i if db else 0]
-            if act == 0 and fric == 1:
-                # Choudhury slip-jump block, once per controller sample
-                du = u - uprev
-                dsg = 0.0
-                if du > 0.0:
-                    dsg = 1.0
-                elif du < 0.0:
-                    dsg = -1.0
-                if dsg == 0.0:
-                    if stuck == 0.0:
-                        stuck = 1.0
-                        us = uprev
-                else:
-                    # sdir: direction of the last *motion* of the valve, kept
-                    # while it is stuck, so a reversal is remembered until it slips
-                    reversed_ = (sdir != 0.0) and (dsg != sdir)
-                    if stuck == 0.0 and reversed_:
-                        stuck = 1.0
-                        us = uprev
-                    if stuck == 1.0:
-                        thr = sjS if reversed_ else sjJ
-                        if abs(u - us) > thr:
-                            stuck = 0.0
-                            x = u - dsg * (sjS - sjJ) / 2.0
-                            sdir = dsg
-                    else:
-                        x = u - dsg * (sjS - sjJ) / 2.0
-                        sdir = dsg
-                if x < 0.0:
-                    x = 0.0
-                elif x > 1.0:
-                    x = 1.0
+            if act == 0 and (fric == FRIC_CHOUDHURY or fric == FRIC_KANO):
+                x, us, stuck, sdir, z = _valve_sample(fric, u, uprev, x, us, stuck, sdir, z, sjS, sjJ)
             uprev = u
             for s in range(n_sub):
-                # ---- actuator
-                if act == 1:
+                if act == 1:                        # pump: the input is the flow fraction
                     hc = u
                     f = u
                 else:
-                    if fric == 0:
-                        e = u - h
-                        if e > ed:
-                            e = e - ed
-                        elif e < -ed:
-                            e = e + ed
-                        else:
-                            e = 0.0
-                        # z is held at the edge of its band while outside it
-                        # (continuous-time dz/dt = 0 there): the stem slips while z
-                        # is at an edge and e pushes outwards, else it is stuck.
-                        v = 0.0
-                        if (z >= zmax and e > 0.0) or (z <= -zmax and e < 0.0):
-                            v = abs(e) / tau
-                            if v > vmax:
-                                v = vmax
-                            if e < 0.0:
-                                v = -v
-                        else:
-                            z += dt * e
-                            if z > zmax:
-                                z = zmax
-                            elif z < -zmax:
-                                z = -zmax
-                        h += dt * v
-                    else:
-                        h += dt * (x - h) / taup
+                    h, z, x = _valve_step(fric, u, h, z, x, V, dt)
                     hc = h
                     if hc < 0.0:
                         hc = 0.0
                     elif hc > 1.0:
                         hc = 1.0
-                    # ---- installed characteristic
-                    if char == 0 and h0 == 0.0:
-                        f = hc
-                    else:
-                        if hc <= h0:
-                            f = 0.0
-                        else:
-                            r = (hc - h0) / (1.0 - h0)
-                            if char == 0:
-                                f = r
-                            elif char == 1:
-                                f = R ** (r - 1.0)
-                            else:
-                                f = np.sqrt(r)
-                # ---- dead time
+                    f = _characteristic(char, hc, R, h0)
                 if dead == 1:
-                    buf[i, bidx] = f
-                    f = buf[i, (bidx - kdel) % B]
-                    bidx = (bidx + 1) % B
+                    f, bidx = _dead_time(buf, i, bidx, f, kdel, B)
                 qin = f * pq + dk
                 if dist == 1:
                     qin += da * np.sin(dw * t + dphi)
-                # ---- process
-                if proc == 0 or proc == 3:
-                    q1 = pout * np.sqrt(L1) if L1 > 0.0 else 0.0
-                    if proc == 0:
-                        L1 = L1 + dt * (qin - q1 - qleak) / pa
-                    else:
-                        L1 = L1 + dt * (qin - q1) / pa
-                    if L1 < 0.0:
-                        L1 = 0.0
-                    spill = 0.0
-                    if over == 1 and L1 > lmax:
-                        spill = (L1 - lmax) * pa / dt
-                        L1 = lmax
-                    if proc == 3:
-                        q2 = k2 * np.sqrt(L2) if L2 > 0.0 else 0.0
-                        L2 = L2 + dt * (q1 + spill_f * spill - q2 - qleak) / a2
-                        if L2 < 0.0:
-                            L2 = 0.0
-                        if over == 1 and L2 > l2max:
-                            L2 = l2max
-                        lm = L2
-                    else:
-                        lm = L1
-                elif proc == 1:
-                    L1 = L1 + dt * (qin - pout - qleak) / pa
-                    if over == 1 and L1 > lmax:
-                        L1 = lmax
-                    lm = L1
-                else:
-                    L1 = L1 + dt * (qin + pout - qleak - L1) / pa
-                    if over == 1 and L1 > lmax:
-                        L1 = lmax
-                    lm = L1
-                # ---- sensor
-                if sens == 1:
-                    y = y + dt * (lm - y) / taus
-                else:
-                    y = lm
+                L1, L2, lm = _process(proc, over, L1, L2, qin, pa, pout, qleak, lmax, a2, k2, spill_f, l2max, dt)
+                y = _sensor(sens, y, lm, taus, dt)
                 t += dt
             Y[k, i] = y
             H[k, i] = hc if act == 0 else u
             LV[k, i] = lm
-        S[S_Z, i] = z
-        S[S_H, i] = h
-        S[S_X, i] = x
-        S[S_US, i] = us
-        S[S_STUCK, i] = stuck
-        S[S_SDIR, i] = sdir
-        S[S_UPREV, i] = uprev
-        S[S_L1, i] = L1
-        S[S_L2, i] = L2
-        S[S_Y, i] = y
-        S[S_T, i] = t
+        S[S_Z, i], S[S_H, i], S[S_X, i], S[S_US, i] = z, h, x, us
+        S[S_STUCK, i], S[S_SDIR, i], S[S_UPREV, i] = stuck, sdir, uprev
+        S[S_L1, i], S[S_L2, i], S[S_Y, i], S[S_T, i] = L1, L2, y, t
         S[S_BIDX, i] = bidx
+
+
+def _flush_stale_kernel_cache() -> None:
+    """Drop numba's on-disk cache of `_kernel` when a block module is newer than it.
+
+    numba keys the cache on this file only; the inlined friction blocks live in
+    other modules, so an edit there would otherwise run a stale kernel.
+    """
+    try:
+        from .friction import choudhury, kano, karnopp, riihilahti
+        idx = _kernel._cache._cache_file._index_path  # type: ignore[attr-defined]
+        if not os.path.exists(idx):
+            return
+        newest = max(os.path.getmtime(m.__file__) for m in (choudhury, kano, karnopp, riihilahti)
+                     if m.__file__)
+        if newest > os.path.getmtime(idx):
+            _kernel._cache.flush()  # type: ignore[attr-defined]
+    except Exception:  # pragma: no cover - numba internals moved: keep the cache as numba decides
+        pass
+
+
+if HAVE_NUMBA:
+    _flush_stale_kernel_cache()
 
 
 # ---------------------------------------------------------------- packing
@@ -345,6 +322,7 @@ class Packed:
 
     @property
     def n(self) -> int:
+        """Batch size."""
         return self.P.shape[1]
 
 
@@ -368,7 +346,9 @@ def check_dt(params: ModelParams) -> None:
     ``tau`` (paper model), the positioner ``tau_p`` (slip-jump), the sensor
     ``tau_s``, the ``first_order`` process ``T``, and for the tank the
     linearised outflow time constant ``2 A sqrt(L)/k`` at the level where the
-    inflow is 10 % of ``q_max``.
+    inflow is 10 % of ``q_max``. The force-balance valve (``law='karnopp'``)
+    integrates its stem on sub-steps of ``dt``; a stem too stiff for ``dt``
+    (:func:`valve_gym.friction.karnopp.substeps`) is refused too.
     """
     dt = params.dt
     checks = []
@@ -394,6 +374,8 @@ def check_dt(params: ModelParams) -> None:
                 checks.append(("lower tank outflow time constant",
                                np.asarray(params.cascade.area2) * 0.2 * np.asarray(pr.q_max)
                                / k2 ** 2))
+    if params.slip_jump is not None and params.slip_jump.law == "karnopp" and not act_pump:
+        substeps(dt, params.slip_jump.omega_n)        # raises for a stem too stiff for dt
     for what, T in checks:
         tmin = float(np.min(T))
         if dt > tmin * (1 + 1e-9):
@@ -403,7 +385,17 @@ def check_dt(params: ModelParams) -> None:
                 f"controller sample) or a slower model")
 
 
-def pack(params: ModelParams, n: Optional[int] = None, check: bool = True) -> Packed:
+def _pack_slip_jump(sj, dt: float, n: int, P: np.ndarray) -> int:
+    """Fill the rows of the ``slip_jump`` block in ``P``; returns its friction code."""
+    P[SJ_S], P[SJ_J], P[SJ_TAU] = _col(sj.S, n), _col(sj.J, n), _col(sj.tau_p, n)
+    if sj.law == "karnopp":
+        w = _col(sj.omega_n, n)
+        P[KP_W2], P[KP_C2], P[KP_DV] = w * w, 2.0 * _col(sj.zeta, n) * w, _col(sj.dv, n)
+        P[KP_M] = substeps(dt, w)
+    return _LAW_CODE[sj.law]
+
+
+def pack(params: ModelParams, n: int | None = None, check: bool = True) -> Packed:
     """Pack ``params`` for the kernel, broadcasting to batch size ``n``."""
     nb = params.batch_size()
     if n is None:
@@ -423,10 +415,9 @@ def pack(params: ModelParams, n: Optional[int] = None, check: bool = True) -> Pa
     P[DIST_P] = 1.0
     P[TAU_S] = 1.0
     P[A2] = 1.0
+    P[KP_M] = 1.0
     if params.slip_jump is not None:
-        sj = params.slip_jump
-        flags[F_FRIC] = 1
-        P[SJ_S], P[SJ_J], P[SJ_TAU] = _col(sj.S, n), _col(sj.J, n), _col(sj.tau_p, n)
+        flags[F_FRIC] = _pack_slip_jump(params.slip_jump, params.dt, n, P)
     if params.valve_characteristic is not None:
         c = params.valve_characteristic
         flags[F_CHAR] = c.code
@@ -484,7 +475,7 @@ def _flow_fraction(params: ModelParams, h):
     return np.where(h <= h0, 0.0, f)
 
 
-def steady_input(params: ModelParams, level, n: Optional[int] = None) -> np.ndarray:
+def steady_input(params: ModelParams, level, n: int | None = None) -> np.ndarray:
     """Stem position that holds the measured level steady (no friction offset).
 
     For a tank ``q_max f(h) = k sqrt(L)``; inverted on a fine grid for
@@ -525,8 +516,8 @@ def _inverse_flow_fraction(params: ModelParams, f, n):
     return np.where(f > 0, h0 + r * (1.0 - h0), 0.0)
 
 
-def initial_state(params: ModelParams, n: Optional[int] = None, level=None, h=None,
-                  level2=None, buf_len: Optional[int] = None) -> State:
+def initial_state(params: ModelParams, n: int | None = None, level=None, h=None,
+                  level2=None, buf_len: int | None = None) -> State:
     """State at rest: ``z = 0`` (as in the paper), stem at ``h``, levels given.
 
     Parameters
@@ -639,8 +630,8 @@ def _thread_pool(n: int):
         return pool
 
 
-def simulate(params: ModelParams, u, state: Optional[State] = None, d=None, n_sub: int = 1,
-             n: Optional[int] = None) -> Trajectory:
+def simulate(params: ModelParams, u, state: State | None = None, d=None, n_sub: int = 1,
+             n: int | None = None) -> Trajectory:
     """Simulate ``params`` over the input sequence ``u``; pure (inputs untouched).
 
     Parameters

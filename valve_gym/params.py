@@ -19,17 +19,16 @@ Optional physics blocks are ``None`` when off. Their names (the keys of
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
-from typing import Optional, Union
 
 import numpy as np
 
-Number = Union[float, np.ndarray]
+Number = float | np.ndarray
 
 __all__ = [
     "ValveParams", "SlipJump", "ValveCharacteristic", "DeadTime", "Overflow", "Leak",
     "SensorLag", "OscillatingDisturbance", "Cascade", "Actuator", "TankParams",
     "IntegratingParams", "FirstOrderParams", "ModelParams", "EFFECTS", "PROCESSES",
-    "ParameterError",
+    "ParameterError", "SLIP_JUMP_LAWS",
 ]
 
 
@@ -114,19 +113,29 @@ class ValveParams(_Block):
     z_max: Number = 0.005
 
     def validate(self):
+        """Raise :class:`ParameterError` for a field out of its range."""
         _check(self, "tau", 0.0, lo_open=True)
         _check(self, "v_max", 0.0, lo_open=True, allow_inf=True)
         _check(self, "e_dead", 0.0, 0.5)
         _check(self, "z_max", 0.0)
 
 
+#: Friction laws of the ``slip_jump`` block (see :mod:`valve_gym.friction`).
+SLIP_JUMP_LAWS = ("choudhury", "kano", "karnopp")
+
+
 @dataclass(frozen=True)
 class SlipJump(_Block):
-    """``slip_jump``: two-parameter stiction of Choudhury, Thornhill & Shah (2005).
+    """``slip_jump``: stick-slip friction sized by a stick band ``S`` and a slip jump ``J``.
 
-    Replaces the paper's friction model. Applied once per controller sample to
-    the input ``u`` (0..1), its output ``x`` drives a positioner lag
-    ``dh/dt = (x - h)/tau_p``.
+    Replaces the paper's friction model. By default (``law='choudhury'``) the
+    two-parameter stiction of Choudhury, Thornhill & Shah (2005), applied once
+    per controller sample to the input ``u`` (0..1); its output ``x`` drives a
+    positioner lag ``dh/dt = (x - h)/tau_p``. ``law='kano'`` is the model of
+    Kano et al. (2004) in the same place; ``law='karnopp'`` a force balance on
+    the stem with Karnopp's stick-velocity window, integrated every Euler step
+    (``omega_n``, ``zeta``, ``dv`` are its own). Each law is documented in its
+    module of :mod:`valve_gym.friction`.
 
     Parameters
     ----------
@@ -134,30 +143,58 @@ class SlipJump(_Block):
         Stick band plus dead band, fraction of the stroke (>= 0).
     J : float or (n,) array, -
         Slip jump, fraction of the stroke (>= 0). ``J = 0`` pure dead band,
-        ``J < S`` undershoot, ``J = S`` no offset, ``J > S`` overshoot.
+        ``J < S`` undershoot, ``J = S`` no offset, ``J > S`` overshoot
+        (``choudhury`` and ``kano`` only).
     tau_p : float or (n,) array, s
-        Positioner time constant (> 0).
+        Positioner time constant (> 0); for ``karnopp`` the lag of the
+        actuator force behind the input.
+    law : {'choudhury', 'kano', 'karnopp'}
+        Friction law.
+    omega_n : float or (n,) array, rad/s
+        ``karnopp``: natural frequency ``sqrt(k/m)`` of stem mass and spring (> 0).
+    zeta : float or (n,) array, -
+        ``karnopp``: damping ratio of the viscous friction, ``Fv / (2 sqrt(k m))`` (>= 0).
+    dv : float or (n,) array, 1/s
+        ``karnopp``: half width of the stick-velocity window, strokes per second (> 0).
 
     Notes
     -----
-    The valve sticks when the input stops or reverses (stuck input ``u_s``).
-    It slips when ``|u - u_s| > S`` after a reversal or ``> J`` when the input
-    goes on in the same direction; while moving ``x = u - sign(du)*(S - J)/2``.
+    ``choudhury``: the valve sticks when the input stops or reverses (stuck
+    input ``u_s``). It slips when ``|u - u_s| > S`` after a reversal or
+    ``> J`` when the input goes on in the same direction; while moving
+    ``x = u - sign(du)*(S - J)/2``.
 
     References
     ----------
     .. [1] M.A.A.S. Choudhury, N.F. Thornhill, S.L. Shah, "Modelling valve
        stiction", Control Engineering Practice 13 (2005) 641-658.
+    .. [2] M. Kano, H. Maruta, H. Kugemoto, K. Shimizu, "Practical model and
+       detection algorithm for valve stiction", IFAC DYCOPS 2004.
+    .. [3] D. Karnopp, "Computer simulation of stick-slip friction in mechanical
+       dynamic systems", J. Dyn. Syst. Meas. Control 107 (1985) 100-103.
     """
 
     S: Number = 0.02
     J: Number = 0.01
     tau_p: Number = 0.1
+    law: str = "choudhury"
+    omega_n: Number = 196.5
+    zeta: Number = 1.146
+    dv: Number = 1e-5
 
     def validate(self):
+        """Raise :class:`ParameterError` for a field out of its range."""
         _check(self, "S", 0.0, 1.0)
         _check(self, "J", 0.0, 1.0)
         _check(self, "tau_p", 0.0, lo_open=True)
+        if self.law not in SLIP_JUMP_LAWS:
+            raise ParameterError(f"SlipJump.law must be one of {list(SLIP_JUMP_LAWS)}, got {self.law!r}")
+        _check(self, "omega_n", 0.0, lo_open=True)
+        _check(self, "zeta", 0.0)
+        _check(self, "dv", 0.0, lo_open=True)
+        if self.law == "karnopp" and (np.asarray(self.J, float) > np.asarray(self.S, float) * (1 + 1e-12)).any():
+            raise ParameterError("SlipJump.J must be <= S for law='karnopp' (the Coulomb friction "
+                                 "(S - J)/2 cannot be negative); use law='choudhury' or 'kano' for overshoot")
 
 
 _CHAR_KINDS = {"linear": 0, "equal_percentage": 1, "quick_opening": 2}
@@ -189,6 +226,7 @@ class ValveCharacteristic(_Block):
     h0: Number = 0.0
 
     def validate(self):
+        """Raise :class:`ParameterError` for a field out of its range."""
         if self.kind not in _CHAR_KINDS:
             raise ParameterError(
                 f"ValveCharacteristic.kind must be one of {sorted(_CHAR_KINDS)}, got {self.kind!r}")
@@ -197,6 +235,7 @@ class ValveCharacteristic(_Block):
 
     @property
     def code(self) -> int:
+        """Kernel code of ``kind``."""
         return _CHAR_KINDS[self.kind]
 
 
@@ -219,6 +258,7 @@ class DeadTime(_Block):
     theta: Number = 2.0
 
     def validate(self):
+        """Raise :class:`ParameterError` for a field out of its range."""
         _check(self, "theta", 0.0)
 
 
@@ -249,6 +289,7 @@ class Overflow(_Block):
     spill_to_lower: Number = 0.5
 
     def validate(self):
+        """Raise :class:`ParameterError` for a field out of its range."""
         _check(self, "L_max", 0.0, lo_open=True)
         _check(self, "L2_max", 0.0, lo_open=True, allow_inf=True)
         _check(self, "spill_to_lower", 0.0, 1.0)
@@ -269,6 +310,7 @@ class Leak(_Block):
     q_leak: Number = 0.0005
 
     def validate(self):
+        """Raise :class:`ParameterError` for a field out of its range."""
         _check(self, "q_leak", 0.0)
 
 
@@ -286,6 +328,7 @@ class SensorLag(_Block):
     tau_s: Number = 5.0
 
     def validate(self):
+        """Raise :class:`ParameterError` for a field out of its range."""
         _check(self, "tau_s", 0.0, lo_open=True)
 
 
@@ -307,6 +350,7 @@ class OscillatingDisturbance(_Block):
     phase: Number = 0.0
 
     def validate(self):
+        """Raise :class:`ParameterError` for a field out of its range."""
         _check(self, "amplitude", 0.0)
         _check(self, "period", 0.0, lo_open=True)
         _check(self, "phase")
@@ -335,6 +379,7 @@ class Cascade(_Block):
     level2_0: Number = 1.0
 
     def validate(self):
+        """Raise :class:`ParameterError` for a field out of its range."""
         _check(self, "area2", 0.0, lo_open=True)
         _check(self, "k_out2", 0.0)
         _check(self, "level2_0", 0.0)
@@ -351,6 +396,7 @@ class Actuator(_Block):
     kind: str = "pump"
 
     def validate(self):
+        """Raise :class:`ParameterError` for a field out of its range."""
         if self.kind not in ("valve", "pump"):
             raise ParameterError(f"Actuator.kind must be 'valve' or 'pump', got {self.kind!r}")
 
@@ -375,6 +421,7 @@ class TankParams(_Block):
     level0: Number = 1.0
 
     def validate(self):
+        """Raise :class:`ParameterError` for a field out of its range."""
         _check(self, "area", 0.0, lo_open=True)
         _check(self, "q_max", 0.0, lo_open=True)
         _check(self, "k_out", 0.0)
@@ -394,6 +441,7 @@ class IntegratingParams(_Block):
     level0: Number = 0.0
 
     def validate(self):
+        """Raise :class:`ParameterError` for a field out of its range."""
         _check(self, "area", 0.0, lo_open=True)
         _check(self, "q_max", 0.0, lo_open=True)
         _check(self, "q_out", allow_inf=False)
@@ -413,6 +461,7 @@ class FirstOrderParams(_Block):
     level0: Number = 0.0
 
     def validate(self):
+        """Raise :class:`ParameterError` for a field out of its range."""
         _check(self, "K")
         _check(self, "T", 0.0, lo_open=True)
         _check(self, "b")
@@ -455,21 +504,22 @@ class ModelParams(_Block):
     """
 
     valve: ValveParams = field(default_factory=ValveParams)
-    process: Union[TankParams, IntegratingParams, FirstOrderParams] = field(
+    process: TankParams | IntegratingParams | FirstOrderParams = field(
         default_factory=TankParams)
     process_kind: str = "tank"
     dt: float = 0.02
-    slip_jump: Optional[SlipJump] = None
-    valve_characteristic: Optional[ValveCharacteristic] = None
-    dead_time: Optional[DeadTime] = None
-    overflow: Optional[Overflow] = None
-    leak: Optional[Leak] = None
-    sensor_lag: Optional[SensorLag] = None
-    oscillating_disturbance: Optional[OscillatingDisturbance] = None
-    cascade: Optional[Cascade] = None
-    actuator: Optional[Actuator] = None
+    slip_jump: SlipJump | None = None
+    valve_characteristic: ValveCharacteristic | None = None
+    dead_time: DeadTime | None = None
+    overflow: Overflow | None = None
+    leak: Leak | None = None
+    sensor_lag: SensorLag | None = None
+    oscillating_disturbance: OscillatingDisturbance | None = None
+    cascade: Cascade | None = None
+    actuator: Actuator | None = None
 
     def validate(self):
+        """Raise :class:`ParameterError` for a field out of its range."""
         if self.process_kind not in PROCESSES:
             raise ParameterError(
                 f"process_kind must be one of {sorted(PROCESSES)}, got {self.process_kind!r}")
@@ -494,7 +544,23 @@ class ModelParams(_Block):
         """Names of the optional blocks that are on."""
         return tuple(n for n in EFFECTS if getattr(self, n) is not None)
 
-    def with_effect(self, name: str, block=None) -> "ModelParams":
+    @property
+    def friction_model(self) -> str:
+        """Name of the valve's friction model (a name of :data:`valve_gym.friction.FRICTION_MODELS`).
+
+        ``slip_jump.law`` when that block is on; else ``'riihilahti'``, or
+        ``'none'`` when its bands are all zero or the actuator is a pump.
+        """
+        if self.actuator is not None and self.actuator.kind == "pump":
+            return "none"
+        if self.slip_jump is not None:
+            return self.slip_jump.law
+        v = self.valve
+        if np.all(np.asarray(v.e_dead) == 0) and np.all(np.asarray(v.z_max) == 0):
+            return "none"
+        return "riihilahti"
+
+    def with_effect(self, name: str, block=None) -> ModelParams:
         """Return a copy with effect ``name`` switched on (default parameters if ``block`` is None)."""
         if name not in EFFECTS:
             raise ParameterError(f"unknown effect {name!r}; known effects: {sorted(EFFECTS)}")

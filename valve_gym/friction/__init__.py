@@ -18,7 +18,7 @@ reference input speed for the seed model).
 from __future__ import annotations
 
 from ..params import ModelParams, ParameterError
-from . import choudhury, frictionless, riihilahti  # noqa: F401  (register the models)
+from . import choudhury, frictionless, kano, karnopp, riihilahti  # noqa: F401  (register the models)
 from .spec import FrictionSpec, ParamSpec, as_band, friction_spec, registered
 from .spec import frictionless as remove_friction
 

@@ -20,15 +20,69 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from .._numba import njit
 from ..params import ModelParams, SlipJump
 from .spec import FrictionSpec, ParamSpec, register
 
-__all__ = ["SPEC", "build"]
+__all__ = ["SPEC", "build", "choudhury_sample"]
 
 
 def build(base: ModelParams, S, J) -> ModelParams:
     """``base`` (friction removed) with the Choudhury block ``SlipJump(S, J, tau_p = base.valve.tau)``."""
     return replace(base, slip_jump=SlipJump(S=S, J=J, tau_p=base.valve.tau))
+
+
+@njit(inline="always")
+def choudhury_sample(u, uprev, x, us, stuck, sdir, S, J):  # pragma: no cover - compiled into the core's kernel
+    """One controller sample of the Choudhury block.
+
+    Parameters
+    ----------
+    u, uprev : float
+        Input of this and of the previous sample, 0..1.
+    x : float
+        Block output (positioner target) of the previous sample.
+    us, stuck, sdir : float
+        Stuck input, stuck flag (1.0 stuck), direction of the last motion (-1, 0, 1).
+    S, J : float
+        Stick band and slip jump, fractions of stroke.
+
+    Returns
+    -------
+    x, us, stuck, sdir : float
+        ``x`` clipped to [0, 1].
+    """
+    du = u - uprev
+    dsg = 0.0
+    if du > 0.0:
+        dsg = 1.0
+    elif du < 0.0:
+        dsg = -1.0
+    if dsg == 0.0:
+        if stuck == 0.0:
+            stuck = 1.0
+            us = uprev
+    else:
+        # sdir: direction of the last *motion* of the valve, kept
+        # while it is stuck, so a reversal is remembered until it slips
+        reversed_ = (sdir != 0.0) and (dsg != sdir)
+        if stuck == 0.0 and reversed_:
+            stuck = 1.0
+            us = uprev
+        if stuck == 1.0:
+            thr = S if reversed_ else J
+            if abs(u - us) > thr:
+                stuck = 0.0
+                x = u - dsg * (S - J) / 2.0
+                sdir = dsg
+        else:
+            x = u - dsg * (S - J) / 2.0
+            sdir = dsg
+    if x < 0.0:
+        x = 0.0
+    elif x > 1.0:
+        x = 1.0
+    return x, us, stuck, sdir
 
 
 SPEC = register(FrictionSpec(

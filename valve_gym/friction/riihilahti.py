@@ -49,10 +49,11 @@ from dataclasses import replace
 
 import numpy as np
 
+from .._numba import njit
 from ..params import ModelParams
 from .spec import FrictionSpec, ParamSpec, register
 
-__all__ = ["SPEC", "REF_RATE", "build", "breakaway_travel"]
+__all__ = ["SPEC", "REF_RATE", "build", "breakaway_travel", "riihilahti_step"]
 
 #: Reference input speed of the S/J mapping, fraction of stroke per second.
 REF_RATE = 1e-3
@@ -83,6 +84,53 @@ def build(base: ModelParams, S, J, rate: float = REF_RATE) -> ModelParams:
     e_dead = np.maximum(0.0, (S - J - rate * tau * np.log(2.0)) / 2.0)
     z_max = J ** 2 / (4.0 * rate)
     return replace(base, valve=replace(base.valve, e_dead=_same_kind(e_dead), z_max=_same_kind(z_max)))
+
+
+@njit(inline="always")
+def riihilahti_step(u, h, z, tau, vmax, ed, zmax, dt):  # pragma: no cover - compiled into the core's kernel
+    """One Euler step of the Riihilahti valve: ``(h, z)`` after ``dt`` with input ``u``.
+
+    Parameters
+    ----------
+    u : float
+        Valve input, 0..1.
+    h, z : float
+        Stem position (integrator state, unclipped) and friction state [s].
+    tau, vmax, ed, zmax, dt : float
+        ``ValveParams`` fields and the Euler step [s].
+
+    Returns
+    -------
+    h, z : float
+
+    Notes
+    -----
+    ``z`` is held at the edge of its band while outside it (continuous-time
+    ``dz/dt = 0`` there): the stem slips while ``z`` is at an edge and ``e``
+    pushes outwards, else it is stuck.
+    """
+    e = u - h
+    if e > ed:
+        e = e - ed
+    elif e < -ed:
+        e = e + ed
+    else:
+        e = 0.0
+    v = 0.0
+    if (z >= zmax and e > 0.0) or (z <= -zmax and e < 0.0):
+        v = abs(e) / tau
+        if v > vmax:
+            v = vmax
+        if e < 0.0:
+            v = -v
+    else:
+        z += dt * e
+        if z > zmax:
+            z = zmax
+        elif z < -zmax:
+            z = -zmax
+    h += dt * v
+    return h, z
 
 
 def _same_kind(a: np.ndarray):
