@@ -115,3 +115,37 @@ def test_bad_input_exit_2(tmp_path, capsys, case, argv_extra, message):
     assert rc == 2
     assert "error" in err.lower()
     assert message.lower() in err.lower(), err
+
+
+def test_fleet_mode(tmp_path, capsys):
+    from valve_gym.fleet.simulate import simulate_loop
+    folder = tmp_path / "recs"
+    folder.mkdir()
+    write_csv(simulate_loop("disturbance", seed=2, n=600).recording, folder / "osc.csv")
+    write_csv(simulate_loop("healthy", seed=0, n=300).recording, folder / "quiet.csv")
+    (folder / "bad.csv").write_text("t_s,OP,PV\n0,50,1\n")
+    out = tmp_path / "out"
+    js = tmp_path / "fleet.json"
+    argv = [str(folder), "--out", str(out), "--op-range", "0,100", "--effects", "none", "--effort", "fast",
+            "--jobs", "1", "--json", str(js), "--top", "1"]
+    rc, stdout, err = run(argv, capsys)
+    assert rc == 2, err                       # a loop's data could not be used: listed, the others done
+    assert "3 loops: 2 analysed, 1 failed; 3 run now" in stdout and "bad (failed)" in stdout and "osc:" in stdout
+    assert "3/3 done, 1 failed" in err
+    assert {"loops", "loops.parquet", "loops.csv", "worklist.md", "worklist.html"} <= set(os.listdir(out))
+    assert sorted(os.listdir(out / "loops")) == ["bad.json", "osc.json", "quiet.json"]
+    d = json.loads(js.read_text())
+    assert [r["loop"] for r in d["loops"]] == ["bad", "osc", "quiet"] and d["interrupted"] is False
+    rc, stdout, err = run(argv[:-4] + ["--quiet"], capsys)       # resumed: nothing left to do
+    assert rc == 2 and "0 run now, 3 kept from an earlier run, 0 left" in stdout and err == ""
+
+
+@pytest.mark.parametrize("argv_extra, message", [
+    (["--address", "auto"], "--out"),
+    (["--out", "OUT", "--validate", "X.csv"], "--validate"),
+    (["--out", "OUT", "--max-loops", "0"], "--max-loops"),
+])
+def test_fleet_bad_usage(tmp_path, capsys, argv_extra, message):
+    argv = [str(tmp_path)] + [str(tmp_path / a) if a == "OUT" else a for a in argv_extra] + ["--quiet"]
+    rc, out, err = run(argv, capsys)
+    assert rc == 2 and message in err

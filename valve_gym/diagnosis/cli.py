@@ -7,11 +7,19 @@ Usage::
         [--actuator valve|pump] [--validate OTHER.csv] [--holdout FRAC]
         [--json OUT.json] [--report DIR] [--effects LIST] [--jobs N]
         [--effort auto|fast|normal|thorough] [--seed N] [--quiet]
+    valve-gym diagnose DIR|EXPORT --out OUTDIR [--jobs N] [--address ADDR] [--full]
+        [--max-loops N] [--top N] [same options as above]
 
 A folder is diagnosed file by file (``*.csv``, sorted) in ``--jobs`` worker
 processes, with a progress line per file on stderr and a summary table on
-stdout.  Exit status: 0 on success, 2 for bad input (the message says what
-is wrong and how to fix it; no traceback), 1 for an internal error.
+stdout.  With ``--out`` a folder (or a historian's wide export) is run as a
+fleet on Ray (:mod:`valve_gym.fleet`): each loop's result is written to
+``OUTDIR/loops/`` as it finishes, ``OUTDIR/loops.parquet``/``loops.csv`` hold one
+row per loop, ``OUTDIR/worklist.md``/``.html`` rank the loops, and running again
+continues an interrupted run.  Exit status: 0 on success, 2 for bad input (the
+message says what is wrong and how to fix it; no traceback; in fleet mode also
+when a loop's data could not be used), 1 for an internal error, 130 when a fleet
+run was interrupted (finished loops are kept).
 """
 from __future__ import annotations
 
@@ -20,7 +28,6 @@ import glob
 import os
 import sys
 import time
-from typing import List, Optional
 
 from .model import ACTUATORS, CANDIDATE_EFFECTS, PLANTS
 from .recording import RecordingError, load_recording, parse_columns, parse_range
@@ -68,6 +75,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help="search budget (default auto: thorough up to 1800 samples, normal above)")
     p.add_argument("--seed", default="0", help="seed of the search (default 0)")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
+    g = p.add_argument_group("fleet mode (a folder or a wide export, on Ray; see docs/fleet.md)")
+    g.add_argument("--out", metavar="OUTDIR",
+                   help="run the loops of the folder / wide export as a fleet: results per loop in OUTDIR/loops/, "
+                        "OUTDIR/loops.parquet + loops.csv, worklist.md + worklist.html; resumes a stopped run")
+    g.add_argument("--address", metavar="ADDR",
+                   help="address of a running Ray cluster ('auto' or host:port); default: Ray in this process "
+                        "with --jobs workers")
+    g.add_argument("--full", action="store_true",
+                   help="full diagnosis of every loop (default: only of the loops that oscillate)")
+    g.add_argument("--max-loops", metavar="N",
+                   help="analyse at most N new loops in this run (the others in the next)")
+    g.add_argument("--top", default="10", metavar="N", help="loops with plots in worklist.html (default 10)")
     return p
 
 
@@ -100,7 +119,7 @@ def _number(text, name, kind=float, lo=None, hi=None):
     return v
 
 
-def _check_out(path: Optional[str], what: str, is_dir: bool):
+def _check_out(path: str | None, what: str, is_dir: bool):
     if not path:
         return
     parent = os.path.dirname(os.path.abspath(path)) if not is_dir else os.path.abspath(path)
@@ -113,7 +132,7 @@ def _check_out(path: Optional[str], what: str, is_dir: bool):
             raise _UsageError(f"{what}: folder {parent!r} does not exist; create it first")
 
 
-def main(argv: Optional[List[str]] = None) -> int:
+def main(argv: list[str] | None = None) -> int:
     """Run ``valve-gym diagnose`` with ``argv``; returns the exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
     try:
@@ -138,15 +157,15 @@ def main(argv: Optional[List[str]] = None) -> int:
         return 1
 
 
-def _main(argv: List[str]) -> int:
+def _main(argv: list[str]) -> int:
     from .diagnose import diagnose, diagnose_many
 
     a = build_parser().parse_args(argv)
     columns = parse_columns(a.columns) if a.columns else None
     op_range = parse_range(a.op_range) if a.op_range else None
     holdout = _number(a.holdout, "--holdout", float, 0.0, 0.6)
-    jobs = _number(a.jobs, "--jobs", int, 1, 64)
-    seed = _number(a.seed, "--seed", int, 0, 2 ** 31 - 1)
+    jobs = int(_number(a.jobs, "--jobs", int, 1, 64))
+    seed = int(_number(a.seed, "--seed", int, 0, 2 ** 31 - 1))
     cands = _parse_effects(a.effects)
     _check_out(a.json, "--json", False)
     _check_out(a.report, "--report", True)
@@ -155,6 +174,10 @@ def _main(argv: List[str]) -> int:
     diag_kw = {"plant": a.plant, "actuator": a.actuator, "candidates": cands,
                "holdout": holdout, "effort": a.effort, "seed": seed}
     path = a.path
+    if a.out:
+        return _fleet(a, path, jobs, seed, holdout, cands, op_range, say)
+    if a.address or a.full or a.max_loops:
+        raise _UsageError("--address, --full and --max-loops work in fleet mode only: add --out OUTDIR")
     if os.path.isdir(path):
         if a.validate:
             raise _UsageError("--validate works with a single recording, not a folder")
@@ -195,6 +218,59 @@ def _main(argv: List[str]) -> int:
         paths = write_report(res, a.report)
         say(f"report written to {a.report} ({len(paths)} files)")
     return 0
+
+
+def _fleet(a, path, jobs, seed, holdout, cands, op_range, say) -> int:
+    """Fleet mode: ``path`` (folder or wide export) on Ray into ``a.out``."""
+    from ..fleet import FleetSettings, run_fleet
+    if a.validate:
+        raise _UsageError("--validate works with a single recording, not in fleet mode (--out)")
+    if not os.path.exists(path):
+        raise RecordingError(f"{path}: no such file or folder")
+    _check_out(a.out, "--out", True)
+    max_loops = int(_number(a.max_loops, "--max-loops", int, 1, 10 ** 9)) if a.max_loops else None
+    top = int(_number(a.top, "--top", int, 0, 1000))
+    cols = parse_columns(a.columns) if a.columns else None
+    settings = FleetSettings(plant=a.plant, actuator=a.actuator, candidates=tuple(cands), holdout=holdout,
+                             effort=a.effort, seed=seed, full=bool(a.full),
+                             columns=tuple(sorted(cols.items())) if cols else None, op_range=op_range,
+                             report_dir=a.report)
+
+    run = run_fleet(path, a.out, settings, jobs=jobs, address=a.address, max_loops=max_loops,
+                    stream=None if a.quiet else sys.stderr, top=top)
+    _print_fleet(run)
+    if a.json:
+        import json
+
+        from .._io import write_atomic
+        text = json.dumps({"loops": [r.to_dict() for r in run.results], "seconds": run.seconds,
+                           "interrupted": run.interrupted, "remaining": run.remaining}, indent=1,
+                          allow_nan=False).encode()
+        write_atomic(a.json, lambda f: f.write(text))
+    if run.interrupted:
+        say(f"interrupted: {run.done} loop(s) finished in this run are kept; run the same command again "
+            f"to continue ({run.remaining} left)")
+        return 130
+    statuses = {r.status for r in run.results}
+    return 1 if "error" in statuses else 2 if "failed" in statuses else 0
+
+
+def _print_fleet(run) -> None:
+    from ..fleet.worklist import rank
+    ok = [r for r in run.results if r.status == "ok"]
+    print(f"{run.n_loops} loops: {len(ok)} analysed, {run.failed} failed; {run.done} run now, {run.resumed} "
+          f"kept from an earlier run, {run.remaining} left; {run.seconds:.1f} s")
+    top = [r for r in rank(ok) if r.oscillating][:10]
+    if top:
+        print("top loops (score = w x OP amplitude [% of stroke]):")
+        for i, r in enumerate(top, 1):
+            print(f"  {i:>2}. {r.loop}: score {r.score:.2f}; {r.action}")
+    bad = [r for r in run.results if r.status != "ok"]
+    if bad:
+        print(f"{len(bad)} loop(s) failed:")
+        for r in bad:
+            print(f"  {r.loop} ({r.status}): {r.message}")
+    print(f"worklist: {run.paths['worklist_md']}, {run.paths['worklist_html']}; table: {run.paths['table']}")
 
 
 def _print_summary(res) -> None:

@@ -113,6 +113,30 @@ def _start_ray(jobs: int, address: str | None) -> bool:
     return True
 
 
+def _raise_interrupt(signum, frame):
+    raise KeyboardInterrupt
+
+
+def _catch_signals() -> dict:
+    """SIGTERM (and SIGINT, unless ignored) raise KeyboardInterrupt; returns the handlers to restore.
+
+    Installed after ``ray.init``, which sets its own SIGTERM handler in the driver.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        return {}
+    old = {}
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        cur = signal.getsignal(sig)
+        if cur is signal.SIG_IGN:
+            continue
+        old[sig] = cur
+        signal.signal(sig, _raise_interrupt)
+    return old
+
+
 def _collect(ref, src_of: dict, keys: dict) -> LoopResult:
     import ray
     import ray.exceptions
@@ -137,6 +161,7 @@ def _stream(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs: i
     pending = list(reversed(todo))
     src_of: dict = {}
     last_table = time.perf_counter()
+    old = _catch_signals()
     try:
         while pending or src_of:
             while pending and len(src_of) < window:
@@ -160,6 +185,10 @@ def _stream(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs: i
         for ref in src_of:
             ray.cancel(ref, force=True)
         return list(src_of.values()) + list(reversed(pending))
+    finally:
+        import signal
+        for sig, h in old.items():
+            signal.signal(sig, h)
     return []
 
 

@@ -1,0 +1,223 @@
+"""Tests of the fleet mode (valve_gym.fleet): sources, screening, actions, and runs on Ray (one session)."""
+from __future__ import annotations
+
+import json
+import math
+import os
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from valve_gym.diagnosis.synthetic import write_csv
+from valve_gym.fleet import (
+    FleetSettings,
+    LoopResult,
+    discover_loops,
+    load_loop,
+    oscillation_index,
+    recommend,
+    resample_loop,
+    run_fleet,
+    stiction_numbers,
+)
+from valve_gym.fleet.actions import evidence_weight, score
+from valve_gym.fleet.simulate import simulate_loop
+
+SETTINGS = FleetSettings(op_range=(0.0, 100.0), effort="fast", candidates=())
+
+
+@pytest.fixture(scope="module")
+def ray_session():
+    ray = pytest.importorskip("ray")
+    started = not ray.is_initialized()
+    if started:
+        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, configure_logging=True,
+                 logging_level="ERROR")
+    yield ray
+    if started:
+        ray.shutdown()
+
+
+@pytest.fixture(scope="module")
+def folder(tmp_path_factory):
+    """Five loops (two oscillating) and one recording too short to use."""
+    d = tmp_path_factory.mktemp("fleet") / "recs"
+    d.mkdir()
+    for i, (kind, seed) in enumerate((("healthy", 0), ("disturbance", 2), ("healthy", 2), ("severe", 3),
+                                      ("healthy", 4))):
+        write_csv(simulate_loop(kind, seed=seed, n=600).recording, d / f"loop{i}.csv")
+    (d / "broken.csv").write_text("t_s,OP,PV\n0,50,1.0\n1,50,1.0\n")
+    return str(d)
+
+
+# --------------------------------------------------------------------------- no Ray
+def test_resample_irregular_with_gap():
+    rng = np.random.default_rng(0)
+    t = np.cumsum(rng.uniform(0.8, 1.2, 300))
+    t = np.concatenate([t[:100], t[100:] + 30.0])          # a 30 s hole
+    pv = np.sin(t / 10)
+    op = np.full(t.size, 0.5)
+    grid, vals, gaps, notes = resample_loop(t, {"pv": pv, "op": op}, max_gap=5)
+    assert np.allclose(np.diff(grid), np.median(np.diff(t[:100])), rtol=0.2)
+    assert np.ptp(np.diff(grid)) < 1e-9                     # uniform
+    assert len(gaps) == 2 and {g.role for g in gaps} == {"pv", "op"}
+    assert gaps[0].seconds > 30
+    assert grid[0] > t[100]                                 # the longer stretch (after the hole) kept
+    assert np.allclose(vals["pv"], np.sin(grid / 10), atol=0.02)
+    assert any("irregular" in n for n in notes) and any("gap" in n for n in notes)
+
+
+def _wide_frame(n=600, seed=0):
+    rng = np.random.default_rng(seed)
+    t = np.cumsum(rng.uniform(0.5, 1.5, n))
+    df = pd.DataFrame({"timestamp": pd.Timestamp("2024-01-01") + pd.to_timedelta(t, unit="s")})
+    for tag, k in (("FIC101", 0), ("LIC202", 1)):
+        loop = simulate_loop("disturbance" if k else "healthy", seed=seed + k, n=n).recording
+        df[f"{tag}.PV"] = loop.pv
+        df[f"{tag}.OP"] = 100 * loop.op
+        df[f"{tag}.SP"] = loop.sp
+    df["LIC202.MODE"] = ["MAN" if i < 50 else "AUTO" for i in range(n)]
+    df.loc[::7, "FIC101.OP"] = np.nan                     # OP stored less often than PV
+    df["TI303.PV"] = 1.0                                    # a tag without OP
+    return df
+
+
+@pytest.mark.parametrize("fmt", ["csv", "parquet"])
+def test_wide_export_split_and_load(tmp_path, fmt):
+    df = _wide_frame()
+    p = tmp_path / f"export.{fmt}"
+    df.to_csv(p, index=False) if fmt == "csv" else df.to_parquet(p, index=False)
+    srcs = discover_loops(str(p))
+    assert [s.name for s in srcs] == ["FIC101", "LIC202", "TI303"]
+    assert [s.kind for s in srcs] == ["wide", "wide", "bad"] and "TI303.OP" in srcs[2].problem
+    a = load_loop(srcs[0], op_range=(0, 100))
+    b = load_loop(srcs[1], op_range=(0, 100))
+    assert np.ptp(np.diff(a.recording.t)) < 1e-9 and 0.8 < a.recording.dt < 1.2
+    assert any("resampled" in n for n in a.notes)
+    assert any("MODE manual" in n for n in b.notes) and len(b.recording) < len(a.recording)
+    assert a.recording.start is not None and a.recording.start.startswith("2024-01-01")
+    with pytest.raises(ValueError, match="--op-range"):
+        load_loop(srcs[0])                                   # OP in percent without a range
+
+
+def test_oscillation_index():
+    t = np.arange(1500.0)
+    rng = np.random.default_rng(1)
+    sine = oscillation_index(0.1 * np.sin(2 * np.pi * t / 80) + 0.02 * rng.normal(size=t.size))
+    assert sine.oscillating and abs(sine.period_s - 80) < 3 and abs(sine.amplitude - 0.1) < 0.01
+    noise = oscillation_index(rng.normal(size=t.size))
+    walk = oscillation_index(np.cumsum(rng.normal(size=t.size)))
+    assert not noise.oscillating and not walk.oscillating and noise.amplitude == 0.0
+
+
+def test_actions_table():
+    assert recommend("failed", "bad file", False, "not tested", math.nan, math.nan, math.nan)[0] == "data"
+    assert recommend("ok", "", False, "no", 0.1, math.nan, 0.0)[0] == "quiet"
+    assert recommend("ok", "", False, "yes", 0.9, 0.03, 0.0)[0] == "inspect"
+    assert recommend("ok", "", True, "yes", 0.9, 0.08, 0.03)[0] == "repair"
+    name, text = recommend("ok", "", True, "yes", 0.9, 0.02, 0.03)
+    assert name == "compensate" and "constant reinforcement" in text and "2.0 %" in text
+    assert recommend("ok", "", True, "no", 0.1, math.nan, 0.03)[0] == "retune"
+    assert recommend("ok", "", True, "undecided", 0.5, math.nan, 0.03)[0] == "undecided"
+    assert recommend("ok", "", True, "not tested", 0.9, math.nan, 0.07)[0] == "repair"   # OP swing stands in
+    assert evidence_weight(0.8, "no", 0.1) == (0.8, "calibrated probability")
+    assert evidence_weight(math.nan, "yes", 0.5)[0] == pytest.approx(0.75)
+    assert evidence_weight(math.nan, "not tested", math.nan)[0] == 0.5
+    assert score(0.5, 0.04, True) == pytest.approx(2.0) and score(1.0, 0.04, False) == 0.0
+
+
+class _Fake:
+    def __init__(self, stiction, **kw):
+        self.stiction = stiction
+        for k, v in kw.items():
+            setattr(self, k, v)
+
+
+def test_stiction_numbers_reads_what_is_reported():
+    a = stiction_numbers(_Fake({"present": True, "tested": True, "parameters": {"S": 0.03, "J": 0.01}}))
+    assert (a.verdict, a.S, a.J) == ("yes", 0.03, 0.01) and math.isnan(a.p) and "probability" in a.note
+    b = stiction_numbers(_Fake({"present": False, "verdict": "undecided", "probability": 0.55,
+                                "S": {"value": 0.02, "interval": [0.01, 0.03]}, "J": {"value": 0.0}}))
+    assert (b.verdict, b.S, b.J, b.p, b.note) == ("undecided", 0.02, 0.0, 0.55, "")
+    c = stiction_numbers(_Fake({"present": False, "tested": False, "parameters": {}}))
+    assert c.verdict == "not tested" and math.isnan(c.S)
+
+
+def test_result_json_round_trip():
+    r = LoopResult("L1", "ok", "m", S=0.02, notes=("a",), oscillating=True)
+    back = LoopResult.from_dict(json.loads(json.dumps(r.to_dict(), allow_nan=False)))
+    assert back.S == 0.02 and math.isnan(back.J) and back.notes == ("a",) and back.oscillating
+
+
+def test_missing_path_is_a_clear_error(tmp_path):
+    with pytest.raises(ValueError, match="no such file"):
+        discover_loops(str(tmp_path / "nope"))
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(ValueError, match="no .csv or .parquet"):
+        discover_loops(str(tmp_path / "empty"))
+
+
+# --------------------------------------------------------------------------- on Ray
+def _table(out):
+    df = pd.read_parquet(os.path.join(out, "loops.parquet"))
+    return df.drop(columns=["seconds"]).sort_values("loop").reset_index(drop=True)
+
+
+def test_interrupted_and_resumed_equals_uninterrupted(ray_session, folder, tmp_path):
+    whole = run_fleet(folder, str(tmp_path / "whole"), SETTINGS, stream=None, top=2)
+    assert whole.n_loops == 6 and whole.done == 6 and not whole.interrupted and whole.remaining == 0
+    out = str(tmp_path / "parts")
+    first = run_fleet(folder, out, SETTINGS, max_loops=2, stream=None, top=0)
+    assert first.done == 2 and first.remaining == 4 and len(pd.read_csv(os.path.join(out, "loops.csv"))) == 2
+    # a worker killed while writing leaves at most a temporary file; a damaged result is recomputed
+    loops = sorted(os.listdir(os.path.join(out, "loops")))
+    with open(os.path.join(out, "loops", "." + loops[0] + ".123.tmp"), "w") as f:
+        f.write("{")
+    with open(os.path.join(out, "loops", loops[1]), "w") as f:
+        f.write("{\"loop\": ")
+    second = run_fleet(folder, out, SETTINGS, stream=None, top=2)
+    assert second.resumed == 1 and second.done == 5 and second.remaining == 0
+    a, b = _table(os.path.join(tmp_path, "whole")), _table(out)
+    assert len(b) == 6 and b["loop"].is_unique
+    pd.testing.assert_frame_equal(a, b)
+    third = run_fleet(folder, out, SETTINGS, stream=None, top=0)          # nothing left to do
+    assert third.done == 0 and third.resumed == 6
+    changed = run_fleet(folder, out, FleetSettings(op_range=(0.0, 100.0), effort="fast", candidates=(),
+                                                   seed=1), stream=None, top=0, max_loops=1)
+    assert changed.done == 1                                              # other settings: not reused
+
+
+def test_bad_recording_is_a_failed_row(ray_session, folder, tmp_path):
+    out = str(tmp_path / "o")
+    run = run_fleet(folder, out, SETTINGS, stream=None, top=3)
+    df = pd.read_csv(os.path.join(out, "loops.csv"))
+    assert list(df.columns[:11]) == ["loop", "status", "message", "stiction", "S", "J", "effects", "rmse_base",
+                                     "rmse_final", "oscillation", "seconds"]
+    bad = df[df["loop"] == "broken"].iloc[0]
+    assert bad["status"] == "failed" and "samples" in bad["message"]
+    good = df[df["loop"] != "broken"]
+    assert (good["status"] == "ok").all() and run.failed == 1
+    osc = good[good["oscillating"]]
+    assert len(osc) == 2 and (osc["stage"] == "full").all() and osc["effects"].notna().all()
+    assert (good[~good["oscillating"]]["stage"] == "screen").all()
+    assert np.isfinite(osc["rmse_final"]).all() and (osc["score"] > 0).all()
+    d = json.load(open(os.path.join(out, "loops", "broken.json")))
+    assert d["status"] == "failed" and d["key"]
+    md = open(os.path.join(out, "worklist.md")).read()
+    html = open(os.path.join(out, "worklist.html")).read()
+    assert "| 1 |" in md and "broken" in md and "How the ranking works" in md
+    assert html.count("data:image/png;base64,") == 2 * len(osc)
+    assert not [f for f in os.listdir(os.path.join(out, "loops")) if f.endswith(".tmp")]
+
+
+def test_wide_export_fleet(ray_session, tmp_path):
+    p = tmp_path / "export.parquet"
+    _wide_frame(n=500, seed=3).to_parquet(p, index=False)
+    run = run_fleet(str(p), str(tmp_path / "o"), SETTINGS, stream=None, top=1)
+    rows = {r.loop: r for r in run.results}
+    assert set(rows) == {"FIC101", "LIC202", "TI303"}
+    assert rows["TI303"].status == "failed" and "TI303.OP" in rows["TI303"].message
+    assert rows["FIC101"].status == "ok" and rows["FIC101"].tag == "FIC101"
+    assert rows["LIC202"].status == "ok" and rows["LIC202"].oscillating
+    assert any("MODE manual" in n for n in rows["LIC202"].notes)
