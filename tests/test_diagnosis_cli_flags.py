@@ -1,0 +1,232 @@
+"""Every flag of ``valve-gym diagnose --help``, run once: it does what the help says.
+
+Exit codes (issue: a truthful interface): 0 success, 1 failure of the work,
+2 bad usage / bad input.  The flags are read from the help text itself, so a
+flag added without a case here fails :func:`test_every_help_flag_has_a_case`.
+
+Most cases call :func:`valve_gym.diagnosis.cli.main` in this process on a
+300-sample recording with ``--effects none --effort fast`` (about a second
+each); the real console script is run once in a subprocess for the exit codes,
+and fleet mode (Ray) once in a subprocess.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from valve_gym.diagnosis import cli
+from valve_gym.diagnosis.synthetic import make_recording, write_csv
+
+FAST = ["--effects", "none", "--effort", "fast", "--jobs", "1", "--quiet"]
+
+
+@pytest.fixture(scope="module")
+def rec_dir(tmp_path_factory):
+    d = tmp_path_factory.mktemp("cli_flags")
+    write_csv(make_recording("none", seed=4, n=300), d / "loop.csv")
+    write_csv(make_recording("none", seed=4, n=300), d / "other.csv")
+    return d
+
+
+def run(argv, capsys):
+    code = cli.main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def run_json(rec_dir, tmp_path, capsys, *flags, path=None):
+    out_json = tmp_path / "out.json"
+    code, out, err = run([path or rec_dir / "loop.csv", "--op-range", "0,100", *FAST, "--json", out_json,
+                          *flags], capsys)
+    assert code == 0, err
+    return json.loads(out_json.read_text()), out, err
+
+
+# --------------------------------------------------------------------------
+# the list of flags
+# --------------------------------------------------------------------------
+
+CASES = {"-h", "--help", "--columns", "--op-range", "--plant", "--actuator", "--validate", "--holdout", "--json",
+         "--report", "--effects", "--jobs", "--effort", "--seed", "--quiet", "--out", "--address", "--full",
+         "--max-loops", "--top"}
+
+
+def test_every_help_flag_has_a_case(capsys):
+    code, out, _ = run(["--help"], capsys)
+    assert code == 0 and out.startswith("usage: valve-gym diagnose")
+    flags = set(re.findall(r"(?<![\w-])(--?[a-z][\w-]*)", out.split("options:", 1)[1]))
+    assert flags == CASES, f"flags without a case: {flags - CASES}; cases without a flag: {CASES - flags}"
+
+
+def test_help_exit_code_of_console_script():
+    exe = Path(sys.executable).with_name("valve-gym")
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "valve_gym.cli"]
+    r = subprocess.run(cmd + ["diagnose", "--help"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and "--op-range" in r.stdout
+    r = subprocess.run(cmd + ["diagnose", "--plant", "nope", "x.csv"], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "Traceback" not in r.stderr and "--plant" in r.stderr
+
+
+# --------------------------------------------------------------------------
+# one case per flag
+# --------------------------------------------------------------------------
+
+
+def test_columns(tmp_path, capsys):
+    rec = make_recording("none", seed=4, n=300)
+    p = tmp_path / "odd.csv"
+    p.write_text("time,valve_cmd,lvl\n" + "".join(f"{a},{100 * b},{c}\n" for a, b, c in zip(rec.t, rec.op, rec.pv)))
+    code, _, err = run([p, "--op-range", "0,100", *FAST], capsys)
+    assert code == 2 and "--columns op=NAME" in err and "Traceback" not in err
+    d, _, _ = run_json(None, tmp_path, capsys, "--columns", "t=time,op=valve_cmd,pv=lvl", path=p)
+    assert d["recording"]["columns"] == {"t": "time", "op": "valve_cmd", "pv": "lvl"}
+    code, _, err = run([p, "--op-range", "0,100", "--columns", "t=time,op", *FAST], capsys)
+    assert code == 2 and "no '='" in err
+
+
+def test_op_range(rec_dir, tmp_path, capsys):
+    code, _, err = run([rec_dir / "loop.csv", *FAST], capsys)
+    assert code == 2 and "--op-range" in err
+    d, _, _ = run_json(rec_dir, tmp_path, capsys)
+    assert d["recording"]["op_range"] == [0.0, 100.0]
+    code, _, err = run([rec_dir / "loop.csv", "--op-range", "5,5", *FAST], capsys)
+    assert code == 2 and "LO >= HI" in err
+
+
+def test_plant(rec_dir, tmp_path, capsys):
+    d, out, _ = run_json(rec_dir, tmp_path, capsys, "--plant", "first_order")
+    assert d["settings"]["plant"] == "first_order" and "plant first_order" in out
+    code, _, err = run([rec_dir / "loop.csv", "--plant", "lake", *FAST], capsys)
+    assert code == 2 and "invalid choice" in err
+
+
+def test_actuator(rec_dir, tmp_path, capsys):
+    d, out, _ = run_json(rec_dir, tmp_path, capsys, "--actuator", "pump")
+    assert d["settings"]["actuator"] == "pump" and "actuator pump" in out
+
+
+def test_validate(rec_dir, tmp_path, capsys):
+    d, out, _ = run_json(rec_dir, tmp_path, capsys, "--validate", rec_dir / "other.csv")
+    v = d["validation"]
+    assert v["recording"] == "other" and np.isfinite(v["final_rmse"]) and "validation on other" in out
+    code, _, err = run([rec_dir, "--op-range", "0,100", "--validate", rec_dir / "other.csv", *FAST], capsys)
+    assert code == 2 and "single recording" in err
+    code, _, err = run([rec_dir / "loop.csv", "--op-range", "0,100", "--validate", tmp_path / "nope.csv", *FAST],
+                       capsys)
+    assert code == 2 and "nope.csv" in err
+
+
+def test_holdout(rec_dir, tmp_path, capsys):
+    d, _, _ = run_json(rec_dir, tmp_path, capsys, "--holdout", "0.2")
+    assert d["settings"]["holdout"] == 0.2 and d["holdout"]["n_fit"] == 240
+    for bad in ("abc", "0.9"):
+        code, _, err = run([rec_dir / "loop.csv", "--op-range", "0,100", "--holdout", bad, *FAST], capsys)
+        assert code == 2 and "--holdout" in err
+
+
+def test_json(rec_dir, tmp_path, capsys):
+    d, _, _ = run_json(rec_dir, tmp_path, capsys)
+    assert {"effects", "base", "final", "stiction"} <= set(d) and np.isfinite(d["final"]["rmse"])
+    code, _, err = run([rec_dir / "loop.csv", "--op-range", "0,100", *FAST, "--json", tmp_path / "no" / "o.json"],
+                       capsys)
+    assert code == 2 and "does not exist" in err
+
+
+def test_report(rec_dir, tmp_path, capsys):
+    rep = tmp_path / "rep"
+    code, _, err = run([rec_dir / "loop.csv", "--op-range", "0,100", *FAST, "--report", rep], capsys)
+    assert code == 0, err
+    names = set(os.listdir(rep))
+    assert {"report.md", "diagnosis.json", "overlay.png", "residuals.png"} <= names
+    assert not [n for n in names if n.endswith(".tmp")]
+
+
+def test_effects(rec_dir, tmp_path, capsys):
+    out_json = tmp_path / "o.json"
+    code, _, err = run([rec_dir / "loop.csv", "--op-range", "0,100", "--effort", "fast", "--jobs", "1", "--quiet",
+                        "--effects", "leak,dead_time", "--json", out_json], capsys)
+    assert code == 0, err
+    d = json.loads(out_json.read_text())
+    assert set(d["settings"]["candidates"]) == {"leak", "dead_time"}
+    assert {c["effect"] for c in d["candidates"]} <= {"leak", "dead_time"}
+    code, _, err = run([rec_dir / "loop.csv", "--op-range", "0,100", "--effects", "bogus"], capsys)
+    assert code == 2 and "unknown effect 'bogus'" in err
+
+
+def test_jobs(rec_dir, tmp_path, capsys, monkeypatch):
+    import importlib
+
+    diag_mod = importlib.import_module("valve_gym.diagnosis.diagnose")
+    seen = {}
+    real = diag_mod.diagnose
+
+    def spy(*a, **kw):
+        seen["jobs"] = kw.get("jobs")
+        return real(*a, **kw)
+
+    monkeypatch.setattr(diag_mod, "diagnose", spy)
+    code, _, err = run([rec_dir / "loop.csv", "--op-range", "0,100", "--effects", "none", "--effort", "fast",
+                        "--quiet", "--jobs", "2"], capsys)
+    assert code == 0 and seen["jobs"] == 2, err
+    code, _, err = run([rec_dir / "loop.csv", "--op-range", "0,100", "--jobs", "0"], capsys)
+    assert code == 2 and "--jobs" in err
+
+
+def test_effort(rec_dir, tmp_path, capsys):
+    d, _, _ = run_json(rec_dir, tmp_path, capsys, "--effort", "normal")
+    assert d["settings"]["effort"] == "normal"
+    code, _, err = run([rec_dir / "loop.csv", "--effort", "max"], capsys)
+    assert code == 2 and "invalid choice" in err
+
+
+def test_seed(rec_dir, tmp_path, capsys):
+    d, _, _ = run_json(rec_dir, tmp_path, capsys, "--seed", "3")
+    assert d["settings"]["seed"] == 3
+    code, _, err = run([rec_dir / "loop.csv", "--op-range", "0,100", "--seed", "-1"], capsys)
+    assert code == 2 and "--seed" in err
+
+
+def test_quiet(rec_dir, capsys):
+    base = [rec_dir / "loop.csv", "--op-range", "0,100", "--effects", "none", "--effort", "fast", "--jobs", "1"]
+    code, out, err = run(base, capsys)
+    assert code == 0 and "fitting the base model" in err
+    code, out_q, err_q = run(base + ["--quiet"], capsys)
+    assert code == 0 and err_q == "" and out_q == out
+
+
+def test_fleet_only_flags_need_out(rec_dir, capsys):
+    for flag in (["--address", "auto"], ["--full"], ["--max-loops", "1"]):
+        code, _, err = run([rec_dir / "loop.csv", "--op-range", "0,100", *flag], capsys)
+        assert code == 2 and "fleet mode only" in err, flag
+
+
+@pytest.mark.slow
+def test_fleet_flags(tmp_path):
+    """--out, --max-loops, --full, --top (and --address's local default) in one fleet run on Ray."""
+    pytest.importorskip("ray")
+    src = tmp_path / "loops"
+    src.mkdir()
+    for i, e in enumerate(("none", "slip_jump")):
+        write_csv(make_recording(e, seed=4 + i, n=300), src / f"loop{i}.csv")
+    out = tmp_path / "fleet"
+    exe = Path(sys.executable).with_name("valve-gym")
+    cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "valve_gym.cli"]
+    r = subprocess.run(cmd + ["diagnose", str(src), "--out", str(out), "--op-range", "0,100", "--effects", "none",
+                              "--effort", "fast", "--jobs", "1", "--full", "--top", "1", "--max-loops", "1",
+                              "--quiet"], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert len(os.listdir(out / "loops")) == 1  # --max-loops 1
+    assert {"loops.csv", "loops.parquet", "worklist.md", "worklist.html"} <= set(os.listdir(out))
+    import pandas as pd
+
+    table = pd.read_csv(out / "loops.csv")
+    assert list(table["stage"]) == ["full"]  # --full: diagnosed, not only screened
+    assert "1 left" in r.stdout
