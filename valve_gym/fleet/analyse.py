@@ -122,7 +122,7 @@ def _evidence(sc: Screen, sn: StictionNumbers | None, w_src: str) -> str:
     return "; ".join(parts)
 
 
-def _ok_result(src: LoopSource, key: str, loaded, sc: Screen, res, seconds: float) -> LoopResult:
+def _ok_result(src: LoopSource, key: str, loaded, sc: Screen, res, seconds: float, cpu: float) -> LoopResult:
     rec = loaded.recording
     o = sc.oscillation
     sn = stiction_numbers(res) if res is not None else None
@@ -138,7 +138,8 @@ def _ok_result(src: LoopSource, key: str, loaded, sc: Screen, res, seconds: floa
     return LoopResult(
         loop=src.name, status="ok", message=_evidence(sc, sn, w_src), stiction=verdict, S=S,
         J=sn.J if sn else math.nan, effects=effects, rmse_base=rb, rmse_final=rf, oscillation=o.amplitude,
-        seconds=seconds, p_stiction=p, weight=w, score=score(w, sc.amplitude_op, o.oscillating), action=action,
+        seconds=seconds, cpu_seconds=cpu, p_stiction=p, weight=w, score=score(w, sc.amplitude_op, o.oscillating),
+        action=action,
         stage="full" if res is not None else "screen", oscillating=o.oscillating, regularity=o.regularity,
         period_s=o.period_s, amplitude_op=sc.amplitude_op, horch=sc.horch.verdict,
         horch_index=sc.horch.phase_index, n=len(rec), dt=float(rec.dt), gaps=len(loaded.gaps),
@@ -168,7 +169,7 @@ def analyse_loop(src: LoopSource, settings: FleetSettings, key: str = "") -> Loo
     """
     from ..diagnosis.recording import RecordingError
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     try:
         loaded = load_loop(src, columns=dict(settings.columns) if settings.columns else None,
                            op_range=settings.op_range, max_gap=settings.max_gap)
@@ -176,7 +177,7 @@ def analyse_loop(src: LoopSource, settings: FleetSettings, key: str = "") -> Loo
         res = None
         if settings.full or sc.oscillation.oscillating:
             res = _full(loaded.recording, settings, src.name)
-        return _ok_result(src, key, loaded, sc, res, time.perf_counter() - t0)
+        return _ok_result(src, key, loaded, sc, res, time.perf_counter() - t0, time.process_time() - c0)
     except (RecordingError, ValueError) as e:
         return failed_result(src, key, "failed", str(e).splitlines()[0] if str(e) else type(e).__name__,
                              time.perf_counter() - t0)

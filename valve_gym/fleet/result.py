@@ -15,9 +15,9 @@ RESULT_VERSION = 1
 
 #: Columns of ``loops.parquet`` / ``loops.csv``, in order (the first eleven are the issue's minimum).
 TABLE_COLUMNS = ("loop", "status", "message", "stiction", "S", "J", "effects", "rmse_base", "rmse_final",
-                 "oscillation", "seconds", "p_stiction", "weight", "score", "action", "stage", "oscillating",
-                 "regularity", "period_s", "amplitude_op", "horch", "horch_index", "n", "dt", "gaps", "source",
-                 "tag", "key")
+                 "oscillation", "seconds", "cpu_seconds", "p_stiction", "weight", "score", "action", "stage",
+                 "oscillating", "regularity", "period_s", "amplitude_op", "horch", "horch_index", "n", "dt", "gaps",
+                 "source", "tag", "key")
 
 
 @dataclass(frozen=True)
@@ -89,6 +89,7 @@ class LoopResult:
     rmse_base, rmse_final : float, free-run RMSE of the base and final models [PV units]; NaN if screened only
     oscillation : float, amplitude of the control error's oscillation [PV units]; 0 when none
     seconds : float, wall time of this loop [s]
+    cpu_seconds : float, CPU time of this loop in its worker [s] (``time.process_time``)
     p_stiction : float, calibrated stiction probability from the diagnosis (NaN when it reports none)
     weight : float, stiction evidence weight 0..1 used in the ranking (see :mod:`.actions`)
     score : float, ranking score [% of stroke] (see :mod:`.actions`)
@@ -117,6 +118,7 @@ class LoopResult:
     rmse_final: float = math.nan
     oscillation: float = math.nan
     seconds: float = 0.0
+    cpu_seconds: float = math.nan
     p_stiction: float = math.nan
     weight: float = math.nan
     score: float = math.nan

@@ -18,8 +18,8 @@ def table_frame(results: Iterable[LoopResult]):
 
     rows = [r.row() for r in results]
     df = pd.DataFrame(rows, columns=list(TABLE_COLUMNS))
-    for c in ("S", "J", "rmse_base", "rmse_final", "oscillation", "seconds", "p_stiction", "weight", "score",
-              "regularity", "period_s", "amplitude_op", "horch_index", "dt"):
+    for c in ("S", "J", "rmse_base", "rmse_final", "oscillation", "seconds", "cpu_seconds", "p_stiction", "weight",
+              "score", "regularity", "period_s", "amplitude_op", "horch_index", "dt"):
         df[c] = df[c].astype("float64")
     for c in ("n", "gaps"):
         df[c] = df[c].astype("int64")
