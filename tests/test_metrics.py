@@ -8,8 +8,18 @@ from scipy import signal
 
 from valve_gym import metrics
 from valve_gym.metrics import (
-    CREST_FACTORS, LOOP_METRIC_KEYS, crest_factor, error_std, hagglund_oscillation,
-    iae, ise, limit_cycle, loop_metrics, reversals, reversals_per_hour, travel,
+    CREST_FACTORS,
+    LOOP_METRIC_KEYS,
+    crest_factor,
+    error_std,
+    hagglund_oscillation,
+    iae,
+    ise,
+    limit_cycle,
+    loop_metrics,
+    reversals,
+    reversals_per_hour,
+    travel,
     waveform_shape,
 )
 

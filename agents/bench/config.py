@@ -238,7 +238,7 @@ class QuickConfig:
         Bootstrap resamples (>= 100).
     """
 
-    n_per_band: int = 2
+    n_per_band: int = 3
     duration_s: float = 600.0
     n_boot: int = 200
 

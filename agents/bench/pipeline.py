@@ -46,13 +46,14 @@ class Trend:
 
 @dataclass(frozen=True, eq=False)
 class TaskResult:
-    """One controller on one part: per-loop scores, the example trend (regulation), run time [s]."""
+    """One controller on one part: per-loop scores, the example trend (regulation), wall and CPU time [s]."""
 
     spec: ControllerSpec
     part: str
     scores: LoopScores
     trend: Trend | None
     seconds: float
+    cpu_seconds: float
 
 
 @dataclass(frozen=True, eq=False)
@@ -115,7 +116,7 @@ _STATE: dict = {}
 
 
 def _task(spec: ControllerSpec, part: str) -> TaskResult:
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     cfg: BenchConfig = _STATE["config"]
     scen: Scenarios = _STATE["scenarios"].part(part)
     runs = run_spec(spec, scen)
@@ -124,7 +125,8 @@ def _task(spec: ControllerSpec, part: str) -> TaskResult:
         i = _STATE["example"]
         trend = Trend(spec.label, np.arange(scen.n_steps) * scen.scan_s, runs.sp[:, i].copy(),
                       runs.pv[:, i].copy(), runs.op[:, i].copy(), runs.stem[:, i].copy())
-    return TaskResult(spec, part, score_runs(runs, cfg), trend, time.perf_counter() - t0)
+    scores = score_runs(runs, cfg)
+    return TaskResult(spec, part, scores, trend, time.perf_counter() - t0, time.process_time() - c0)
 
 
 def _available(specs, scen: Scenarios) -> tuple[tuple[ControllerSpec, ...], tuple[str, ...]]:

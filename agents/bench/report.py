@@ -43,8 +43,8 @@ def _fmt(e: Estimate, scale: float = 1.0, digits: int = 2, ci: bool = True) -> s
 def headline_table(res: BenchmarkResult) -> str:
     """The README table: regulation sticky + severe, healthy IAE vs PI, servo; medians [95 % CI]."""
     ix = _index(res)
-    head = ("| controller | LC share | LC amplitude [mm] | R | travel / frictionless PI | |offset| [mm] "
-            "| healthy IAE / PI | servo IAE / PI | servo travel / frictionless PI |")
+    head = ("| controller | LC share | LC amplitude of cycling loops [mm] | R | travel / frictionless PI "
+            "| abs. offset [mm] | healthy IAE / PI | servo IAE / PI | servo travel / frictionless PI |")
     lines = [head, "|" + "---|" * 9]
     for s in res.specs:
         def g(part, band, metric):
@@ -52,7 +52,7 @@ def headline_table(res: BenchmarkResult) -> str:
         lines.append("| " + " | ".join([
             s.label,
             _fmt(g("regulation", "sticky+severe", "lc_share")),
-            _fmt(g("regulation", "sticky+severe", "lc_amplitude"), 1000.0, 1),
+            _fmt(g("regulation", "sticky+severe", "lc_amplitude_cycling"), 1000.0, 1),
             _fmt(g("regulation", "sticky+severe", "R")),
             _fmt(g("regulation", "sticky+severe", "travel_vs_frictionless")),
             _fmt(g("regulation", "sticky+severe", "abs_offset"), 1000.0, 2),
@@ -65,7 +65,8 @@ def headline_table(res: BenchmarkResult) -> str:
 
 def _part_table(res: BenchmarkResult, part: str, band: str) -> str:
     ix = _index(res)
-    cols = [("lc_share", 1.0, 2, "LC share"), ("lc_amplitude", 1000.0, 1, "LC amp. [mm]"),
+    cols = [("lc_share", 1.0, 2, "LC share"), ("lc_amplitude_cycling", 1000.0, 1, "LC amp., cycling [mm]"),
+            ("lc_period", 1.0, 0, "LC period [s]"),
             ("iae_per_h", 1.0, 2, "IAE [m s/h]"), ("R", 1.0, 2, "R"), ("travel_per_h", 1.0, 1, "travel [strokes/h]"),
             ("reversals_per_h", 1.0, 0, "reversals [1/h]"), ("abs_offset", 1000.0, 2, "|offset| [mm]")]
     lines = ["| controller | " + " | ".join(c[3] for c in cols) + " |", "|" + "---|" * (len(cols) + 1)]
@@ -100,7 +101,9 @@ def results_markdown(res: BenchmarkResult, command: str = "") -> str:
     out = ["# Compensator benchmark", ""]
     if command:
         out += [f"Command: `{command}`", ""]
-    out += [f"Run time {res.seconds:.0f} s with {res.jobs} worker process(es). Seed {cfg.seed}. "
+    cpu = sum(r.cpu_seconds for r in res.scores)
+    out += [f"Run time {res.seconds:.0f} s with {res.jobs} worker process(es); CPU time of the runs {cpu:.0f} s "
+            f"(on {res.jobs} free core(s) about {cpu / max(res.jobs, 1):.0f} s). Seed {cfg.seed}. "
             f"Loops per part: {reg.n} ({counts}); friction models: {', '.join(cfg.models)}. "
             f"Regulation: {cfg.regulation.duration_s:g} s per loop; servo: {res.scenarios.servo.duration_s:g} s.",
             "", "Medians with percentile-bootstrap 95 % confidence intervals (LC share: the mean). "

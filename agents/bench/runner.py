@@ -117,43 +117,23 @@ class Runs:
 # --------------------------------------------------------------------------- contracts 1-3
 def valve_model(model: str, S, J):
     """Default tank with a ``model`` valve of stick band ``S`` and slip jump ``J`` (fractions of stroke, (n,))."""
-    try:
-        from valve_gym.friction import valve_model as vm
-    except ImportError:
-        from ._fallback import core_valve_model as vm
+    from valve_gym.friction import valve_model as vm
+
     return vm(model, S, J)
 
 
 def make_plant(params, n: int, scan_s: float):
     """The batched plant stepper of ``n`` loops (:class:`valve_gym.plant.Plant`)."""
-    try:
-        from valve_gym.plant import Plant
-    except ImportError:
-        from ._fallback import CorePlant as Plant
+    from valve_gym.plant import Plant
+
     return Plant(params, n, scan_s=scan_s)
 
 
 def controller_loader() -> Callable:
-    """:func:`agents.load_controller` (the fallback PI while it is not importable)."""
-    try:
-        from agents import load_controller  # type: ignore[attr-defined]
+    """:func:`agents.load_controller`."""
+    from agents import load_controller
 
-        return load_controller
-    except ImportError:
-        pass
-    try:
-        from agents.controllers import load_controller
-
-        return load_controller
-    except ImportError:
-        from ._fallback import FallbackPI
-
-        def load(name, **settings):
-            if name != "pi":
-                raise ValueError(f"controller {name!r} is not available (agents.load_controller is missing)")
-            return FallbackPI(**settings)
-
-        return load
+    return load_controller
 
 
 # --------------------------------------------------------------------------- controllers

@@ -7,9 +7,10 @@ inflow, measurement noise), as arrays. Every controller runs on the same
 :class:`Scenarios`, so loop ``i`` sees the same valve, load and noise
 realisation under every controller (paired comparisons).
 
-The draw is reproducible: loop ``i`` of a part uses the random stream
-``numpy.random.default_rng([seed, part, i])``, so a smaller run (``--quick``,
-or a trainer asking for ``n`` loops) gets loops with the same statistics.
+The draw is reproducible: loop ``i`` of a part draws its valve, load and noise
+from the streams ``numpy.random.default_rng([seed, part, i, k])``, ``k = 0, 1, 2``,
+so a shorter record is a prefix of a longer one and a smaller run
+(``--quick``, or a trainer asking for ``n`` loops) gets loops with the same statistics.
 
 The regulation task is also what a learned compensator is trained and
 evaluated on: :func:`regulation_scenarios` ``(config, n, seed)``.
@@ -144,10 +145,10 @@ def _draw(config: BenchConfig, part: str, n: int | None, seed: int | None, durat
     m = len(config.models)
     cols = []
     for i, band in enumerate(bands):
-        rng = np.random.default_rng([seed, _PART_CODE[part], i])
-        S, J = _valve(rng, config, band)
-        d = _ou(rng, load, T, config.scan_s)
-        v = rng.standard_normal(T) * noise_std
+        key = [seed, _PART_CODE[part], i]
+        S, J = _valve(np.random.default_rng(key + [0]), config, band)
+        d = _ou(np.random.default_rng(key + [1]), load, T, config.scan_s)
+        v = np.random.default_rng(key + [2]).standard_normal(T) * noise_std
         j = int(np.sum(bands[:i] == band))  # index inside the band: models and levels cycle within bands
         cols.append((band, config.models[j % m], S, J, float(levels[(j // m) % len(levels)]), d, v))
     band_a, model_a, S_a, J_a, lv, d_a, v_a = zip(*cols)

@@ -36,6 +36,8 @@ REFERENCE_FRICTIONLESS = "PI frictionless"
 METRICS = {
     "lc_share": ("mean", "-", "share of loops with a limit cycle"),
     "lc_amplitude": ("median", "m", "limit-cycle amplitude of the error (0 where none)"),
+    "lc_amplitude_cycling": ("median", "m", "limit-cycle amplitude of the loops that cycle"),
+    "lc_period": ("median", "s", "limit-cycle period of the loops that cycle"),
     "iae_per_h": ("median", "m s/h", "IAE per hour of record"),
     "iae_vs_pi": ("median", "-", "IAE / IAE of the SIMC PI on the same loop"),
     "R": ("median", "-", "compensation ratio (see compensation_ratio)"),
@@ -152,6 +154,7 @@ class Estimate:
 
 def _bootstrap(x: np.ndarray, stat, n_boot: int, ci: float, rng: np.random.Generator) -> Estimate:
     x = np.asarray(x, float)
+    x = x[np.isfinite(x)]
     if x.size == 0:
         return Estimate(float("nan"), float("nan"), float("nan"), 0)
     idx = rng.integers(0, x.size, size=(n_boot, x.size))
@@ -163,6 +166,8 @@ def _bootstrap(x: np.ndarray, stat, n_boot: int, ci: float, rng: np.random.Gener
 
 def bootstrap_median(x, n_boot: int = 2000, ci: float = 0.95, seed: int = 0) -> Estimate:
     """Median of ``x`` with a percentile-bootstrap CI (``n_boot`` resamples, ``numpy`` generator ``seed``).
+
+    Non-finite values are left out (``n`` counts the rest).
 
     Examples
     --------
@@ -209,7 +214,9 @@ def _band_mask(scen: Scenarios, group: str) -> np.ndarray:
 def _derived(scores: dict[str, LoopScores], label: str, floor: float) -> dict[str, np.ndarray]:
     """Per-loop metric arrays of ``label`` by :data:`METRICS` name (relative ones against the references)."""
     s = scores[label]
-    out = {"lc_share": s.lc_present.astype(float), "lc_amplitude": s.lc_amplitude, "iae_per_h": s.iae_per_h,
+    out = {"lc_share": s.lc_present.astype(float), "lc_amplitude": s.lc_amplitude,
+           "lc_amplitude_cycling": np.where(s.lc_present, s.lc_amplitude, np.nan),
+           "lc_period": np.where(s.lc_present, s.lc_period, np.nan), "iae_per_h": s.iae_per_h,
            "travel_per_h": s.travel_per_h, "reversals_per_h": s.reversals_per_h,
            "abs_offset": np.abs(s.offset)}
     pi, fr = scores.get(REFERENCE_PI), scores.get(REFERENCE_FRICTIONLESS)
