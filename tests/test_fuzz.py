@@ -45,6 +45,8 @@ settings.register_profile(
 )
 PROFILE = os.environ.get("VALVE_GYM_FUZZ_PROFILE", "ci")
 FUZZ = settings.get_profile(PROFILE)
+#: The loader's tests take milliseconds per example: three times as many.
+FUZZ_CHEAP = settings(FUZZ, max_examples=3 * FUZZ.max_examples)
 
 # --------------------------------------------------------------------------
 # helpers
@@ -122,12 +124,7 @@ cells = st.one_of(
     st.text(alphabet=string.printable, max_size=6),
 )
 
-headers = st.lists(st.sampled_from(["t", "time", "t_s", "timestamp", "op", "OP", "co", "u", "pv", "PV", "y",
-                                    "level", "sp", "stem", "x", "", "t", "op;pv", "ä"]),
-                   min_size=0, max_size=6)
-
-
-@FUZZ
+@FUZZ_CHEAP
 @given(text=st.text(max_size=400), engine=st.sampled_from(["rows", "columns"]))
 def test_fuzz_csv_arbitrary_text(text, engine):
     d = _fresh_dir()
@@ -137,7 +134,7 @@ def test_fuzz_csv_arbitrary_text(text, engine):
     _load_and_check(p, engine=engine)
 
 
-@FUZZ
+@FUZZ_CHEAP
 @given(data=st.binary(max_size=300))
 def test_fuzz_csv_arbitrary_bytes(data):
     d = _fresh_dir()
@@ -147,42 +144,56 @@ def test_fuzz_csv_arbitrary_bytes(data):
     _load_and_check(p)
 
 
+_NUMERIC_BAD = ["", "nan", "NA", "-", "inf", "-inf", "1e309", "1e308", "-3.4e38", "1e15", "0", "1e-320", "  7 "]
+
+
 @st.composite
 def loop_tables(draw):
     """A loop table whose structure is mostly right and whose cells are often wrong."""
-    n = draw(st.integers(0, 140))
+    n = draw(st.sampled_from([0, 1, 49, 50, 55, 80, 120, 160]))
     rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
-    dt = draw(st.sampled_from([1.0, 0.1, 1e-3, 3600.0, 1e-300, 1e300]))
+    dt = draw(st.sampled_from([1.0, 1.0, 0.1, 1e-3, 3600.0, 1e-300, 1e300]))
     t = np.arange(n) * dt + draw(st.sampled_from([0.0, 1.7e9, -5.0]))
+    if draw(st.booleans()):
+        t = t + rng.uniform(-0.3, 0.3, n) * dt * draw(st.sampled_from([0.01, 0.5]))  # jitter
     op = 50 + 30 * np.sign(np.sin(np.arange(n) / 7.0)) + rng.normal(0, 1, n)
     pv = np.cumsum(rng.normal(0, 1, n)) + 10
     cols = {"t": [f"{v:.17g}" for v in t], "op": [f"{v:.9g}" for v in op], "pv": [f"{v:.9g}" for v in pv]}
     if draw(st.booleans()):
         cols["sp"] = [f"{v:.9g}" for v in np.full(n, 10.0)]
-    # cell edits: bad values, swaps and duplicates of time stamps
-    for _ in range(draw(st.integers(0, 8))):
+    bad_cells = st.sampled_from(_NUMERIC_BAD) if draw(st.integers(0, 3)) else cells
+    for _ in range(draw(st.integers(0, 6))):  # runs of bad cells
         if n == 0:
             break
         col = draw(st.sampled_from(sorted(cols)))
         i = draw(st.integers(0, n - 1))
-        k = draw(st.integers(1, 12))
-        cols[col][i:i + k] = [draw(cells)] * len(cols[col][i:i + k])
-    if n > 2 and draw(st.booleans()):
+        k = draw(st.sampled_from([1, 1, 2, 3, 6, 12]))
+        cols[col][i:i + k] = [draw(bad_cells)] * len(cols[col][i:i + k])
+    if n > 2 and draw(st.integers(0, 4)) == 0:  # swapped or duplicated time stamps
         i = draw(st.integers(0, n - 2))
-        cols["t"][i], cols["t"][i + 1] = cols["t"][i + 1], cols["t"][i]
+        if draw(st.booleans()):
+            cols["t"][i], cols["t"][i + 1] = cols["t"][i + 1], cols["t"][i]
+        else:
+            for c in cols.values():
+                c.insert(i, c[i])
+    if n > 60 and draw(st.integers(0, 4)) == 0:  # rows missing from the file
+        i = draw(st.integers(1, n - 20))
+        k = draw(st.sampled_from([2, 5, 30]))
+        cols = {c: v[:i] + v[i + k:] for c, v in cols.items()}
     header = list(cols)
-    if draw(st.booleans()):
-        header = draw(headers) or header
+    if draw(st.integers(0, 5)) == 0:
+        header = draw(st.lists(st.sampled_from(["t", "time", "timestamp", "op", "OP", "co", "pv", "y", "level",
+                                                "sp", "stem", "x", "", "ä"]), min_size=len(header),
+                               max_size=len(header)))
     sep = draw(st.sampled_from([",", ";", "\t"]))
-    rows = list(zip(*cols.values()))
-    lines = [sep.join(header)] + [sep.join(r) for r in rows]
-    if lines and draw(st.booleans()):
+    lines = [sep.join(header)] + [sep.join(r) for r in zip(*cols.values())]
+    if draw(st.integers(0, 5)) == 0:
         j = draw(st.integers(0, len(lines) - 1))
         lines.insert(j, draw(st.sampled_from(["", sep * 3, "garbage", "1" + sep + "2"])))
     return "\n".join(lines) + draw(st.sampled_from(["\n", "", "\r\n"]))
 
 
-@FUZZ
+@FUZZ_CHEAP
 @given(text=loop_tables(), op_range=st.sampled_from([None, (0, 100), (0, 1), (-5, 5), "0,100"]),
        engine=st.sampled_from(["rows", "columns"]), gaps=st.sampled_from(["error", "longest"]),
        max_gap=st.integers(0, 20))
@@ -282,7 +293,7 @@ def _set(d, path, value):
     d[path[-1]] = value
 
 
-@FUZZ
+@FUZZ_CHEAP
 @given(edits=st.lists(st.tuples(st.integers(0, 10**6), leaf_values), min_size=1, max_size=4),
        extra_key=st.one_of(st.none(), st.text(min_size=1, max_size=6)))
 def test_fuzz_config_mapping(edits, extra_key):
@@ -444,3 +455,66 @@ def test_fuzz_controller_settings(name, settings_, sp, pv, op):
 def test_profiles_registered():
     assert settings.get_profile("ci").max_examples < settings.get_profile("dev").max_examples
     assert FUZZ.max_examples == settings.get_profile(PROFILE).max_examples
+
+
+# --------------------------------------------------------------------------
+# the diagnosis on valid but extreme recordings: finite numbers out
+# --------------------------------------------------------------------------
+
+
+def _nonfinite_paths(o, path=""):
+    if isinstance(o, dict):
+        return [p for k, v in o.items() for p in _nonfinite_paths(v, f"{path}.{k}")]
+    if isinstance(o, list):
+        return [p for i, v in enumerate(o) for p in _nonfinite_paths(v, f"{path}[{i}]")]
+    return [path] if isinstance(o, float) and not math.isfinite(o) else []
+
+
+@settings(FUZZ, max_examples=max(4, FUZZ.max_examples // 6))
+@given(scale=st.sampled_from([1e-9, 1e-3, 1.0, 1e6]), offset=st.sampled_from([0.0, 5.0, 1e9]),
+       dt=st.sampled_from([1e-3, 1.0, 3600.0]), op_gain=st.sampled_from([0.2, 1.0, 5.0]),
+       plant=st.sampled_from(["tank", "first_order", "integrating"]), seed=st.integers(0, 50))
+def test_fuzz_diagnose_finite(scale, offset, dt, op_gain, plant, seed):
+    import json
+
+    from valve_gym.diagnosis import diagnose
+    from valve_gym.diagnosis.recording import Recording
+    from valve_gym.diagnosis.synthetic import make_recording
+
+    base = make_recording("none", seed=seed, n=240)
+    op = np.clip(0.5 + op_gain * (base.op - 0.5), 0.0, 1.0)
+    rec = Recording(t=np.arange(240) * dt, op=op, pv=base.pv * scale + offset, dt=dt, name="extreme")
+    try:
+        res = diagnose(rec, plant=plant, candidates=(), effort="fast")
+    except ValueError as exc:
+        _clean_error(exc)
+        return
+    d = json.loads(res.to_json())
+    assert not _nonfinite_paths(d.get("base", {})) and not _nonfinite_paths(d.get("final", {}))
+    assert math.isfinite(d["final"]["rmse"])
+
+
+# --------------------------------------------------------------------------
+# findings in other modules, kept as reproductions until fixed
+# --------------------------------------------------------------------------
+
+
+@pytest.mark.xfail(reason="agents/controllers: a setting given as None (scan_s, op_lo, op_hi, S) raises TypeError "
+                          "instead of a ValueError naming the allowed range", strict=False)
+@pytest.mark.parametrize("name,setting", [("pi", "scan_s"), ("pi", "op_lo"), ("knocker", "S"), ("two_move", "S")])
+def test_finding_controller_none_setting(name, setting):
+    if not _controllers():
+        pytest.skip("agents.load_controller is not available")
+    from agents import load_controller
+
+    with pytest.raises(ValueError, match=setting):
+        load_controller(name, **{setting: None})
+
+
+@pytest.mark.xfail(reason="valve_gym/envs/valve_tank.py: reset(options=<not a dict>) raises TypeError; the "
+                          "regulation env raises ValueError for the same input", strict=False)
+@pytest.mark.parametrize("env_id", ["valve_gym/ValveTank-v0", "valve_gym/ValveTankFixed-v0"])
+def test_finding_env_options_not_a_dict(env_id):
+    env = _env(env_id)
+    with pytest.raises(ValueError, match="options must be a dict"):
+        env.reset(options="z_max")

@@ -748,3 +748,18 @@ def test_recording_notes_roundtrip():
     rec = Recording(t=t, op=np.zeros(10), pv=t, notes=["read somehow"])
     assert rec.notes == ("read somehow",)
     assert rec.slice(2, 5).notes == rec.notes and rec.to_dataframe().attrs["notes"] == ["read somehow"]
+
+
+def test_parquet_invalid_utf8_text(tmp_path):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    t, op, pv = signals()
+    bad = pa.Array.from_buffers(pa.binary(), 1, [None, pa.py_buffer(np.array([0, 2], np.int32).tobytes()),
+                                                 pa.py_buffer(b"\xff\xfe")])
+    texts = pa.concat_arrays([pa.array([str(v) for v in pv[:-1]], pa.binary()), bad]).cast(pa.string(), safe=False)
+    pq.write_table(pa.table({"t": t, "op": op, "pv": texts}), tmp_path / "u.parquet")
+    with pytest.raises(RecordingError, match=r"u.parquet: not a readable Parquet file \(.*utf-8"):
+        load_recording(tmp_path / "u.parquet", op_range=(0, 100))
+    with pytest.raises(RecordingError, match="given for the process variable"):  # mapping errors stay themselves
+        load_recording(tmp_path / "u.parquet", op_range=(0, 100), columns={"pv": "nope"})

@@ -292,7 +292,9 @@ def read_parquet(sn: Sniffed, columns: Mapping[str, str | None] | None) -> RawCo
             for r, j in cmap.index.items():
                 parts[r].append(_arrow_to_numpy(batch.column(batch.schema.get_field_index(header[j])),
                                                 header[j], sn.src))
-    except (pa.ArrowException, OSError) as e:
+    except RecordingError:
+        raise
+    except (pa.ArrowException, OSError, UnicodeDecodeError, ValueError) as e:
         raise RecordingError(
             f"{sn.src}: not a readable Parquet file ({e}); check the file or export it again"
         ) from None
