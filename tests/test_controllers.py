@@ -225,7 +225,7 @@ def test_two_move_places_the_stem_and_holds():
     S, J = 0.04, 0.01
     tm = TwoMove(S=S, J=J, Kc=1.0, Ti=1.0, hyst=0.001, noise=0.0)
     tm.reset(1.0, 1.0, 0.5)
-    errors = [0.005] * 4 + [-0.005] * 8 + [0.005] * 6
+    errors = [0.005] * 4 + [-0.005] * 8 + [0.005] * 8 + [-0.005] * 8
     ops, modes, xs = [], [], []
     model = ValveEstimate(x=np.full(1, 0.5), u_s=np.full(1, 0.5), stuck=np.ones(1), d=np.zeros(1),
                           u_prev=np.full(1, 0.5))
@@ -234,13 +234,15 @@ def test_two_move_places_the_stem_and_holds():
         modes.append(tm.state.mode[0])
         model = valve_estimate(model, np.array([ops[-1]]), S, J)
         xs.append(model.x[0])
-    trig = modes.index(1.0)                       # move 1 at the scan the integral turned up
-    u_lo = min(ops[:trig])
-    assert ops[trig] == pytest.approx(u_lo - S)   # move 1: S beyond the bottom, same direction
-    # move 2 reverses by more than S and lands the stem on the cycle's mean stem estimate
-    assert ops[trig + 1] - ops[trig] > S
-    x_ss = ops[trig + 1] - (S - J) / 2
-    assert xs[trig + 1] == pytest.approx(x_ss)
+    trig = modes.index(1.0)
+    assert trig == 20                             # the third reversal of the PI output (not the first cycle)
+    u_hi = max(ops[:trig])
+    # move 1: S above the top; the estimate (valve never moved, reversal needs S) asks 0.5 + 1.5 S < that
+    assert ops[trig] == pytest.approx(max(u_hi + S, 0.5 + 1.5 * S))
+    # move 2 reverses by more than S and lands the estimated stem on x_ss = the cycle's mean estimate (0.5)
+    assert ops[trig] - ops[trig + 1] > S
+    assert ops[trig + 1] == pytest.approx(0.5 - (S - J) / 2)
+    assert xs[trig + 1] == pytest.approx(0.5)
     assert modes[trig + 1:] == [HOLD] * (len(errors) - trig - 1)
     assert all(o == ops[trig + 1] for o in ops[trig + 1:])          # held
     # release when the error leaves the band: the PI resumes from the held output without a bump
@@ -248,7 +250,7 @@ def test_two_move_places_the_stem_and_holds():
     big = 2 * tm.settings["release"]
     op = tm.step(1.0, 1.0 - big)
     assert tm.state.mode[0] == NORMAL
-    assert op == pytest.approx(held + 1.0 * (big - 0.005) + 1.0 * big)
+    assert op == pytest.approx(held + 1.0 * (big + 0.005) + 1.0 * big)
 
 
 def test_knocker_pulse_train_on_a_ramping_integral():

@@ -14,15 +14,16 @@ State machine (one loop; all loops run it side by side)
     noise-robust hysteresis of
     :func:`agents.controllers.compensator.integral_direction`; at each
     reversal the extreme PI output of the phase that ended is kept
-    (``u_hi`` after a rise, ``u_lo`` after a fall). At a reversal with both
-    extremes known and ``u_hi - u_lo >= S/2`` (a cycle as large as
-    stiction makes), the valve's steady position is estimated as the middle of
-    the cycle, ``x_ss = (u_hi + u_lo)/2``, and with ``d`` the direction that
-    just ended:
+    (``u_hi`` after a rise, ``u_lo`` after a fall). At the third or a later
+    reversal (so a whole cycle lies between reversals, not the approach to the
+    set point) with ``u_hi - u_lo >= S/2`` (a cycle as large as stiction
+    makes), the valve's steady position ``x_ss`` is estimated (below), and with
+    ``d`` the direction that just ended:
 
     * **move 1** (this scan): ``op1 = u_ext + d S``, ``u_ext`` the extreme the
-      valve stuck at. Same direction as the last motion, beyond its stuck
-      input by ``S >= J``: the valve slips on;
+      valve stuck at, or further in direction ``d`` if the valve estimate
+      (below) says the breakaway lies further (``S/2`` past it): the valve
+      slips on in direction ``d``;
     * go to ``MOVE2``.
 ``MOVE2``
     **move 2**: ``op2 = x_ss - d (S - J)/2``. A reversal of more than ``S``
@@ -46,9 +47,11 @@ level at the set point.
 
 Defaults from the estimates: ``J = S/2`` when no slip estimate is given (the
 middle of ``0 <= J <= S``), ``hyst`` as for constant reinforcement,
-``release = max(S/Kc, 4 noise)``: twice the error amplitude ``S/(2 Kc)`` of the
-stick-slip cycle a PI runs with a band ``S`` (derived, DOMAIN O8), and at
-least four standard deviations of the measurement noise. A stem placed off
+``release = max(S/(2 Kc), 4 noise)``: the error amplitude ``S/(2 Kc)`` of the
+stick-slip cycle a PI runs with a band ``S`` (derived, DOMAIN O8; an error the
+PI's own cycle would have anyway), and at least four standard deviations of
+the measurement noise (a single noisy sample beyond ``4 noise`` has a
+probability of 6e-5: about one false release in four hours at 1 s scans). A stem placed off
 target by the estimates' error leaves a steady offset inside this band (or,
 outside it, a release and a new cycle until the next two moves): the moves are
 open loop and rely on ``S``, ``J`` and ``x_ss`` (the benchmark reports the
@@ -142,6 +145,7 @@ class TwoMoveState(NamedTuple):
     valve : ValveEstimate, Choudhury model of the valve driven by the output
     x_sum, n_sum : sum and count of the estimated stem over the current half cycle
     x_prev, n_prev : the same over the previous half cycle
+    turns : reversals of the PI output since the cycle detector (re)started
     """
 
     pi: PIBlockState
@@ -158,6 +162,7 @@ class TwoMoveState(NamedTuple):
     n_sum: np.ndarray
     x_prev: np.ndarray
     n_prev: np.ndarray
+    turns: np.ndarray
 
 
 class TwoMove(Compensator):
@@ -171,17 +176,18 @@ class TwoMove(Compensator):
 
     Examples
     --------
-    A PI output that rises to 0.525, falls to 0.475 and turns up again (a
-    cycle of 5 % with ``S = 0.04``): move 1 goes ``S`` below the bottom
-    (0.435), move 2 to ``x_ss - d (S - J)/2 = 0.50 + 0.01`` (``d = -1``,
-    ``J = S/2``), then the output holds:
+    A PI output cycling between 0.475 and 0.525 with ``S = 0.04`` (the valve
+    estimate never moved, so ``x_ss = 0.50``): at the third reversal move 1
+    goes ``S`` above the top (0.565), move 2 to
+    ``x_ss - d (S - J)/2 = 0.50 - 0.01`` (``d = +1``, ``J = S/2``), then the
+    output holds:
 
     >>> tm = TwoMove(S=0.04, Kc=1.0, Ti=1.0, hyst=0.001)
     >>> tm.reset(1.0, 1.0, 0.5)
-    >>> errors = [0.005] * 4 + [-0.005] * 8 + [0.005] * 4
+    >>> errors = [0.005] * 4 + [-0.005] * 8 + [0.005] * 8 + [-0.005] * 3
     >>> ops = [tm.step(1.0, 1.0 - e) for e in errors]
-    >>> [round(o, 3) for o in ops[10:]]
-    [0.48, 0.475, 0.435, 0.51, 0.51, 0.51]
+    >>> [round(o, 3) for o in ops[-5:]]
+    [0.52, 0.525, 0.565, 0.49, 0.49]
     """
 
     name = "two_move"
@@ -190,7 +196,7 @@ class TwoMove(Compensator):
         NOISE_SETTING,
         Setting("J", "-", None, 0.0, 0.5, "slip-jump estimate, fraction of stroke (<= S); default S/2"),
         Setting("hyst", "-", None, 0.0, 1.0, "hysteresis on the integral part; default 3 Kc noise sqrt(Ts/Ti)"),
-        Setting("release", "m", None, 0.0, 10.0, "error that ends the hold; default max(S/Kc, 4 noise)",
+        Setting("release", "m", None, 0.0, 10.0, "error that ends the hold; default max(S/(2 Kc), 4 noise)",
                 lo_open=True),
     )
 
@@ -202,7 +208,7 @@ class TwoMove(Compensator):
         if s["hyst"] is None:
             s["hyst"] = default_hysteresis(self.pi.Kc, self.pi.Ti, s["scan_s"], s["noise"])
         if s["release"] is None:
-            s["release"] = float(max(s["S"] / self.pi.Kc, 4.0 * s["noise"]))
+            s["release"] = float(max(s["S"] / (2.0 * self.pi.Kc), 4.0 * s["noise"]))
             if s["release"] <= 0:
                 raise ValueError(f"{self.name}: S = 0 and noise = 0 leave no default release band; "
                                  "give S > 0, noise > 0 or release > 0")
@@ -217,7 +223,7 @@ class TwoMove(Compensator):
         valve = ValveEstimate(x=pis.op.copy(), u_s=pis.op.copy(), stuck=np.ones(n), d=z, u_prev=pis.op.copy())
         return TwoMoveState(pi=pis, mode=z, d=z, i_ext=pis.integral.copy(), op_ext=pis.op.copy(), u_hi=nan,
                             u_lo=nan.copy(), op2=pis.op.copy(), sp_hold=np.asarray(sp, float).copy(),
-                            valve=valve, x_sum=z, n_sum=z, x_prev=z, n_prev=z)
+                            valve=valve, x_sum=z, n_sum=z, x_prev=z, n_prev=z, turns=z)
 
     def _normal(self, st: TwoMoveState, scan: PIScan):
         """NORMAL: follow the cycle; returns (state fields, target op, trigger mask)."""
@@ -229,15 +235,28 @@ class TwoMove(Compensator):
         ended = flipped & (d_old != 0)
         u_hi = np.where(ended & (d_old > 0), op_ext, st.u_hi)
         u_lo = np.where(ended & (d_old < 0), op_ext, st.u_lo)
-        cycle = ended & np.isfinite(u_hi) & np.isfinite(u_lo) & (u_hi - u_lo >= S / 2.0) & (st.n_prev > 0)
-        u_ext = np.where(d_old > 0, u_hi, u_lo)
+        cycle = ended & (st.turns >= 2) & (u_hi - u_lo >= S / 2.0)
         lo, hi = self.settings["op_lo"], self.settings["op_hi"]
-        op1 = np.clip(u_ext + d_old * S, lo, hi)
+        op1 = np.clip(self._move1(st.valve, np.where(d_old > 0, u_hi, u_lo), d_old), lo, hi)
         x_ss = (st.x_prev + st.x_sum) / np.maximum(st.n_prev + st.n_sum, 1.0)
         op2 = np.where(cycle, np.clip(x_ss - d_old * (S - J) / 2.0, lo, hi), st.op2)
         target = np.where(cycle, op1, scan.v)
         op_ext = np.where(flipped, scan.v, op_ext)
-        return (d, i_ext, op_ext, u_hi, u_lo, op2, ended), target, cycle
+        started = flipped & (d_old == 0)
+        return (d, i_ext, op_ext, u_hi, u_lo, op2, ended, started), target, cycle
+
+    def _move1(self, valve: ValveEstimate, u_ext, d):
+        """Move 1: ``S`` beyond the extreme ``u_ext`` in direction ``d``, and past the estimated breakaway.
+
+        The valve estimate says where the valve stuck (``u_s``; the last input
+        when it moves) and whether going on in ``d`` is a reversal for it
+        (threshold ``S``) or not (``J``); the move goes ``S/2`` past that
+        threshold, so it breaks the valve free whichever way it last moved.
+        """
+        S, J = self.settings["S"], self.settings["J"]
+        anchor = np.where(valve.stuck > 0, valve.u_s, valve.u_prev)
+        thr = np.where(valve.stuck > 0, np.where(valve.d == d, J, S), np.where(valve.d == d, 0.0, S))
+        return d * np.maximum(d * (u_ext + d * S), d * (anchor + d * (thr + S / 2.0)))
 
     def _averages(self, st: TwoMoveState, valve: ValveEstimate, ended, restart):
         """Half-cycle sums of the estimated stem (shifted at each reversal, cleared on restart)."""
@@ -252,7 +271,7 @@ class TwoMove(Compensator):
         """One scan of the state machine: ``(state, sp, pv) -> (state, op)``."""
         S, J = self.settings["S"], self.settings["J"]
         scan = self.pi.propose(state.pi, sp, pv)
-        (d, i_ext, op_ext, u_hi, u_lo, op2, ended), target, cycle = self._normal(state, scan)
+        (d, i_ext, op_ext, u_hi, u_lo, op2, ended, started), target, cycle = self._normal(state, scan)
         normal, move2, hold = state.mode == NORMAL, state.mode == MOVE2, state.mode == HOLD
         release = hold & ((np.abs(scan.e) > self.settings["release"]) | (sp != state.sp_hold))
         held = hold & ~release
@@ -263,12 +282,12 @@ class TwoMove(Compensator):
         valve = valve_estimate(state.valve, op, S, J)
         mode = np.where(normal & cycle, MOVE2, np.where(move2 | held, HOLD, NORMAL))
         restart = move2 | held | release   # the cycle detector starts afresh after a hold
-        sums = self._averages(state, valve, ended & normal, restart)
+        sums = self._averages(state, valve, ended & normal, restart | (started & normal))
         nan = np.full(op.shape, np.nan)
         new = TwoMoveState(
             pi=pis, mode=mode, d=np.where(restart, 0.0, d), i_ext=np.where(restart, pis.integral, i_ext),
             op_ext=np.where(restart, op, op_ext), u_hi=np.where(restart, nan, u_hi),
             u_lo=np.where(restart, nan, u_lo), op2=np.where(normal, op2, state.op2),
             sp_hold=np.where(move2, sp, state.sp_hold), valve=valve, x_sum=sums[0], n_sum=sums[1],
-            x_prev=sums[2], n_prev=sums[3])
+            x_prev=sums[2], n_prev=sums[3], turns=np.where(restart, 0.0, state.turns + (ended & normal)))
         return new, op
