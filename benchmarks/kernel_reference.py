@@ -20,7 +20,7 @@ S_Z, S_H, S_X, S_US, S_STUCK, S_SDIR, S_UPREV, S_L1, S_L2, S_Y, S_T, S_BIDX = ra
 NS = 12
 
 
-@njit(cache=True, nogil=True)
+@njit(nogil=True)  # not cached: loaded from a path by tests and benchmarks
 def reference_kernel(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV):  # noqa: C901  # pragma: no cover
     T = U.shape[0]
     n = S.shape[1]

@@ -960,3 +960,85 @@ def test_kernel_threads_from_several_caller_threads_at_once():
         outs = list(ex.map(lambda k: _run_threads(p, u, d, 2 + k % 3)[0], range(24)))
     for y in outs:
         np.testing.assert_array_equal(ref, y)
+
+
+# --------------------------------------------------------------------------
+# the split kernel: bit-for-bit the pre-split one; the new friction laws batch
+# --------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def reference_kernel():
+    """The frozen pre-split kernel of benchmarks/kernel_reference.py (compiled once per test module)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "kernel_reference.py"
+    spec = importlib.util.spec_from_file_location("valve_gym_kernel_reference", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod.reference_kernel
+
+
+def _random_batch(rng, n):
+    """A random batch of every block the pre-split kernel knows, each switched on."""
+    u = rng.uniform
+    return ModelParams(
+        valve=ValveParams(tau=u(0.05, 0.3, n), v_max=u(0.2, 2.0, n), e_dead=u(0, 0.03, n), z_max=u(0, 0.5, n)),
+        process=TankParams(area=u(0.1, 0.4, n), k_out=u(0.003, 0.008, n)), dt=0.02,
+        valve_characteristic=ValveCharacteristic(str(rng.choice(["linear", "equal_percentage", "quick_opening"])),
+                                                 R=u(5, 60, n), h0=u(0, 0.1, n)),
+        dead_time=DeadTime(theta=u(0, 3, n)), overflow=Overflow(L_max=u(1.0, 3.0, n)),
+        leak=Leak(q_leak=u(0, 3e-4, n)), sensor_lag=SensorLag(tau_s=u(0.5, 5, n)),
+        oscillating_disturbance=OscillatingDisturbance(amplitude=u(0, 3e-4, n), period=u(10, 90, n),
+                                                       phase=u(0, 6, n)))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_split_kernel_is_bit_for_bit_the_pre_split_kernel(seed, reference_kernel):
+    rng = np.random.default_rng(seed)
+    n, T, n_sub = 12, 250, 9
+    cases = [_random_batch(rng, n),
+             ModelParams(slip_jump=SlipJump(S=rng.uniform(0, 0.08, n), J=rng.uniform(0, 0.1, n),
+                                            tau_p=rng.uniform(0.02, 0.3, n)), dt=0.02),
+             *[replace(BATCH[c], dt=0.02) for c in ("cascade", "integrating", "first_order")]]
+    for p in cases:
+        m = p.batch_size()
+        pk = cmod.pack(p, m)
+        st = initial_state(p, m, buf_len=pk.buf_len)
+        U = np.ascontiguousarray(np.clip(0.5 + np.cumsum(rng.normal(0, 0.03, (T, m)), axis=0), -0.1, 1.1))
+        D = np.ascontiguousarray(rng.normal(0, 2e-4, (T, m)))
+        outs = []
+        for kern in (cmod._kernel, reference_kernel):
+            S, buf = cmod.state_to_array(st), np.array(st.delay_buf, float, copy=True)
+            Y, H, LV = (np.empty((T, m)) for _ in range(3))
+            kern(S, pk.P, U, D, pk.flags, buf, n_sub, pk.dt, Y, H, LV)
+            outs.append((S, buf, Y, H, LV))
+        for a, b, name in zip(*outs, ("S", "buf", "Y", "H", "LV")):
+            np.testing.assert_array_equal(a, b, err_msg=f"{p.effects}: {name}")
+
+
+@pytest.mark.parametrize("law", ["kano", "karnopp"])
+def test_new_friction_laws_batch_equals_single(law):
+    arr = np.array
+    p = ModelParams(slip_jump=SlipJump(S=arr([0.0, 0.03, 0.05]), J=arr([0.0, 0.01, 0.05]),
+                                       tau_p=arr([0.05, 0.1, 0.2]), law=law,
+                                       omega_n=arr([50.0, 196.5, 400.0]), zeta=arr([0.3, 1.0, 2.0])), dt=0.02)
+    u, d = batch_inputs()
+    tb = simulate(p, u, d=d, n_sub=25)
+    for j in range(N):
+        tj = simulate(member(p, j), u[:, j], d=d[:, j], n_sub=25)
+        for name in ("y", "h", "level"):
+            np.testing.assert_array_equal(getattr(tb, name)[:, j], getattr(tj, name)[:, 0], err_msg=f"{law} {name}")
+    st = initial_state(p)
+    for k in range(40):
+        st, y = step(st, u[k], p, d=d[k], n_sub=25)
+        np.testing.assert_array_equal(y, tb.y[k])
+
+
+def test_friction_model_name():
+    assert ModelParams().friction_model == "riihilahti"
+    assert ModelParams(valve=ValveParams(e_dead=0.0, z_max=0.0)).friction_model == "none"
+    assert ModelParams(slip_jump=SlipJump()).friction_model == "choudhury"
+    assert ModelParams(slip_jump=SlipJump(law="kano")).friction_model == "kano"
+    assert ModelParams(actuator=PUMP).friction_model == "none"
