@@ -763,3 +763,14 @@ def test_parquet_invalid_utf8_text(tmp_path):
         load_recording(tmp_path / "u.parquet", op_range=(0, 100))
     with pytest.raises(RecordingError, match="given for the process variable"):  # mapping errors stay themselves
         load_recording(tmp_path / "u.parquet", op_range=(0, 100), columns={"pv": "nope"})
+
+
+def test_wide_header_beyond_sniff_prefix(tmp_path):
+    t, op, pv = signals()
+    extra = [f"tag_{i:05d}" for i in range(7_000)]  # a header of 70 kB, longer than the sniffed prefix
+    header = ",".join(["t", "op"] + extra + ["pv"])  # pv's name lies beyond the first 64 kB
+    body = "".join(f"{a},{b}" + ",0" * len(extra) + f",{c}\n" for a, b, c in zip(t, op, pv))
+    (tmp_path / "w.csv").write_text(header + "\n" + body)
+    for engine in ("rows", "columns"):
+        rec = load_recording(tmp_path / "w.csv", op_range=(0, 100), engine=engine)
+        assert len(rec) == 200 and rec.columns == {"t": "t", "op": "op", "pv": "pv"}

@@ -28,6 +28,7 @@ COLUMNWISE_BYTES = 8 * 1024 * 1024
 ENGINES = ("auto", "rows", "columns")
 
 _PREFIX = 65536
+_MAX_HEADER = 16 * 1024 * 1024
 _PARQUET_MAGIC = b"PAR1"
 
 
@@ -79,6 +80,8 @@ def _open_prefix(path: Path, src: str) -> tuple[bytes, int]:
         size = path.stat().st_size
         with open(path, "rb") as f:
             raw = f.read(_PREFIX)
+            while b"\n" not in raw.lstrip(b"\r\n \t") and len(raw) < min(size, _MAX_HEADER):
+                raw += f.read(_PREFIX)  # a very wide header: read on to its end
     except OSError as e:
         raise RecordingError(f"{src}: cannot be read ({e.strerror or e}); check the file's permissions") from None
     return raw, size
