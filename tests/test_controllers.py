@@ -300,3 +300,36 @@ def test_pi_cycles_on_a_sticky_valve_and_compensators_reduce_the_cycle():
     # the knocker and the two-move cut the cycle to well under half
     assert amp[1] < 0.5 * amp[0]
     assert amp[2] < 0.5 * amp[0]
+
+
+# ------------------------------------------------------------------------------------ per-loop settings
+@pytest.mark.parametrize("name", ["knocker", "constant_reinforcement", "two_move", "integral_freeze"])
+def test_per_loop_stiction_estimates_equal_one_block_per_loop(name):
+    """``S`` as an (n,) array runs each loop exactly as a block built with that loop's S."""
+    S = np.array([0.005, 0.02, 0.06])
+    T = 400
+    sp, pv = _signals(T, 3, seed=5)
+    batched = load_controller(name, S=S)
+    assert batched.settings["S"] == S.tolist()
+    json.dumps(batched.settings)
+    singles = [load_controller(name, S=float(s)) for s in S]
+    batched.reset(sp[0], pv[0], 0.5)                  # scalar op: shared by the 3 loops of the settings
+    for i, c in enumerate(singles):
+        c.reset(float(sp[0, i]), float(pv[0, i]), 0.5)
+    for t in range(T):
+        ob = np.asarray(batched.step(sp[t], pv[t]))
+        np.testing.assert_array_equal(ob, [c.step(float(sp[t, i]), float(pv[t, i])) for i, c in enumerate(singles)])
+
+
+def test_per_loop_settings_errors():
+    with pytest.raises(ValueError, match=r"setting S\[1\] = 0.7 is out of range; allowed: S \[-\] in \[0, 0.5\]"):
+        load_controller("knocker", S=[0.01, 0.7])
+    with pytest.raises(ValueError, match=r"per-loop settings have different lengths \{'S': 2, 'a': 3\}"):
+        load_controller("knocker", S=[0.01, 0.02], a=[0.1, 0.1, 0.1])
+    with pytest.raises(ValueError, match=r"setting scan_s must be a number \("):
+        load_controller("pi", scan_s=[1.0, 2.0])
+    with pytest.raises(ValueError, match=r"J <= S .* got S = \[0.01, 0.02\], J = \[0.005, 0.03\]"):
+        load_controller("two_move", S=[0.01, 0.02], J=[0.005, 0.03])
+    c = load_controller("knocker", S=[0.01, 0.02])
+    with pytest.raises(ValueError, match=r"per-loop settings are for 2 loops, reset\(\) got 3"):
+        c.reset(1.0, [1.0, 1.0, 1.0], 0.5)

@@ -17,6 +17,10 @@ of ``(n,)`` arrays (:attr:`FunctionBlock.state`), advanced by the pure methods
 Settings are declared per block as :class:`Setting` rows; :func:`resolve_settings`
 checks names, types and ranges and fills defaults, so a typo or an
 out-of-range value is a :class:`ValueError` that lists what is allowed.
+Settings marked ``per_loop`` (the gains, the stiction estimate ``S`` and what
+the rules derive from it) also take an ``(n,)`` array, one value per loop: one
+block then runs ``n`` loops with different estimates, exactly as ``n`` blocks
+would. ``ctrl.settings`` gives them back as lists (JSON-able).
 """
 from __future__ import annotations
 
@@ -28,7 +32,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 __all__ = ["Setting", "FunctionBlock", "resolve_settings", "check_inputs", "merge_rows",
-           "whole_scans"]
+           "whole_scans", "json_settings", "fmt"]
 
 ArrayOrFloat = float | np.ndarray
 
@@ -47,6 +51,8 @@ class Setting:
         ``lo_open``)
     doc : str, one line for error messages and listings
     lo_open : bool
+    per_loop : bool, the setting may also be an ``(n,)`` array, one value per
+        loop (e.g. each loop's stiction estimate ``S``)
     """
 
     name: str
@@ -56,17 +62,32 @@ class Setting:
     hi: float
     doc: str
     lo_open: bool = False
+    per_loop: bool = False
 
     def describe(self) -> str:
         """``name [unit] in [lo, hi]`` for error messages."""
         left = "(" if self.lo_open else "["
         return f"{self.name} [{self.unit}] in {left}{self.lo:g}, {self.hi:g}]"
 
-    def check(self, block: str, value: Any) -> float:
-        """The value as a float, or a ValueError naming the allowed range."""
+    def check(self, block: str, value: Any) -> float | np.ndarray:
+        """The value as a float (or a float array for ``per_loop``), or a ValueError naming the range."""
+        if self.per_loop and isinstance(value, (list, tuple, np.ndarray)):
+            a = np.asarray(value)
+            if a.ndim != 1 or a.size == 0 or a.dtype.kind not in "iuf":
+                raise ValueError(f"{block}: setting {self.name} must be a number or a non-empty (n,) array of "
+                                 f"numbers (one per loop), got {type(value).__name__} of shape {a.shape}")
+            a = a.astype(np.float64)
+            below = a <= self.lo if self.lo_open else a < self.lo
+            bad = ~np.isfinite(a) | below | (a > self.hi)
+            if bad.any():
+                i = int(np.flatnonzero(bad)[0])
+                raise ValueError(f"{block}: setting {self.name}[{i}] = {float(a[i])!r} is out of range; "
+                                 f"allowed: {self.describe()} ({self.doc})")
+            return a
         ok_type = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
         if not ok_type:
-            raise ValueError(f"{block}: setting {self.name} must be a number ({self.doc}), got "
+            kind = "a number or an (n,) array of numbers" if self.per_loop else "a number"
+            raise ValueError(f"{block}: setting {self.name} must be {kind} ({self.doc}), got "
                              f"{value!r} of type {type(value).__name__}; allowed: {self.describe()}")
         v = float(value)
         below = v <= self.lo if self.lo_open else v < self.lo
@@ -105,6 +126,19 @@ def resolve_settings(block: str, table: tuple[Setting, ...], given: dict) -> dic
         v = given.get(s.name, s.default)
         out[s.name] = None if v is None else s.check(block, v)
     return out
+
+
+def json_settings(settings: dict) -> dict:
+    """Settings with per-loop arrays as lists (JSON-able)."""
+    return {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in settings.items()}
+
+
+def fmt(v) -> str:
+    """A setting for messages: ``0.02`` or ``[0.01, 0.02, ...]``."""
+    if isinstance(v, np.ndarray):
+        head = ", ".join(f"{x:g}" for x in v[:4])
+        return f"[{head}{', ...' if v.size > 4 else ''}]"
+    return f"{v:g}"
 
 
 def whole_scans(block: str, name: str, value: float, scan_s: float) -> int:
@@ -184,7 +218,8 @@ class FunctionBlock(ABC):
     Attributes
     ----------
     name : str, registry name of the block
-    settings : dict, the resolved settings (JSON-able floats)
+    settings : dict, the resolved settings (JSON-able: floats, or lists for
+        per-loop settings given as arrays)
     scan_s : float, scan time [s]
     """
 
@@ -192,7 +227,9 @@ class FunctionBlock(ABC):
     SETTINGS: ClassVar[tuple[Setting, ...]] = ()
 
     def __init__(self, **settings):
-        self.settings = self._resolve(resolve_settings(self.name, self.SETTINGS, settings))
+        #: resolved settings as floats or (n,) float arrays, for the block's arithmetic
+        self.p: dict[str, Any] = self._resolve(resolve_settings(self.name, self.SETTINGS, settings))
+        self.loops()
         self._state: Any = None
         self._n: int | None = None
         self._scalar = False
@@ -202,9 +239,22 @@ class FunctionBlock(ABC):
         return settings
 
     @property
+    def settings(self) -> dict:
+        """The resolved settings, JSON-able (per-loop arrays as lists)."""
+        return json_settings(self.p)
+
+    @property
     def scan_s(self) -> float:
         """Scan time [s]."""
-        return float(self.settings["scan_s"])
+        return float(self.p["scan_s"])
+
+    def loops(self) -> int | None:
+        """Number of loops fixed by per-loop settings (None: any)."""
+        sizes = {k: v.size for k, v in self.p.items() if isinstance(v, np.ndarray)}
+        if len(set(sizes.values())) > 1:
+            raise ValueError(f"{self.name}: per-loop settings have different lengths {sizes}; give one value "
+                             "per loop for every array setting (or scalars)")
+        return next(iter(sizes.values())) if sizes else None
 
     @property
     def state(self) -> Any:
@@ -212,11 +262,11 @@ class FunctionBlock(ABC):
         return self._state
 
     def __repr__(self) -> str:
-        args = ", ".join(f"{k}={v:.4g}" for k, v in self.settings.items())
+        args = ", ".join(f"{k}={fmt(v)}" for k, v in self.p.items())
         return f"load_controller({self.name!r}, {args})"
 
     def _check_op(self, op: np.ndarray) -> None:
-        lo, hi = self.settings["op_lo"], self.settings["op_hi"]
+        lo, hi = self.p["op_lo"], self.p["op_hi"]
         if np.any(op < lo) or np.any(op > hi):
             raise ValueError(f"{self.name}: op must be the valve input now applied, within the output limits "
                              f"[op_lo, op_hi] = [{lo:g}, {hi:g}], got {op.tolist()[:10]}")
@@ -230,6 +280,13 @@ class FunctionBlock(ABC):
         op : float or (n,) array, valve input now applied [0..1]
         """
         (sp, pv, op), n, scalar = check_inputs(self.name, sp=sp, pv=pv, op=op)
+        want = self.loops()
+        if want is not None and n != want:
+            if not scalar:
+                raise ValueError(f"{self.name}: the per-loop settings are for {want} loops, reset() got {n}; "
+                                 "pass one sp, pv, op per loop")
+            sp, pv, op = (np.full(want, x[0]) for x in (sp, pv, op))
+            n, scalar = want, False
         self._check_op(op)
         self._state = self.initial_state(sp, pv, op)
         self._n, self._scalar = n, scalar

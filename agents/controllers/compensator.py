@@ -26,19 +26,34 @@ from __future__ import annotations
 
 import numpy as np
 
-from .block import FunctionBlock, Setting
+from .block import FunctionBlock, Setting, fmt
 from .pi import PI_SETTINGS, PIBlock, resolve_pi
 
-__all__ = ["Compensator", "S_SETTING", "NOISE_SETTING", "integral_direction", "default_hysteresis"]
+__all__ = ["Compensator", "S_SETTING", "NOISE_SETTING", "integral_direction", "default_hysteresis", "as_setting",
+           "check_slip"]
 
 #: The stiction estimate every compensator takes.
 S_SETTING = Setting("S", "-", 0.02, 0.0, 0.5,
-                    "stiction estimate: stick band plus dead band, fraction of stroke (Choudhury's S)")
+                    "stiction estimate: stick band plus dead band, fraction of stroke (Choudhury's S)",
+                    per_loop=True)
 #: Measurement noise on the level, for noise-robust rules.
-NOISE_SETTING = Setting("noise", "m", 0.002, 0.0, 1.0, "standard deviation of the level measurement noise")
+NOISE_SETTING = Setting("noise", "m", 0.002, 0.0, 1.0, "standard deviation of the level measurement noise",
+                        per_loop=True)
 
 
-def default_hysteresis(Kc: float, Ti: float, scan_s: float, noise: float) -> float:
+def as_setting(x) -> float | np.ndarray:
+    """A rule's result as a float, or a float array when a per-loop setting made it one."""
+    return float(x) if np.ndim(x) == 0 else np.asarray(x, dtype=np.float64)
+
+
+def check_slip(block: str, s: dict) -> None:
+    """``J <= S`` (Choudhury's model without overshoot), with a message naming both."""
+    if np.any(np.asarray(s["J"]) > np.asarray(s["S"])):
+        raise ValueError(f"{block}: settings need J <= S (slip no larger than the band), "
+                         f"got S = {fmt(s['S'])}, J = {fmt(s['J'])}")
+
+
+def default_hysteresis(Kc, Ti, scan_s: float, noise) -> float | np.ndarray:
     """Hysteresis on the integral part that white measurement noise does not cross.
 
     Notes
@@ -54,7 +69,7 @@ def default_hysteresis(Kc: float, Ti: float, scan_s: float, noise: float) -> flo
     >>> round(default_hysteresis(1.89, 42.4, 1.0, 0.002), 5)
     0.00174
     """
-    return float(3.0 * Kc * noise * np.sqrt(scan_s / Ti))
+    return as_setting(3.0 * Kc * noise * np.sqrt(scan_s / np.asarray(Ti)))
 
 
 def integral_direction(d: np.ndarray, i_ext: np.ndarray, integral: np.ndarray,

@@ -44,7 +44,15 @@ from typing import NamedTuple
 import numpy as np
 
 from .block import Setting
-from .compensator import NOISE_SETTING, S_SETTING, Compensator, default_hysteresis, integral_direction
+from .compensator import (
+    NOISE_SETTING,
+    S_SETTING,
+    Compensator,
+    as_setting,
+    check_slip,
+    default_hysteresis,
+    integral_direction,
+)
 from .pi import PIBlockState
 
 __all__ = ["ConstantReinforcement", "CRState"]
@@ -90,17 +98,17 @@ class ConstantReinforcement(Compensator):
     OWN_SETTINGS = (
         S_SETTING,
         NOISE_SETTING,
-        Setting("J", "-", None, 0.0, 0.5, "slip-jump estimate, fraction of stroke (<= S); default S/2"),
-        Setting("a", "-", None, 0.0, 1.0, "reinforcement, fraction of stroke; default (S - J)/2"),
-        Setting("hyst", "-", None, 0.0, 1.0, "hysteresis on the integral part; default 3 Kc noise sqrt(Ts/Ti)"),
+        Setting("J", "-", None, 0.0, 0.5, "slip-jump estimate, fraction of stroke (<= S); default S/2",
+                per_loop=True),
+        Setting("a", "-", None, 0.0, 1.0, "reinforcement, fraction of stroke; default (S - J)/2", per_loop=True),
+        Setting("hyst", "-", None, 0.0, 1.0, "hysteresis on the integral part; default 3 Kc noise sqrt(Ts/Ti)",
+                per_loop=True),
     )
 
     def _rules(self, s: dict) -> dict:
         s["J"] = s["S"] / 2.0 if s["J"] is None else s["J"]
-        if s["J"] > s["S"]:
-            raise ValueError(f"{self.name}: settings need J <= S (slip no larger than the band), "
-                             f"got S = {s['S']:g}, J = {s['J']:g}")
-        s["a"] = (s["S"] - s["J"]) / 2.0 if s["a"] is None else s["a"]
+        check_slip(self.name, s)
+        s["a"] = as_setting((s["S"] - s["J"]) / 2.0) if s["a"] is None else s["a"]
         if s["hyst"] is None:
             s["hyst"] = default_hysteresis(self.pi.Kc, self.pi.Ti, s["scan_s"], s["noise"])
         return s
@@ -113,6 +121,6 @@ class ConstantReinforcement(Compensator):
     def advance(self, state: CRState, sp, pv):
         """One scan: ``(state, sp, pv) -> (state, op)``."""
         scan = self.pi.propose(state.pi, sp, pv)
-        d, i_ext, _ = integral_direction(state.d, state.i_ext, scan.integral, self.settings["hyst"])
-        pis, op = self.pi.finish(scan, self.settings["a"] * d)
+        d, i_ext, _ = integral_direction(state.d, state.i_ext, scan.integral, self.p["hyst"])
+        pis, op = self.pi.finish(scan, self.p["a"] * d)
         return CRState(pi=pis, d=d, i_ext=i_ext), op

@@ -34,7 +34,7 @@ from __future__ import annotations
 import numpy as np
 
 from .block import Setting
-from .compensator import NOISE_SETTING, S_SETTING, Compensator
+from .compensator import NOISE_SETTING, S_SETTING, Compensator, as_setting
 from .pi import PIBlockState
 
 __all__ = ["IntegralFreeze"]
@@ -64,12 +64,13 @@ class IntegralFreeze(Compensator):
     OWN_SETTINGS = (
         S_SETTING,
         NOISE_SETTING,
-        Setting("band", "m", None, 0.0, 10.0, "error band without integration; default max(S/(2 Kc), 3 noise)"),
+        Setting("band", "m", None, 0.0, 10.0, "error band without integration; default max(S/(2 Kc), 3 noise)",
+                per_loop=True),
     )
 
     def _rules(self, s: dict) -> dict:
         if s["band"] is None:
-            s["band"] = float(max(s["S"] / (2.0 * self.pi.Kc), 3.0 * s["noise"]))
+            s["band"] = as_setting(np.maximum(s["S"] / (2.0 * self.pi.Kc), 3.0 * s["noise"]))
         return s
 
     def initial_state(self, sp, pv, op) -> PIBlockState:
@@ -78,5 +79,5 @@ class IntegralFreeze(Compensator):
 
     def advance(self, state: PIBlockState, sp, pv):
         """One scan: ``(state, sp, pv) -> (state, op)``."""
-        integrate = np.abs(np.asarray(sp, float) - np.asarray(pv, float)) > self.settings["band"]
+        integrate = np.abs(np.asarray(sp, float) - np.asarray(pv, float)) > self.p["band"]
         return self.pi.finish(self.pi.propose(state, sp, pv, integrate))

@@ -101,7 +101,7 @@ class Knocker(Compensator):
     name = "knocker"
     OWN_SETTINGS = (
         S_SETTING,
-        Setting("a", "-", None, 0.0, 1.0, "pulse amplitude, fraction of stroke; default S/2"),
+        Setting("a", "-", None, 0.0, 1.0, "pulse amplitude, fraction of stroke; default S/2", per_loop=True),
         Setting("tau_k", "s", None, 0.0, 3600.0, "pulse width; default one scan", lo_open=True),
         Setting("h_k", "s", None, 0.0, 36000.0, "time between pulse starts; default 3 scans", lo_open=True),
     )
@@ -128,7 +128,7 @@ class Knocker(Compensator):
         scan = self.pi.propose(state.pi, sp, pv)
         start = state.phase == 0
         sign = np.where(start, np.sign(scan.integral - state.i_ref), state.sign)
-        pulse = np.where(state.phase < self.width, self.settings["a"] * sign, 0.0)
+        pulse = np.where(state.phase < self.width, self.p["a"] * sign, 0.0)
         pis, op = self.pi.finish(scan, pulse)
         i_ref = np.where(start, pis.integral, state.i_ref)
         phase = (state.phase + 1) % self.period

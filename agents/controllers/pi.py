@@ -46,7 +46,7 @@ References
 """
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -59,9 +59,10 @@ __all__ = ["PIBlock", "PIBlockState", "PIScan", "PI_SETTINGS"]
 
 #: Settings shared by the PI block and every compensator that wraps it.
 PI_SETTINGS = (
-    Setting("Kc", "1/m", None, 0.0, 1e4, "PI gain; default SIMC for the default tank", lo_open=True),
-    Setting("Ti", "s", None, 0.0, 1e6, "integral time; default SIMC for the default tank", lo_open=True),
-    Setting("detune", "-", 1.0, 0.0, 100.0, "factor on Kc (detuned PI)", lo_open=True),
+    Setting("Kc", "1/m", None, 0.0, 1e4, "PI gain; default SIMC for the default tank", lo_open=True, per_loop=True),
+    Setting("Ti", "s", None, 0.0, 1e6, "integral time; default SIMC for the default tank", lo_open=True,
+            per_loop=True),
+    Setting("detune", "-", 1.0, 0.0, 100.0, "factor on Kc (detuned PI)", lo_open=True, per_loop=True),
     Setting("scan_s", "s", 1.0, 0.0, 3600.0, "scan time", lo_open=True),
     Setting("op_lo", "-", 0.0, 0.0, 1.0, "lower output limit, fraction of stroke"),
     Setting("op_hi", "-", 1.0, 0.0, 1.0, "upper output limit, fraction of stroke"),
@@ -139,14 +140,14 @@ class PIBlock(FunctionBlock):
         return resolve_pi(self.name, settings)
 
     @property
-    def Kc(self) -> float:
-        """Effective gain ``Kc * detune`` [output fraction per m]."""
-        return float(self.settings["Kc"] * self.settings["detune"])
+    def Kc(self) -> Any:
+        """Effective gain ``Kc * detune`` [output fraction per m], float or (n,) array."""
+        return self.p["Kc"] * self.p["detune"]
 
     @property
-    def Ti(self) -> float:
-        """Integral time [s]."""
-        return float(self.settings["Ti"])
+    def Ti(self) -> Any:
+        """Integral time [s], float or (n,) array."""
+        return self.p["Ti"]
 
     def initial_state(self, sp, pv, op) -> PIBlockState:
         """Bumpless start: ``I = op - Kc (sp - pv)``."""
@@ -173,7 +174,7 @@ class PIBlock(FunctionBlock):
         op : (n,) array, the output to apply [0..1]
         """
         want = scan.v + bias
-        op = np.clip(want, self.settings["op_lo"], self.settings["op_hi"])
+        op = np.clip(want, self.p["op_lo"], self.p["op_hi"])
         integral = np.where(op != want, pi_track(op, bias, scan.p), scan.integral)
         return PIBlockState(integral=integral, op=op), op
 

@@ -72,7 +72,8 @@ def load_controller(name: str, **settings) -> FunctionBlock:
         The block's settings (``Kc`` [1/m], ``Ti`` [s], ``scan_s`` [s], ``op_lo``,
         ``op_hi``, and for compensators the stiction estimate ``S`` [fraction
         of stroke] and their own); ``"learned"`` takes ``path`` (None: the
-        shipped compensator).
+        shipped compensator). Gains and stiction settings may be ``(n,)``
+        arrays, one value per loop.
 
     Returns
     -------

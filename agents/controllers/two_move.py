@@ -73,7 +73,15 @@ from typing import NamedTuple
 import numpy as np
 
 from .block import Setting
-from .compensator import NOISE_SETTING, S_SETTING, Compensator, default_hysteresis, integral_direction
+from .compensator import (
+    NOISE_SETTING,
+    S_SETTING,
+    Compensator,
+    as_setting,
+    check_slip,
+    default_hysteresis,
+    integral_direction,
+)
 from .pi import PIBlockState, PIScan
 
 __all__ = ["TwoMove", "TwoMoveState", "ValveEstimate", "valve_estimate", "NORMAL", "MOVE2", "HOLD"]
@@ -194,22 +202,22 @@ class TwoMove(Compensator):
     OWN_SETTINGS = (
         S_SETTING,
         NOISE_SETTING,
-        Setting("J", "-", None, 0.0, 0.5, "slip-jump estimate, fraction of stroke (<= S); default S/2"),
-        Setting("hyst", "-", None, 0.0, 1.0, "hysteresis on the integral part; default 3 Kc noise sqrt(Ts/Ti)"),
+        Setting("J", "-", None, 0.0, 0.5, "slip-jump estimate, fraction of stroke (<= S); default S/2",
+                per_loop=True),
+        Setting("hyst", "-", None, 0.0, 1.0, "hysteresis on the integral part; default 3 Kc noise sqrt(Ts/Ti)",
+                per_loop=True),
         Setting("release", "m", None, 0.0, 10.0, "error that ends the hold; default max(S/(2 Kc), 4 noise)",
-                lo_open=True),
+                lo_open=True, per_loop=True),
     )
 
     def _rules(self, s: dict) -> dict:
         s["J"] = s["S"] / 2.0 if s["J"] is None else s["J"]
-        if s["J"] > s["S"]:
-            raise ValueError(f"{self.name}: settings need J <= S (slip no larger than the band), "
-                             f"got S = {s['S']:g}, J = {s['J']:g}")
+        check_slip(self.name, s)
         if s["hyst"] is None:
             s["hyst"] = default_hysteresis(self.pi.Kc, self.pi.Ti, s["scan_s"], s["noise"])
         if s["release"] is None:
-            s["release"] = float(max(s["S"] / (2.0 * self.pi.Kc), 4.0 * s["noise"]))
-            if s["release"] <= 0:
+            s["release"] = as_setting(np.maximum(s["S"] / (2.0 * self.pi.Kc), 4.0 * s["noise"]))
+            if np.any(np.asarray(s["release"]) <= 0):
                 raise ValueError(f"{self.name}: S = 0 and noise = 0 leave no default release band; "
                                  "give S > 0, noise > 0 or release > 0")
         return s
@@ -227,16 +235,16 @@ class TwoMove(Compensator):
 
     def _normal(self, st: TwoMoveState, scan: PIScan):
         """NORMAL: follow the cycle; returns (state fields, target op, trigger mask)."""
-        S, J = self.settings["S"], self.settings["J"]
+        S, J = self.p["S"], self.p["J"]
         d_old = st.d
         op_ext = np.where(d_old > 0, np.maximum(st.op_ext, scan.v),
                           np.where(d_old < 0, np.minimum(st.op_ext, scan.v), scan.v))
-        d, i_ext, flipped = integral_direction(st.d, st.i_ext, scan.integral, self.settings["hyst"])
+        d, i_ext, flipped = integral_direction(st.d, st.i_ext, scan.integral, self.p["hyst"])
         ended = flipped & (d_old != 0)
         u_hi = np.where(ended & (d_old > 0), op_ext, st.u_hi)
         u_lo = np.where(ended & (d_old < 0), op_ext, st.u_lo)
         cycle = ended & (st.turns >= 2) & (u_hi - u_lo >= S / 2.0)
-        lo, hi = self.settings["op_lo"], self.settings["op_hi"]
+        lo, hi = self.p["op_lo"], self.p["op_hi"]
         op1 = np.clip(self._move1(st.valve, np.where(d_old > 0, u_hi, u_lo), d_old), lo, hi)
         x_ss = (st.x_prev + st.x_sum) / np.maximum(st.n_prev + st.n_sum, 1.0)
         op2 = np.where(cycle, np.clip(x_ss - d_old * (S - J) / 2.0, lo, hi), st.op2)
@@ -253,7 +261,7 @@ class TwoMove(Compensator):
         (threshold ``S``) or not (``J``); the move goes ``S/2`` past that
         threshold, so it breaks the valve free whichever way it last moved.
         """
-        S, J = self.settings["S"], self.settings["J"]
+        S, J = self.p["S"], self.p["J"]
         anchor = np.where(valve.stuck > 0, valve.u_s, valve.u_prev)
         thr = np.where(valve.stuck > 0, np.where(valve.d == d, J, S), np.where(valve.d == d, 0.0, S))
         return d * np.maximum(d * (u_ext + d * S), d * (anchor + d * (thr + S / 2.0)))
@@ -269,11 +277,11 @@ class TwoMove(Compensator):
 
     def advance(self, state: TwoMoveState, sp, pv):
         """One scan of the state machine: ``(state, sp, pv) -> (state, op)``."""
-        S, J = self.settings["S"], self.settings["J"]
+        S, J = self.p["S"], self.p["J"]
         scan = self.pi.propose(state.pi, sp, pv)
         (d, i_ext, op_ext, u_hi, u_lo, op2, ended, started), target, cycle = self._normal(state, scan)
         normal, move2, hold = state.mode == NORMAL, state.mode == MOVE2, state.mode == HOLD
-        release = hold & ((np.abs(scan.e) > self.settings["release"]) | (sp != state.sp_hold))
+        release = hold & ((np.abs(scan.e) > self.p["release"]) | (sp != state.sp_hold))
         held = hold & ~release
         target = np.where(normal | release, target, state.op2)
         pis, op = self.pi.finish(scan, target - scan.v)
