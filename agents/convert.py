@@ -35,9 +35,9 @@ def convert_sb3_zip(src: str, dst: str) -> str:
     pk = model.policy_kwargs or {}
     arch = pk.get("net_arch", {})
     act = pk.get("activation_fn")
-    meta.setdefault("train_config", {}).setdefault("ppo", {})["policy_kwargs"] = {
-        "net_arch": list(arch.get("pi", [64, 64]) if isinstance(arch, dict) else arch),
-        "activation_fn": "relu" if act is not None and "ReLU" in getattr(act, "__name__", "") else "tanh"}
+    pkw = meta.setdefault("train_config", {}).setdefault("ppo", {}).setdefault("policy_kwargs", {})
+    pkw.setdefault("net_arch", list(arch.get("pi", [64, 64]) if isinstance(arch, dict) else arch))
+    pkw.setdefault("activation_fn", "relu" if act is not None and "ReLU" in getattr(act, "__name__", "") else "tanh")
     return save_policy(model, dst, meta)
 
 

@@ -50,7 +50,10 @@ def describe_file(path) -> str:
     """What kind of file ``path`` is, from its first bytes (``'pickle'``, ``'sb3-zip'``, ...)."""
     p = Path(path)
     with open(p, "rb") as fh:
-        head = fh.read(8)
+        head = fh.read(9)
+    size = p.stat().st_size
+    if len(head) == 9 and head[8:9] == b"{" and 8 + int.from_bytes(head[:8], "little") <= size:
+        return "safetensors"
     if head[:2] == b"PK":
         try:
             with zipfile.ZipFile(p) as z:
@@ -64,8 +67,6 @@ def describe_file(path) -> str:
         return "zip"
     if head[:1] == b"\x80" or head[:1] in (b"(", b"]", b"}", b"c"):
         return "pickle"
-    if len(head) == 8 and int.from_bytes(head, "little") < 100_000_000 and p.suffix == ".safetensors":
-        return "safetensors"
     return "unknown"
 
 
@@ -99,7 +100,7 @@ def save_model_file(path, tensors: Mapping[str, np.ndarray], meta: Mapping) -> T
     from safetensors.numpy import save
 
     wpath, jpath = model_file_paths(path)
-    arrays = {k: np.ascontiguousarray(np.asarray(v)) for k, v in tensors.items()}
+    arrays = {k: np.array(v, order="C") for k, v in tensors.items()}   # (keeps 0-d arrays 0-d)
     data = save(arrays)
     write_atomic(wpath, lambda f: f.write(data))
     text = json.dumps(dict(meta), indent=1, default=_json_default, allow_nan=False)

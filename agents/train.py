@@ -689,7 +689,7 @@ def train(cfg: TrainConfig, out: Path, resume: Optional[str] = None, seed: Optio
         if resume:
             j = load_ppo_checkpoint(model, env, resume)
             if j.get("obs_transform") != obs_transform(cfg).to_dict() or j.get("env_mode") != cfg.env.action_mode:
-                raise ValueError(f"checkpoint {resume} was trained with another observation transform or action "
+                raise UsageError(f"checkpoint {resume} was trained with another observation transform or action "
                                  f"mode; resume with the config of that run")
             done = int(model.num_timesteps)
             env.seed(cfg.seed + done)
@@ -824,6 +824,24 @@ def prepare_out(out: Path, resume: Optional[str], overwrite: bool) -> Optional[P
             q = out / e
             shutil.rmtree(q) if q.is_dir() else q.unlink()
     return None
+
+
+def _print_summary(s: dict) -> None:
+    print(f"\n{s['name']}: {s['total_timesteps']} steps; learning {s['learn_seconds']:.1f} s "
+          f"({(s['env_steps_per_second'] or 0):.0f} env-steps/s); training wall time "
+          f"{s['train_wall_seconds']:.1f} s ({s['train_wall_seconds'] / 60:.2f} min); total "
+          f"{s['wall_seconds']:.1f} s")
+    ev = s.get("eval", {})
+    if ev:
+        print("\n| set | policy | mean return | median IAE [m s] | IAE reduction vs PI | valve travel vs PI |")
+        print("|---|---|---|---|---|---|")
+        for key, v in ev.items():
+            sname, cname = key.rsplit("_", 1)
+            red = v.get("iae_reduction_vs_pi")
+            tr = v.get("travel_ratio_vs_pi")
+            print(f"| {sname} | {cname} | {v['mean_return']:.1f} | {v['median_iae']:.2f} | "
+                  f"{'' if red is None else f'{100 * red:+.1f} %'} | {'' if tr is None else f'{tr:.2f}x'} |")
+    print(f"\npolicy: {s['final']} (best on validation: {s['best']})")
 
 
 def _raw_algorithm(path: str) -> str:

@@ -316,3 +316,93 @@ def test_pickled_env_continues_identically():
         o1, r1, *_, i1 = env.step(a)
         o2, r2, *_, i2 = clone.step(a)
         assert np.array_equal(o1, o2) and r1 == r2 and i1 == i2
+
+
+# ----------------------------------------------------------------- the regulation task
+def _reg_cfg(**kw):
+    from valve_gym.envs.regulation import RegulationConfig
+
+    return RegulationConfig(**{"episode_s": 60.0, **kw})
+
+
+def test_regulation_env_registered_and_checkers():
+    from gymnasium.utils.env_checker import check_env as gym_check
+    from stable_baselines3.common.env_checker import check_env as sb3_check
+
+    from valve_gym.envs import ENV_IDS, ValveTankRegulationEnv
+
+    assert "valve_gym/ValveTankRegulation-v0" in ENV_IDS
+    env = gym.make("valve_gym/ValveTankRegulation-v0")
+    assert env.spec.max_episode_steps == 1800
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        gym_check(env.unwrapped)
+        sb3_check(ValveTankRegulationEnv(_reg_cfg()), warn=True)
+    venv = gym.make_vec("valve_gym/ValveTankRegulation-v0", num_envs=3, vectorization_mode="vector_entry_point")
+    obs, info = venv.reset(seed=0)
+    assert obs.shape == (3, 11) and venv.action_space.shape == (3, 2)
+
+
+def test_regulation_single_equals_vector_and_is_deterministic():
+    from valve_gym.envs import ValveTankRegulationEnv, ValveTankRegulationVectorEnv
+
+    cfg = _reg_cfg(friction_models=("riihilahti", "choudhury"))
+    venv = ValveTankRegulationVectorEnv(3, cfg)
+    vo, vi = venv.reset(seed=[7, 8, 9])
+    acts = np.random.default_rng(0).uniform(-1, 1, (60, 3, 2)).astype(np.float32)
+    traj = [venv.step(a) for a in acts]
+    for j, s in enumerate((7, 8, 9)):
+        for _ in range(2):                                  # same seed, same trajectory
+            env = ValveTankRegulationEnv(cfg)
+            o, info = env.reset(seed=s)
+            np.testing.assert_array_equal(o, vo[j])
+            assert info["S"] == vi["S"][j] and info["friction_model"] == vi["friction_model"][j]
+            for k in range(59):
+                o, r, term, trunc, inf = env.step(acts[k, j])
+                np.testing.assert_array_equal(o, traj[k][0][j])
+                assert r == traj[k][1][j] and not trunc
+            o, r, term, trunc, inf = env.step(acts[59, j])
+            assert trunc and traj[59][3][j]
+            np.testing.assert_array_equal(o, traj[59][4]["final_obs"][j])
+
+
+def test_regulation_starts_at_steady_state_and_pi_action_is_the_pi():
+    from valve_gym.envs import ValveTankRegulationVectorEnv
+    from valve_gym.envs.regulation import pi_action
+
+    env = ValveTankRegulationVectorEnv(2, _reg_cfg(noise_std=(0.0, 0.0), load_std=(0.0, 0.0)))
+    env.reset(seed=1, options={"model": "choudhury", "S": 0.03, "J": 0.01, "level": 1.2})
+    for _ in range(30):
+        obs, r, te, tr, info = env.step(pi_action(2))
+    np.testing.assert_allclose(info["level"], 1.2, atol=1e-6)      # no load, no noise: nothing moves
+    np.testing.assert_allclose(obs[:, 0], 0.0, atol=1e-3)
+
+
+@pytest.mark.parametrize("options,msg", [
+    ({"S": 0.6}, "'S'"), ({"J": 0.05, "S": 0.01}, "must not exceed"), ({"model": "kano"}, "model"),
+    ({"zz": 1}, "unknown reset option"), ({"level": float("nan")}, "'level'"), ({"S": [0.1, 0.2]}, "'S'"),
+])
+def test_regulation_bad_options(options, msg):
+    from valve_gym.envs import ValveTankRegulationEnv
+
+    env = ValveTankRegulationEnv(_reg_cfg())
+    with pytest.raises(ValueError, match=msg):
+        env.reset(seed=0, options=options)
+
+
+def test_regulation_bad_actions_and_config():
+    from valve_gym.config import ConfigError
+    from valve_gym.envs import ValveTankRegulationEnv
+
+    env = ValveTankRegulationEnv(_reg_cfg())
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(np.zeros(2))
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match="NaN or inf"):
+        env.step(np.array([np.nan, 0.0]))
+    with pytest.raises(ValueError, match="shape"):
+        env.step(np.zeros(3))
+    for bad, key in (({"friction_models": ["nope"]}, "nope"), ({"S_bands": [0.1, 0.05]}, "S_bands"),
+                     ({"block": {"g_min": 0.0}}, "g_min"), ({"levels": [1.0, 0.5]}, "levels")):
+        with pytest.raises(ConfigError, match=key):
+            ValveTankRegulationEnv(bad)

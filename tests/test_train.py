@@ -1,12 +1,17 @@
-"""``valve-gym train``: config loading, a PPO smoke run, atomic checkpoints and resume."""
+"""``valve-gym train``: config loading, PPO and learned-compensator runs, safe checkpoints, lifecycle."""
 import json
-import zipfile
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
-from agents.ppo import POLICY_META_NAME, ObsTransform, TransformVecEnv, load_policy, read_policy_meta
+from agents.ppo import ObsTransform, TransformVecEnv, load_policy, read_policy_meta
 from agents.train import load_train_config, make_vec_env
 from valve_gym.cli import main as cli_main
 from valve_gym.config import ConfigError
@@ -66,6 +71,11 @@ def test_transform_wrapper_handles_autoreset():
     venv.close()
 
 
+def _snapshot(folder: Path) -> dict:
+    return {str(p.relative_to(folder)): (p.stat().st_mtime_ns, p.read_bytes()) for p in sorted(folder.rglob("*"))
+            if p.is_file()}
+
+
 @pytest.mark.slow
 def test_ppo_smoke_training_checkpoint_and_resume(tmp_path, capsys):
     cfg_path = tmp_path / "tiny.yaml"
@@ -75,44 +85,74 @@ def test_ppo_smoke_training_checkpoint_and_resume(tmp_path, capsys):
     assert rc == 0
     printed = capsys.readouterr().out
     assert "training wall time" in printed and "IAE reduction vs PI" in printed
-    for name in ("final.zip", "best.zip", "config.yaml", "eval.csv", "summary.json"):
+    for name in ("final.json", "final.safetensors", "best.json", "best.safetensors", "config.yaml", "eval.csv",
+                 "summary.json"):
         assert (out / name).exists(), name
-    ckpts = sorted((out / "checkpoints").glob("ckpt_*.zip"))
-    assert 1 <= len(ckpts) <= 2 and (out / "checkpoints" / "latest.zip").exists()
-    assert not list(out.rglob(".tmp_*"))                        # atomic: no leftovers
+    assert not list(out.rglob("*.zip")) and not list(out.rglob("*.pkl"))
+    ckpts = sorted((out / "checkpoints").glob("ckpt_*.json"))
+    assert 1 <= len(ckpts) <= 2 and (out / "checkpoints" / "latest.safetensors").exists()
+    assert not list(out.rglob(".*.tmp"))                        # atomic: no leftovers
     assert list((out / "tb").rglob("events.out.tfevents*"))     # TensorBoard logs
-    meta = read_policy_meta(str(out / "final.zip"))
+    meta = read_policy_meta(str(out / "final.json"))
     assert meta["env_mode"] == "residual" and meta["obs_transform"]["frame_stack"] == 2
     assert meta["command"].startswith("valve-gym train --config") and meta["seed"] == 3
-    with zipfile.ZipFile(out / "final.zip") as z:
-        assert POLICY_META_NAME in z.namelist() and "policy.pth" in z.namelist()
-    pol = load_policy(str(out / "final.zip"))
+    pol = load_policy(str(out / "final.json"))
     a, s = pol.predict(np.array([[1.0, 1.1, 0.1, 0.5]] * 5, np.float32))
     assert a.shape == (5, 1) and np.all(np.abs(a) <= 1)
     s1 = json.loads((out / "summary.json").read_text())
     assert s1["total_timesteps"] >= 512
+    # non-empty --out without --resume/--overwrite: refused, nothing touched
+    before = _snapshot(out)
+    assert cli_main(["train", "--config", str(cfg_path), "--out", str(out), "--no-progress"]) == 2
+    assert "not empty" in capsys.readouterr().err
+    assert _snapshot(out) == before
+    # resuming the finished run: exit 0, says so, changes nothing
+    assert cli_main(["train", "--config", str(cfg_path), "--out", str(out), "--resume", "--no-progress"]) == 0
+    assert "already finished" in capsys.readouterr().out
+    assert _snapshot(out) == before
     # resume from the latest checkpoint up to 1024 steps
-    rc = cli_main(["train", "--config", str(cfg_path), "--out", str(out), "--resume",
-                   str(out / "checkpoints" / "latest.zip"), "--timesteps", "1024", "--no-progress",
-                   "--no-final-eval"])
+    rc = cli_main(["train", "--config", str(cfg_path), "--out", str(out), "--resume", "--timesteps", "1024",
+                   "--no-progress", "--no-final-eval"])
     assert rc == 0
     s2 = json.loads((out / "summary.json").read_text())
     assert s2["total_timesteps"] >= 1024 and s2["steps_this_run"] < 1024
-    assert read_policy_meta(str(out / "final.zip"))["num_timesteps"] == s2["total_timesteps"]
+    assert read_policy_meta(str(out / "final.json"))["num_timesteps"] == s2["total_timesteps"]
 
 
-def test_resume_rejects_other_transform(tmp_path):
-    from stable_baselines3 import PPO
+def test_ppo_checkpoint_restores_optimiser_and_rng(tmp_path):
+    import torch
 
-    from agents.train import build_training_env, policy_meta
-    from agents.ppo import save_policy
+    from agents.train import build_training_env, load_ppo_checkpoint, make_model, policy_meta, save_ppo_checkpoint
 
     cfg = load_train_config(TINY)
     env = build_training_env(cfg, 0)
-    model = PPO("MlpPolicy", env, n_steps=64, batch_size=64, device="cpu")
+    model = make_model(cfg, env, 0)
+    model.learn(256)
+    save_ppo_checkpoint(model, env, tmp_path / "ck", policy_meta(cfg, model, "x", 0))
+    r1 = (torch.rand(3), np.random.rand(3))
+    model2 = make_model(cfg, env, 1)
+    load_ppo_checkpoint(model2, env, tmp_path / "ck.json")
+    r2 = (torch.rand(3), np.random.rand(3))
+    assert torch.equal(r1[0], r2[0]) and np.array_equal(r1[1], r2[1])
+    assert model2.num_timesteps == model.num_timesteps
+    for (k, v), v2 in zip(model.policy.state_dict().items(), model2.policy.state_dict().values()):
+        assert torch.equal(v, v2), k
+    o1, o2 = model.policy.optimizer.state_dict(), model2.policy.optimizer.state_dict()
+    for pid in o1["state"]:
+        for k in o1["state"][pid]:
+            assert torch.equal(o1["state"][pid][k], o2["state"][pid][k])
+    env.close()
+
+
+def test_resume_rejects_other_transform(tmp_path):
+    from agents.train import build_training_env, make_model, policy_meta, save_ppo_checkpoint
+
+    cfg = load_train_config(TINY)
+    env = build_training_env(cfg, 0)
+    model = make_model(cfg, env, 0)
     meta = policy_meta(cfg, model, "x", 0)
     meta["obs_transform"]["frame_stack"] = 5
-    ck = save_policy(model, str(tmp_path / "c.zip"), meta)
+    ck = save_ppo_checkpoint(model, env, tmp_path / "c", meta)
     env.close()
     cfg_path = tmp_path / "tiny.yaml"
     cfg_path.write_text(yaml.safe_dump(TINY))
@@ -121,18 +161,115 @@ def test_resume_rejects_other_transform(tmp_path):
 
 
 def test_shipped_policy_matches_its_config():
-    from pathlib import Path
-
     root = Path(__file__).resolve().parents[1]
-    zips = sorted((root / "agents" / "policies").glob("*.zip"))
-    for z in zips:
-        meta = read_policy_meta(str(z))
-        assert meta["command"].startswith("valve-gym train --config configs/")
-        cfg_file = meta["command"].split("--config ")[1].split()[0]
-        cfg = load_train_config(root / cfg_file)
-        if "--seed" in meta["command"]:
-            from dataclasses import replace
+    meta = read_policy_meta(str(root / "agents" / "policies" / "ppo.json"))
+    assert meta["command"].startswith("valve-gym train --config configs/")
+    cfg_file = meta["command"].split("--config ")[1].split()[0]
+    cfg = load_train_config(root / cfg_file)
+    if "--seed" in meta["command"]:
+        from dataclasses import replace
 
-            cfg = replace(cfg, seed=int(meta["command"].split("--seed ")[1].split()[0]))
-        assert load_train_config(meta["train_config"]) == cfg
-        assert load_train_config(z.with_suffix(".yaml")) == cfg
+        cfg = replace(cfg, seed=int(meta["command"].split("--seed ")[1].split()[0]))
+    assert load_train_config(meta["train_config"]) == cfg
+    assert load_train_config(root / "agents" / "policies" / "ppo.yaml") == cfg
+
+
+# ----------------------------------------------------------------- the learned compensator (ES)
+ES_TINY = {"algorithm": "es", "name": "tiny_es", "seed": 5, "checkpoint_every": 1,
+           "task": {"episode_s": 60.0},
+           "es": {"generations": 4, "pairs": 2, "scenarios": 3, "hidden": [8], "episode_s": 40.0},
+           "eval": {"every": 2, "n_loops": 3}}
+
+
+def _es_cfg(tmp_path, **over) -> Path:
+    d = json.loads(json.dumps(ES_TINY))
+    for k, v in over.items():
+        d[k].update(v) if isinstance(v, dict) else d.__setitem__(k, v)
+    p = tmp_path / "es.yaml"
+    p.write_text(yaml.safe_dump(d))
+    return p
+
+
+def test_es_resumed_run_equals_uninterrupted(tmp_path, capsys):
+    from agents.safe_files import load_model_file
+
+    cfg = _es_cfg(tmp_path)
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert cli_main(["train", "--config", str(cfg), "--out", str(a), "--no-progress"]) == 0
+    assert cli_main(["train", "--config", str(cfg), "--out", str(b), "--generations", "2", "--no-progress"]) == 0
+    assert cli_main(["train", "--config", str(cfg), "--out", str(b), "--resume", "--no-progress"]) == 0
+    ta = load_model_file(a / "checkpoints" / "latest.json")
+    tb = load_model_file(b / "checkpoints" / "latest.json")
+    for k in ("theta", "adam_m", "adam_v", "best_theta", "obs_mean", "obs_std"):
+        assert np.array_equal(ta.tensors[k], tb.tensors[k]), k
+    assert ta.meta["rng_state"] == tb.meta["rng_state"] and ta.meta["gen"] == tb.meta["gen"] == 4
+    assert [r["train_fitness_center"] for r in ta.meta["curve"]] == [r["train_fitness_center"]
+                                                                     for r in tb.meta["curve"]]
+    # the trained block loads without torch and runs as a DCS block
+    from agents.learned import load_learned
+
+    blk = load_learned(a)
+    blk.reset(1.0, 1.0, 0.5)
+    assert 0.0 <= blk.step(1.0, 1.01) <= 1.0
+    # resuming the finished run: exit 0, says so, nothing changes
+    before = _snapshot(a)
+    capsys.readouterr()
+    assert cli_main(["train", "--config", str(cfg), "--out", str(a), "--resume", "--no-progress"]) == 0
+    assert "already finished" in capsys.readouterr().out
+    assert _snapshot(a) == before
+
+
+def test_out_folder_rules(tmp_path, capsys):
+    cfg = _es_cfg(tmp_path, es={"generations": 1})
+    out = tmp_path / "o"
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    assert cli_main(["train", "--config", str(cfg), "--out", str(out), "--no-progress"]) == 2
+    assert "not empty" in capsys.readouterr().err
+    assert cli_main(["train", "--config", str(cfg), "--out", str(out), "--overwrite", "--no-progress"]) == 2
+    assert "notes.txt" in capsys.readouterr().err and (out / "notes.txt").read_text() == "mine"
+    (out / "notes.txt").unlink()
+    (out / "best.json").write_text("{}")                         # a stale file of an earlier run
+    assert cli_main(["train", "--config", str(cfg), "--out", str(out), "--overwrite", "--no-progress"]) == 0
+    assert json.loads((out / "best.json").read_text())["format"] == "valve_gym.learned_block/1"
+    assert cli_main(["train", "--config", str(cfg), "--out", str(out), "--resume", "--overwrite"]) == 2
+    assert cli_main(["train", "--config", str(cfg), "--out", str(tmp_path / "new"), "--resume"]) == 2
+    assert "no checkpoint" in capsys.readouterr().err
+
+
+def test_sigterm_writes_checkpoint_and_exits_cleanly(tmp_path):
+    root = Path(__file__).resolve().parents[1]
+    cfg = _es_cfg(tmp_path, es={"generations": 10_000})
+    out = tmp_path / "sig"
+    p = subprocess.Popen([sys.executable, "-m", "agents.train", "--config", str(cfg), "--out", str(out)],
+                         cwd=root, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    ck = out / "checkpoints" / "latest.json"
+    for _ in range(600):                                          # wait for the first generation
+        if ck.exists() or p.poll() is not None:
+            break
+        time.sleep(0.1)
+    assert ck.exists()
+    p.send_signal(signal.SIGTERM)
+    _, err = p.communicate(timeout=120)
+    assert p.returncode == 1 and "Traceback" not in err
+    assert "interrupted" in err and "--resume" in err
+    gen = json.loads(ck.read_text())["gen"]
+    assert gen >= 1 and not json.loads(ck.read_text())["finished"]
+    # it continues from there
+    assert cli_main(["train", "--config", str(cfg), "--out", str(out), "--resume", "--generations", str(gen + 1),
+                     "--no-progress"]) == 0
+    assert json.loads(ck.read_text())["gen"] == gen + 1
+
+
+def test_learned_config_errors(tmp_path):
+    from agents.es import load_learned_train_config
+
+    for data, key in (({"es": {"pairz": 3}}, "es.pairz"), ({"task": {"friction_models": ["nope"]}}, "nope"),
+                      ({"task": {"block": {"g_min": 0.0}}}, "g_min"), ({"es": {"sigma": "1e-2"}}, "es.sigma")):
+        with pytest.raises(ConfigError, match=key.replace(".", r"\.")):
+            load_learned_train_config({"algorithm": "es", **data})
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("algorithm: es\nes: {pairz: 3}\n")
+    r = subprocess.run([sys.executable, "-m", "agents.train", "--config", str(bad)], capture_output=True, text=True,
+                       cwd=Path(__file__).resolve().parents[1], env={**os.environ})
+    assert r.returncode == 2 and "es.pairz" in r.stderr and "Traceback" not in r.stderr

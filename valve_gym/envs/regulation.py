@@ -382,7 +382,10 @@ class BlockLaw:
         self._a16 = 1.0 - math.exp(-settings.scan_s / 16.0)
 
     def reset(self, sp, pv, op) -> None:
-        """Bumpless start: the output stays at ``op`` on the first scan if ``pv`` does not move."""
+        """Bumpless start: the output stays at ``op`` on the first scan if ``pv`` does not move.
+
+        The integrator starts at ``op - K_c e`` and absorbs the correction of the first scan.
+        """
         sp = np.broadcast_to(np.asarray(sp, float), (self.n,))
         pv = np.broadcast_to(np.asarray(pv, float), (self.n,))
         op = np.broadcast_to(np.asarray(op, float), (self.n,)).astype(float)
@@ -398,6 +401,7 @@ class BlockLaw:
         self.c = np.zeros(self.n)
         self.g = np.ones(self.n)
         self.I = op - self.s.Kc * e
+        self._first = True
 
     def observe(self, sp, pv) -> np.ndarray:
         """Take a measurement; returns the observation ``(n, N_OBS)`` float64 for this scan."""
@@ -427,6 +431,9 @@ class BlockLaw:
         g = s.g_min + (1.0 - s.g_min) * 0.5 * (a[:, 0] + 1.0)
         c = s.c_max * a[:, 1]
         e = self.e
+        if self._first:          # bumpless: the integrator absorbs the correction of the first scan
+            self.I = self.I - c
+            self._first = False
         v = s.Kc * e + self.I + c
         u = np.clip(v, s.op_lo, s.op_hi)
         I_new = self.I + g * self.ki * e

@@ -189,10 +189,14 @@ class ValveTankRegulationVectorEnv(VectorEnv):
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.SAME_STEP}
 
-    def __init__(self, num_envs: int = 1, config: Union[RegulationConfig, Mapping, str, None] = None):
+    def __init__(self, num_envs: int = 1, config: Union[RegulationConfig, Mapping, str, None] = None,
+                 max_episode_steps: Optional[int] = None):
         if not (isinstance(num_envs, (int, np.integer)) and num_envs >= 1):
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         self.config = make_regulation_config(config)
+        if max_episode_steps is not None and int(max_episode_steps) != self.config.steps:
+            raise ValueError(f"max_episode_steps = {max_episode_steps} differs from the task's episode "
+                             f"({self.config.steps} scans); set the config's episode_s instead")
         self.num_envs = int(num_envs)
         self.single_observation_space, self.single_action_space = _spaces()
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)

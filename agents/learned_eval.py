@@ -1,0 +1,96 @@
+"""Check a learned compensator against the targets of the regulation benchmark, on seeds of one's own.
+
+``python -m agents.learned_eval [--policy PATH] [--n 90] [--seed 424242]``
+
+Runs the benchmark's regulation part (:mod:`agents.bench`: same scenario generator, same runner,
+same scores) on ``n`` loops drawn with ``--seed`` (pick one that is not the benchmark's), for the
+frictionless PI, the SIMC PI, a PI with twice its gain (is the gain compensation or just a faster
+controller?), the classical compensators with the true stiction estimate, and the learned block;
+prints per band group the limit-cycle share and amplitude, IAE, compensation ratio ``R``, stem
+travel, reversals and offset, and the targets of the learned block.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import replace
+
+import numpy as np
+
+__all__ = ["evaluate_learned", "main"]
+
+
+def _groups(scen) -> dict:
+    band = np.asarray(scen.band).astype(str)
+    return {"sticky+severe": band != "healthy", "healthy": band == "healthy"}
+
+
+def evaluate_learned(path=None, n: int = 90, seed: int = 424242, compensators: bool = True) -> dict:
+    """Scores (``agents.bench.scores.LoopScores`` by label) and the scenarios; see the module docstring."""
+    from agents.bench.config import load_bench_config
+    from agents.bench.runner import ControllerSpec, lineup, run_loops, run_spec
+    from agents.bench.scores import score_runs
+    from agents.bench.scenarios import regulation_scenarios
+
+    from .learned import load_learned
+
+    cfg = load_bench_config(None)
+    scen = regulation_scenarios(cfg, n=n, seed=seed)
+    specs = [s for s in lineup(cfg) if s.family in ("frictionless", "pi")]
+    specs.append(ControllerSpec("PI Kc x2", "pi", "detuned", (("detune", 2.0),)))
+    if compensators:
+        specs += [s for s in lineup(cfg) if s.family == "compensator" and s.estimate == 1.0]
+    scores = {}
+    for s in specs:
+        scores[s.label] = score_runs(run_spec(s, scen), cfg)
+        print(f"  ran {s.label}", file=sys.stderr, flush=True)
+    blk = load_learned(path)
+    scores["learned"] = score_runs(replace(run_loops(blk, scen), label="learned"), cfg)
+    return {"scores": scores, "scenarios": scen, "config": cfg}
+
+
+def _table(res: dict) -> str:
+    from agents.bench.scores import compensation_ratio
+
+    sc, scen = res["scores"], res["scenarios"]
+    floor = res["config"].scores.r_floor
+    lines = []
+    for g, m in _groups(scen).items():
+        if not m.any():
+            continue
+        lines += [f"\n{g} ({int(m.sum())} loops; medians)",
+                  "| controller | LC share | LC amplitude [mm] | IAE [m s/h] | R | travel [strokes/h] | "
+                  "reversals/h | abs offset [mm] |", "|---|---|---|---|---|---|---|---|"]
+        pi, z = sc["PI (SIMC)"].iae_per_h[m], sc["PI frictionless"].iae_per_h[m]
+        for label, s in sc.items():
+            lc = s.lc_present[m]
+            amp = s.lc_amplitude[m][lc]
+            amp_txt = f"{1000 * np.nanmedian(amp):.1f}" if amp.size else "-"
+            r = compensation_ratio(pi, s.iae_per_h[m], z, floor)
+            lines.append(f"| {label} | {lc.mean():.2f} | {amp_txt} | {np.median(s.iae_per_h[m]):.2f} | "
+                         f"{np.median(r):.2f} | {np.median(s.travel_per_h[m]):.2f} | "
+                         f"{np.median(s.reversals_per_h[m]):.0f} | {1000 * np.median(np.abs(s.offset[m])):.2f} |")
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    """Command line; exit 0 done, 1 failed, 2 bad usage."""
+    p = argparse.ArgumentParser(prog="python -m agents.learned_eval", description=__doc__.split("\n\n")[0])
+    p.add_argument("--policy", default=None, help="learned block (.json or training folder); default the shipped")
+    p.add_argument("--n", type=int, default=90, help="loops (default 90)")
+    p.add_argument("--seed", type=int, default=424242, help="scenario seed (not the benchmark's)")
+    p.add_argument("--no-compensators", action="store_true", help="skip the classical compensators")
+    a = p.parse_args(argv)
+    if a.n < 3:
+        p.error("--n must be >= 3")
+    try:
+        res = evaluate_learned(a.policy, a.n, a.seed, not a.no_compensators)
+    except (OSError, ValueError) as exc:
+        print(f"learned_eval: {exc}", file=sys.stderr)
+        return 1
+    print(_table(res))
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
