@@ -394,3 +394,63 @@ def test_karnopp_stiff_stem_is_refused_with_advice():
         SlipJump(law="lugre")
     with pytest.raises(ParameterError, match="zeta"):
         SlipJump(law="karnopp", zeta=-1.0)
+
+
+# --------------------------------------------------------------------------- a model in one file (docs)
+@pytest.fixture(scope="module")
+def he_model():
+    """docs/examples/he_friction.py, imported once (importing it registers the 'he' model)."""
+    import importlib.util
+    import sys
+    from pathlib import Path
+
+    name = "valve_gym_docs_he_friction"
+    if name not in sys.modules:
+        path = Path(__file__).resolve().parents[1] / "docs" / "examples" / "he_friction.py"
+        spec = importlib.util.spec_from_file_location(name, path)
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[name] = mod
+        spec.loader.exec_module(mod)
+    return sys.modules[name]
+
+
+def plant_stems(p, u):
+    from valve_gym.plant import Plant
+
+    plant = Plant(p, p.batch_size(), scan_s=p.dt)
+    plant.reset()
+    return np.array([plant.step(uk).stem for uk in u])
+
+
+def test_docs_example_model_registers_and_runs(he_model):
+    assert friction_spec("he") is he_model.SPEC
+    p = valve_model("he", 0.04, 0.01, base=fine_base())
+    assert p.slip_jump.law == "he" and p.friction_model == "he"
+    with pytest.raises(ParameterError, match="per-sample friction law.*Plant"):
+        simulate(p, np.full(10, 0.5))
+    u = 0.5 + 1e-4 * np.arange(1, 401)
+    h = plant_stems(p, u)
+    kb = int(np.argmax(h[:, 0] != 0.5))                      # first slip from rest: (S + J)/2, jump J
+    assert (0.04 + 0.01) / 2 - 1e-12 < u[kb] - 0.5 <= (0.04 + 0.01) / 2 + 1e-4 + 1e-12
+    assert h[kb, 0] - 0.5 == pytest.approx(0.01, abs=1e-4 + 1e-12)
+
+
+def test_docs_example_model_staircase_under_slow_input(he_model):
+    """He et al. (2007), oracle O6: input steps smaller than J move the stem in steps of about J."""
+    S, J, du = 0.03, 0.01, 1e-4
+    p = valve_model("he", S, J, base=fine_base())
+    h = plant_stems(p, 0.5 + du * np.arange(1, 1201))[:, 0]
+    steps = np.diff(h)[np.diff(h) > 0]
+    assert len(steps) >= 5
+    assert np.all((steps[1:] > J) & (steps[1:] <= J + du + 1e-12))
+    assert np.mean(np.diff(h) == 0) > 0.95                     # stuck between the steps
+
+
+def test_docs_example_model_equals_choudhury_for_a_pure_dead_band(he_model):
+    """Oracle O5: He(fs = fd = S/2), i.e. J = 0, is Choudhury's model (after the first reversal)."""
+    S = np.array([0.02, 0.05])
+    k = np.arange(6000)
+    u = 0.5 + 0.1 * np.sin(2 * np.pi * k / 2000)
+    he = plant_stems(valve_model("he", S, 0.0, base=fine_base()), u)
+    ch = plant_stems(valve_model("choudhury", S, 0.0, base=fine_base()), u)
+    np.testing.assert_allclose(he[1000:], ch[1000:], rtol=0, atol=1e-12)

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -360,7 +360,7 @@ def check_dt(params: ModelParams) -> None:
             checks.append(("slip_jump tau_p", params.slip_jump.tau_p))
     if params.sensor_lag is not None:
         checks.append(("sensor_lag tau_s", params.sensor_lag.tau_s))
-    pr = params.process
+    pr: Any = params.process        # the class follows process_kind (validated by ModelParams)
     if params.process_kind == "first_order":
         checks.append(("first_order T", pr.T))
     elif params.process_kind in ("tank", "cascade"):
@@ -387,6 +387,9 @@ def check_dt(params: ModelParams) -> None:
 
 def _pack_slip_jump(sj, dt: float, n: int, P: np.ndarray) -> int:
     """Fill the rows of the ``slip_jump`` block in ``P``; returns its friction code."""
+    if sj.law not in _LAW_CODE:
+        raise ParameterError(f"SlipJump.law = {sj.law!r} is a per-sample friction law run outside the compiled "
+                             f"kernel; simulate it with valve_gym.plant.Plant, which applies it once per scan")
     P[SJ_S], P[SJ_J], P[SJ_TAU] = _col(sj.S, n), _col(sj.J, n), _col(sj.tau_p, n)
     if sj.law == "karnopp":
         w = _col(sj.omega_n, n)
@@ -426,7 +429,7 @@ def pack(params: ModelParams, n: int | None = None, check: bool = True) -> Packe
         flags[F_ACT] = 1
     kind = params.process_kind
     flags[F_PROC] = _PROC_CODE[kind]
-    pr = params.process
+    pr: Any = params.process        # the class follows process_kind (validated by ModelParams)
     if kind in ("tank", "cascade"):
         P[P_A], P[P_Q], P[P_OUT] = _col(pr.area, n), _col(pr.q_max, n), _col(pr.k_out, n)
     elif kind == "integrating":
@@ -484,9 +487,9 @@ def steady_input(params: ModelParams, level, n: int | None = None) -> np.ndarray
     if n is None:
         n = max(params.batch_size(), np.size(level))
     level = _col(level, n)
-    pr = params.process
+    pr: Any = params.process        # the class follows process_kind (validated by ModelParams)
     if params.process_kind in ("tank", "cascade"):
-        k = params.cascade.k_out2 if params.process_kind == "cascade" else pr.k_out
+        k = params.cascade.k_out2 if params.cascade is not None else pr.k_out
         f = _col(k, n) * np.sqrt(np.maximum(level, 0)) / _col(pr.q_max, n)
     elif params.process_kind == "integrating":
         f = _col(pr.q_out, n) / _col(pr.q_max, n)
@@ -607,7 +610,7 @@ def run_packed(pk: Packed, S: np.ndarray, buf: np.ndarray, U: np.ndarray, D: np.
 
 
 # this process's kernel threads; a forked child must not use (or wait on) its parent's
-_POOL = {"pid": None, "pool": None, "lock": None}
+_POOL: dict[str, Any] = {"pid": None, "pool": None, "lock": None}
 
 
 def _thread_pool(n: int):

@@ -28,7 +28,7 @@ __all__ = [
     "ValveParams", "SlipJump", "ValveCharacteristic", "DeadTime", "Overflow", "Leak",
     "SensorLag", "OscillatingDisturbance", "Cascade", "Actuator", "TankParams",
     "IntegratingParams", "FirstOrderParams", "ModelParams", "EFFECTS", "PROCESSES",
-    "ParameterError", "SLIP_JUMP_LAWS",
+    "ParameterError", "SLIP_JUMP_LAWS", "slip_jump_laws", "register_sample_law",
 ]
 
 
@@ -120,8 +120,23 @@ class ValveParams(_Block):
         _check(self, "z_max", 0.0)
 
 
-#: Friction laws of the ``slip_jump`` block (see :mod:`valve_gym.friction`).
+#: Friction laws of the ``slip_jump`` block compiled into the core's kernel (see :mod:`valve_gym.friction`).
 SLIP_JUMP_LAWS = ("choudhury", "kano", "karnopp")
+# per-sample laws added by friction-model modules (run by valve_gym.plant.Plant, outside the kernel)
+_SAMPLE_LAWS: list[str] = []
+
+
+def register_sample_law(name: str) -> None:
+    """Accept ``name`` as a ``SlipJump.law`` run once per scan outside the kernel (see :mod:`valve_gym.friction`)."""
+    if name in SLIP_JUMP_LAWS:
+        raise ParameterError(f"{name!r} is a kernel law of the slip_jump block; pick another name")
+    if name not in _SAMPLE_LAWS:
+        _SAMPLE_LAWS.append(name)
+
+
+def slip_jump_laws() -> tuple[str, ...]:
+    """Every accepted ``SlipJump.law``: the kernel laws, then the registered per-sample laws."""
+    return SLIP_JUMP_LAWS + tuple(_SAMPLE_LAWS)
 
 
 @dataclass(frozen=True)
@@ -187,8 +202,9 @@ class SlipJump(_Block):
         _check(self, "S", 0.0, 1.0)
         _check(self, "J", 0.0, 1.0)
         _check(self, "tau_p", 0.0, lo_open=True)
-        if self.law not in SLIP_JUMP_LAWS:
-            raise ParameterError(f"SlipJump.law must be one of {list(SLIP_JUMP_LAWS)}, got {self.law!r}")
+        if self.law not in slip_jump_laws():
+            raise ParameterError(f"SlipJump.law must be one of {list(slip_jump_laws())}, got {self.law!r} "
+                                 f"(a friction-model module registers its law when it is imported)")
         _check(self, "omega_n", 0.0, lo_open=True)
         _check(self, "zeta", 0.0)
         _check(self, "dv", 0.0, lo_open=True)

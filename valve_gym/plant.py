@@ -17,12 +17,14 @@ share: it holds the packed parameters and the state of the one physics core
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import NamedTuple
 
 import numpy as np
 
 from . import core
-from .params import ModelParams, ParameterError
+from .friction.spec import MEM_ROWS, SampleLaw, friction_spec
+from .params import SLIP_JUMP_LAWS, ModelParams, ParameterError
 
 __all__ = ["Plant", "PlantOutput"]
 
@@ -63,6 +65,12 @@ class Plant:
     valve_gym.params.ParameterError
         Bad ``n``, a ``scan_s`` that is not a multiple of ``params.dt``, or
         parameters the core cannot integrate stably at ``params.dt``.
+
+    Notes
+    -----
+    A friction model registered with a ``sample_law`` (not compiled into the
+    kernel, see :class:`valve_gym.friction.FrictionSpec`) is applied here, once
+    per scan, to the input; its output drives the core's positioner lag.
     """
 
     def __init__(self, params: ModelParams, n: int, scan_s: float = 1.0, threads: int = 1):
@@ -81,6 +89,14 @@ class Plant:
         self.scan_s = float(scan_s)
         self.n_sub = n_sub
         self.threads = int(threads)
+        self._law: SampleLaw | None = None
+        self._mem = np.zeros((MEM_ROWS, self.n))
+        sj = params.slip_jump
+        if sj is not None and sj.law not in SLIP_JUMP_LAWS:
+            if params.friction_model != "none":       # a pump has no valve
+                self._law = friction_spec(sj.law).sample_law
+            # the core runs the positioner lag only: a zero band passes its input through unchanged
+            params = replace(params, slip_jump=replace(sj, law="choudhury", S=0.0, J=0.0))
         self._pk = core.pack(params, self.n)
         self._U = np.zeros((1, self.n))
         self._D = np.zeros((1, self.n))
@@ -140,6 +156,9 @@ class Plant:
             st = core.initial_state(p, self.n, level=lv, buf_len=self._pk.buf_len)
         self._S = core.state_to_array(st)
         self._k = 0
+        self._mem[:] = 0.0
+        self._mem[0] = st.x
+        self._mem[1] = st.u_prev
         self._buf = np.ascontiguousarray(st.delay_buf, dtype=np.float64)
         h = np.clip(st.h, 0.0, 1.0)
         return PlantOutput(pv=lv.copy(), stem=h, op=st.u_prev.copy(), y=st.y.copy())
@@ -179,7 +198,12 @@ class Plant:
             if not np.isfinite(self._D).all():
                 raise ValueError(f"d contains NaN or inf: {d!r}; pass inflows in m^3/s")
         assert self._S is not None
-        core.run_packed(self._pk, self._S, self._buf, U, self._D, self.n_sub, self._Y, self._H, self._LV,
+        X = U
+        if self._law is not None:
+            assert self.params.slip_jump is not None
+            X = np.empty_like(U)
+            X[0] = self._law(U[0].copy(), self._mem, self.params.slip_jump)
+        core.run_packed(self._pk, self._S, self._buf, X, self._D, self.n_sub, self._Y, self._H, self._LV,
                         threads=self.threads)
         self._k += 1
         return PlantOutput(pv=self._LV[0].copy(), stem=self._H[0].copy(), op=U[0].copy(), y=self._Y[0].copy())

@@ -15,11 +15,16 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..params import ModelParams, ParameterError
+from ..params import ModelParams, ParameterError, SlipJump, register_sample_law
 
-__all__ = ["ParamSpec", "FrictionSpec", "register", "friction_spec", "registered", "as_band", "frictionless"]
+__all__ = ["ParamSpec", "FrictionSpec", "register", "friction_spec", "registered", "as_band", "frictionless",
+           "SampleLaw", "MEM_ROWS"]
 
 Band = float | np.ndarray
+#: ``sample_law(u, mem, block) -> x``: see :class:`FrictionSpec`.
+SampleLaw = Callable[[np.ndarray, np.ndarray, SlipJump], np.ndarray]
+#: Rows of the per-loop memory a sample law gets.
+MEM_ROWS = 4
 
 
 @dataclass(frozen=True)
@@ -85,6 +90,16 @@ class FrictionSpec:
         Sizes the model from ``S`` and ``J`` (fractions of stroke, floats or
         ``(n,)`` arrays, already checked) on ``base``, whose friction has been
         removed.
+    sample_law : callable ``(u, mem, block) -> x``, optional
+        For a model that is not compiled into the kernel: its law, applied by
+        :class:`valve_gym.plant.Plant` once per scan. ``u`` is the saturated
+        input ``(n,)``, ``block`` the model's
+        :class:`~valve_gym.params.SlipJump` (``law = name``), ``mem`` a
+        ``(MEM_ROWS, n)`` float array the law keeps its state in (the plant
+        sets row 0 to the stem's rest position and row 1 to the input at a
+        reset, the other rows to 0). It returns ``x`` ``(n,)``, the target of
+        the positioner lag ``dh/dt = (x - h)/tau_p``. Registering the spec
+        makes ``name`` a valid ``SlipJump.law``.
     """
 
     name: str
@@ -95,6 +110,7 @@ class FrictionSpec:
     report: str
     citation: str
     build: Callable[[ModelParams, Band, Band], ModelParams]
+    sample_law: SampleLaw | None = None
 
     def describe(self, S, J) -> str:
         """Report text for stick band ``S`` and slip jump ``J`` (fractions of stroke, scalars)."""
@@ -119,6 +135,8 @@ def register(spec: FrictionSpec) -> FrictionSpec:
         raise TypeError(f"register() takes a FrictionSpec, got {type(spec).__name__}")
     if spec.name in _REGISTRY and _REGISTRY[spec.name] is not spec:
         raise ValueError(f"a friction model called {spec.name!r} is already registered")
+    if spec.sample_law is not None:
+        register_sample_law(spec.name)
     _REGISTRY[spec.name] = spec
     return spec
 
