@@ -16,9 +16,9 @@ and measured: wall time; the peak resident memory of the largest process
 (``os.wait4``'s ``ru_maxrss``, the kernel's own account, which covers the
 worker processes the command waits for); and the peak of the summed resident
 memory of the whole process tree (``/proc``, sampled every 0.1 s: workers run
-at the same time, so their memory adds up).  A "load only" row runs just
-:func:`valve_gym.diagnosis.recording.load_recording` on the big file in a
-subprocess, to show what reading and conditioning cost.
+at the same time, so their memory adds up).  Two "load only" rows run just
+:func:`valve_gym.diagnosis.recording.load_recording` on the big file, as CSV
+and as Parquet, in a subprocess, to show what reading and conditioning cost.
 
 Usage::
 
@@ -64,8 +64,8 @@ class Run:
     tail: str
 
 
-def write_loop(path: Path, rows: int, dt: float, effect: str, seed: int) -> float:
-    """Simulate the loop and write it as CSV; returns the seconds it took."""
+def write_loop(path: Path, rows: int, dt: float, effect: str, seed: int, parquet: Path | None = None) -> float:
+    """Simulate the loop and write it as CSV (and Parquet); returns the seconds it took."""
     t0 = time.perf_counter()
     rec = make_case(effect, seed=seed, n=rows, dt=dt).recording
     data = np.column_stack([rec.t, 100.0 * rec.op, rec.pv, rec.sp])
@@ -74,11 +74,21 @@ def write_loop(path: Path, rows: int, dt: float, effect: str, seed: int) -> floa
         np.savetxt(f, data, fmt=["%.2f", "%.5f", "%.6f", "%.6f"], delimiter=",", header="t_s,OP,PV,SP",
                    comments="")
     os.replace(tmp, path)
+    if parquet is not None:
+        import pandas as pd
+
+        pd.DataFrame(data, columns=["t_s", "OP", "PV", "SP"]).to_parquet(parquet)
     return time.perf_counter() - t0
 
 
-def _tree_rss_kb(root: int) -> int:
-    """Summed VmRSS [kB] of `root` and all its descendants (Linux /proc)."""
+def _tree_rss_kb(root: int, root_only: bool = False) -> int:
+    """Summed VmRSS [kB] of `root` and all its descendants (Linux /proc); of `root` alone with `root_only`."""
+    if root_only:
+        try:
+            with open(f"/proc/{root}/status") as f:
+                return next((int(ln.split()[1]) for ln in f if ln.startswith("VmRSS:")), 0)
+        except OSError:
+            return 0
     parent: dict[int, int] = {}
     rss: dict[int, int] = {}
     for d in os.listdir("/proc"):
@@ -106,31 +116,50 @@ def _tree_rss_kb(root: int) -> int:
     return sum(rss.get(p, 0) for p in keep)
 
 
+_MEASURER = """
+import json, os, subprocess, sys
+p = subprocess.Popen(json.loads(sys.argv[1]), stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+out = p.stdout.read()
+_, status, ru = os.wait4(p.pid, 0)
+sys.stdout.write(out.decode(errors="replace"))
+print("\\n@@" + json.dumps({"rc": os.waitstatus_to_exitcode(status), "maxrss_kb": ru.ru_maxrss}))
+"""
+
+
 def measure(name: str, rows: int, cmd: list[str]) -> Run:
-    """Run `cmd`, return wall time, wait4 max RSS and the sampled peak of the tree's RSS."""
+    """Run `cmd` under a small measuring Python; wall time, wait4 max RSS, sampled peak of the tree's RSS.
+
+    The measuring process is a fresh interpreter without numpy, so the command's
+    processes are not forked from this (large) one, whose memory would count in
+    their ``ru_maxrss``; it is left out of the tree sum too.
+    """
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    proc = subprocess.Popen([sys.executable, "-S", "-c", _MEASURER, json.dumps(cmd)], stdout=subprocess.PIPE)
     peak = [0]
     done = threading.Event()
 
     def sample() -> None:
         while not done.is_set():
             try:
-                peak[0] = max(peak[0], _tree_rss_kb(proc.pid))
+                peak[0] = max(peak[0], _tree_rss_kb(proc.pid) - _tree_rss_kb(proc.pid, root_only=True))
             except Exception:  # noqa: BLE001 - a process vanished while reading /proc
                 pass
             done.wait(0.1)
 
     th = threading.Thread(target=sample, daemon=True)
     th.start()
-    out = proc.stdout.read() if proc.stdout else b""
-    _, status, ru = os.wait4(proc.pid, 0)
+    out = proc.stdout.read().decode(errors="replace") if proc.stdout else ""
+    proc.wait()
     wall = time.perf_counter() - t0
     done.set()
     th.join()
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    tail = out.decode(errors="replace").strip().splitlines()[-3:]
-    return Run(name, rows, proc.returncode, wall, ru.ru_maxrss / 1024.0, peak[0] / 1024.0, " | ".join(tail))
+    text, _, tail_json = out.rpartition("\n@@")
+    try:
+        info = json.loads(tail_json)
+    except ValueError:
+        info = {"rc": -1, "maxrss_kb": 0}
+    tail = text.strip().splitlines()[-3:]
+    return Run(name, rows, int(info["rc"]), wall, info["maxrss_kb"] / 1024.0, peak[0] / 1024.0, " | ".join(tail))
 
 
 def diagnose_cmd(path: Path, out_json: Path, jobs: int) -> list[str]:
@@ -172,7 +201,8 @@ def main(argv: list[str] | None = None) -> int:
     work.mkdir(parents=True, exist_ok=True)
     try:
         big, ref = work / f"loop_{a.rows}.csv", work / f"loop_{a.ref_rows}.csv"
-        s_big = write_loop(big, a.rows, a.dt, a.effect, a.seed)
+        big_pq = work / f"loop_{a.rows}.parquet"
+        s_big = write_loop(big, a.rows, a.dt, a.effect, a.seed, parquet=big_pq)
         s_ref = write_loop(ref, a.ref_rows, 1.0, a.effect, a.seed)
         print(f"generated {big.name} ({big.stat().st_size / 1e6:.1f} MB, {s_big:.1f} s) and "
               f"{ref.name} ({s_ref:.1f} s) in {work}", flush=True)
@@ -180,7 +210,8 @@ def main(argv: list[str] | None = None) -> int:
         runs = [
             measure(f"reference: {a.ref_rows} rows, dt=1 s", a.ref_rows,
                     diagnose_cmd(ref, work / "ref.json", a.jobs)),
-            measure(f"load only: {a.rows} rows", a.rows, load_cmd(big)),
+            measure(f"load only: {a.rows} rows, CSV", a.rows, load_cmd(big)),
+            measure(f"load only: {a.rows} rows, Parquet", a.rows, load_cmd(big_pq)),
             measure(f"{a.rows} rows, dt={a.dt:g} s", a.rows, diagnose_cmd(big, work / "big.json", a.jobs)),
         ]
         print(f"load average at end: {os.getloadavg()[0]:.2f}\n")
@@ -188,7 +219,10 @@ def main(argv: list[str] | None = None) -> int:
         print("|---|---:|---:|---:|---:|")
         for r in runs:
             print(f"| {r.name} | {r.rc} | {r.wall_s:.1f} | {r.maxrss_mb:.0f} | {r.tree_peak_mb:.0f} |")
-        ref_run, load_run, big_run = runs
+        for r in runs:
+            if r.rc != 0:
+                print(f"\n{r.name} failed (exit {r.rc}): {r.tail}")
+        ref_run, load_run, _, big_run = runs
         print(f"\nratio big / reference: wall {big_run.wall_s / ref_run.wall_s:.2f}x, "
               f"tree RSS {big_run.tree_peak_mb / max(ref_run.tree_peak_mb, 1):.2f}x")
         print(f"reference result: {_summary(work / 'ref.json')}")
