@@ -454,3 +454,31 @@ def test_docs_example_model_equals_choudhury_for_a_pure_dead_band(he_model):
     he = plant_stems(valve_model("he", S, 0.0, base=fine_base()), u)
     ch = plant_stems(valve_model("choudhury", S, 0.0, base=fine_base()), u)
     np.testing.assert_allclose(he[1000:], ch[1000:], rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("S,J", [(0.03, 0.0), (0.03, 0.01), (0.03, 0.03)])
+def test_karnopp_sine_phase_plot_numbers(S, J):
+    """The force balance on a slow sine gives the data-driven phase plot (Choudhury et al. 2005, the
+    cases J = 0, J < S, J = S): peak X - (S - J)/2, stuck for S of input after each reversal, slip J.
+    Tolerance: the actuator lag tau_p and the viscous lag 2 zeta/omega_n times the input speed at
+    break-away, plus one sample of input change."""
+    X, period, Ts, tau = 0.1, 100.0, 0.01, 0.1
+    p = karnopp(S, J, tau=tau, dt=0.005)
+    k = np.arange(int(2.5 * period / Ts))
+    u = 0.5 + X * np.sin(2 * np.pi * k * Ts / period)
+    h = simulate(p, u, n_sub=2).h[:, 0]
+    w = 2 * np.pi / period
+    speed_b = X * w * math.sqrt(1 - ((X - S) / X) ** 2)          # input speed at break-away
+    lag_tol = speed_b * (tau * (1 + math.log(2)) + 2 * p.slip_jump.zeta / p.slip_jump.omega_n) + X * w * Ts
+    last = slice(int(period / Ts), None)
+    assert np.max(h[last]) - 0.5 == pytest.approx(X - (S - J) / 2, abs=X * w * Ts + 1e-4)
+    ev = reversal_events(u, h, int(period / Ts))
+    assert len(ev) >= 1
+    for kp, _, _, _ in ev:
+        kstop = kp + int(round(1.0 / Ts))                        # the stem has stopped 10 tau after the top
+        kb = kstop + int(np.argmax(h[kstop:] != h[kstop]))       # break-away: the stem moves again
+        assert kb > kstop and np.all(h[kstop:kb] == h[kstop])    # no motion inside the band
+        assert abs((u[kp] - u[kb]) - S) <= lag_tol
+        k2 = kb + int(round(0.5 / Ts))
+        jump = (h[kstop] - h[k2]) - (u[kb] - u[k2])
+        assert abs(jump - J) <= lag_tol + 2e-4
