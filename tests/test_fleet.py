@@ -176,8 +176,15 @@ def test_interrupted_and_resumed_equals_uninterrupted(ray_session, folder, tmp_p
         f.write("{")
     with open(os.path.join(out, "loops", loops[1]), "w") as f:
         f.write("{\"loop\": ")
+
+    def ctrl_c(res):                                                     # Ctrl-C after one more loop
+        raise KeyboardInterrupt
+
+    stopped = run_fleet(folder, out, SETTINGS, stream=None, top=0, on_result=ctrl_c)
+    assert stopped.interrupted and stopped.done == 1 and stopped.remaining == 4
+    assert len(pd.read_csv(os.path.join(out, "loops.csv"))) == 2                   # 1 kept + 1 new
     second = run_fleet(folder, out, SETTINGS, stream=None, top=2)
-    assert second.resumed == 1 and second.done == 5 and second.remaining == 0
+    assert second.resumed == 2 and second.done == 4 and second.remaining == 0
     a, b = _table(os.path.join(tmp_path, "whole")), _table(out)
     assert len(b) == 6 and b["loop"].is_unique
     pd.testing.assert_frame_equal(a, b)

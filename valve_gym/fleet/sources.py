@@ -263,7 +263,8 @@ def _read_wide_columns(src: LoopSource) -> dict[str, np.ndarray]:
         else:
             import pyarrow as pa
             import pyarrow.csv as pcsv
-            delim = ";" if ";" in open(src.path, encoding="utf-8-sig", errors="replace").readline() else ","
+            with open(src.path, encoding="utf-8-sig", errors="replace") as f:
+                delim = ";" if ";" in f.readline() else ","
             types = {c: (pa.string() if r == "mode" else pa.float64()) for r, c in cols.items()}
             types[src.time_column] = pa.string()
             table = pcsv.read_csv(src.path, parse_options=pcsv.ParseOptions(delimiter=delim),
