@@ -230,3 +230,18 @@ def test_fleet_flags(tmp_path):
     table = pd.read_csv(out / "loops.csv")
     assert list(table["stage"]) == ["full"]  # --full: diagnosed, not only screened
     assert "1 left" in r.stdout
+
+
+def test_folder_mode_keeps_good_results_past_a_bad_recording(rec_dir, tmp_path, capsys):
+    folder = tmp_path / "mixed"
+    folder.mkdir()
+    (folder / "a_good.csv").write_bytes((rec_dir / "loop.csv").read_bytes())
+    text = (rec_dir / "loop.csv").read_text().splitlines()
+    text[40] = text[40].split(",")[0] + ",1e308,inf,x"  # line 41 broken: non-numeric set point
+    (folder / "b_bad.csv").write_text("\n".join(text) + "\n")
+    out_json = tmp_path / "all.json"
+    code, out, err = run([folder, "--op-range", "0,100", *FAST, "--json", out_json], capsys)
+    assert code in (1, 2) and "Traceback" not in err
+    d = json.loads(out_json.read_text())
+    assert [r["recording"]["name"] for r in d["recordings"]] == ["a_good"]
+    assert len(d["errors"]) == 1 and "b_bad.csv" in d["errors"][0]["path"] and "line(s) 41" in d["errors"][0]["error"]
