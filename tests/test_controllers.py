@@ -5,6 +5,8 @@ import types
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from agents import available_controllers, load_controller
 from agents.controllers import ConstantReinforcement, IntegralFreeze, Knocker, PIBlock, TwoMove
@@ -333,3 +335,33 @@ def test_per_loop_settings_errors():
     c = load_controller("knocker", S=[0.01, 0.02])
     with pytest.raises(ValueError, match=r"per-loop settings are for 2 loops, reset\(\) got 3"):
         c.reset(1.0, [1.0, 1.0, 1.0], 0.5)
+
+
+@settings(max_examples=60, deadline=None)
+@given(name=st.sampled_from(BLOCKS), data=st.data())
+def test_any_setting_in_range_is_accepted_and_any_outside_is_refused(name, data):
+    from agents.controllers.registry import _BLOCKS
+
+    table = {s.name: s for s in _BLOCKS[name].SETTINGS}
+    key = data.draw(st.sampled_from(sorted(k for k in table if k not in ("tau_k", "h_k", "op_lo", "op_hi"))))
+    s = table[key]
+    ok = data.draw(st.floats(min_value=s.lo, max_value=s.hi, exclude_min=s.lo_open, allow_nan=False))
+    kw = {key: ok}
+    if key == "J":
+        kw["S"] = 0.5                    # J <= S for any J in range
+    if key == "S" and "J" in table:
+        kw["J"] = 0.0
+    if name == "two_move" and key in ("S", "noise"):
+        kw["release"] = 0.01
+    bad = data.draw(st.one_of(st.floats(min_value=s.hi, exclude_min=True, allow_infinity=True),
+                              st.floats(max_value=s.lo, exclude_max=not s.lo_open, allow_infinity=True),
+                              st.just(float("nan"))))
+    with pytest.raises(ValueError, match=f"{key}.*out of range"):
+        load_controller(name, **{key: bad})
+    try:
+        ctrl = load_controller(name, **kw)
+    except ValueError as exc:            # a rule-derived setting would leave its range: said so, and how to fix
+        assert "; give " in str(exc) and "explicitly" in str(exc) and "the rule for" in str(exc)
+        return
+    assert ctrl.settings[key] == pytest.approx(ok)
+    assert load_controller(name, **json.loads(json.dumps(ctrl.settings))).settings == ctrl.settings

@@ -228,7 +228,17 @@ class FunctionBlock(ABC):
 
     def __init__(self, **settings):
         #: resolved settings as floats or (n,) float arrays, for the block's arithmetic
-        self.p: dict[str, Any] = self._resolve(resolve_settings(self.name, self.SETTINGS, settings))
+        given = resolve_settings(self.name, self.SETTINGS, settings)
+        ruled = [k for k, v in given.items() if v is None]
+        self.p: dict[str, Any] = self._resolve(given)
+        for s in self.SETTINGS:
+            if s.name in ruled:
+                try:
+                    s.check(self.name, self.p[s.name])
+                except ValueError:
+                    raise ValueError(f"{self.name}: the rule for {s.name} gives {fmt(self.p[s.name])} with these "
+                                     f"settings, outside its range {s.describe()}; give {s.name} explicitly"
+                                     ) from None
         self.loops()
         self._state: Any = None
         self._n: int | None = None

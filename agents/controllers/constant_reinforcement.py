@@ -7,7 +7,8 @@ Law [1]_::
 continuously (not pulsed, unlike the knocker): while the controller moves the
 valve one way the output is held ``a`` ahead of the PI output, and on a
 reversal it jumps by ``2a``. The paper sets ``a`` from the estimated
-stiction, at about half the band [1]_ (DOMAIN 2.2). Default here::
+stiction, at about half the band [1]_ (as reported in the literature; not
+re-checked against the full text here). Default here::
 
     a = (S - J)/2
 
@@ -18,6 +19,12 @@ the paper's ``a = S/2``; with a slip ``J > 0`` the larger ``a = S/2`` would
 push the stem ``J/2`` past the PI output at every reversal and turn the
 compensator into a relay that sustains its own oscillation. ``J`` is the
 slip estimate (default ``S/2``, the middle of ``0 <= J <= S``).
+
+CR cancels the dead band, not the stick-slip: at a constant set point with
+``J > 0`` the PI's stick-slip cycle remains, and on a pure dead band (where a
+PI alone settles) the ``2a`` jumps at every reversal of the integral can
+sustain a relay-like cycle of their own (``benchmarks/bench_controllers.py``
+measures both).
 
 Direction robust to noise: ``d`` is the direction of the PI's **integral
 part** with the hysteresis of

@@ -19,19 +19,28 @@ the output limits, :meth:`agents.controllers.pi.PIBlock.finish`).
 
 Parameters from the stiction estimate ``S`` (defaults)
 ------------------------------------------------------
-* ``tau_k = scan_s`` (one scan): the paper's pulse width is the controller's
-  sample period, the shortest pulse a sampled controller applies.
-* ``h_k = 3 scan_s``: the paper recommends a period of a few pulse widths
-  (2-5 ``tau_k``) so the valve settles between pulses; 3 is the middle.
-* ``a = S/2``: the paper ties the amplitude to the friction to be overcome
-  (pulse energy ``a tau_k`` large enough to move the stem, no larger). With
-  Choudhury's model a reversal needs an input change ``S``; a pulse ``+a``
-  before the reversal and ``-a`` after it contribute ``2a``, so ``a = S/2``
-  makes the pulses alone carry the stem through the band, and a larger ``a``
-  only adds travel (Srinivasan & Rengaswamy 2008 [3]_ report the result to be
-  governed by ``a`` and worse travel for large ``a``). This choice of the
-  size of ``a`` within the paper's range is a rule derived for valve_gym,
-  stated here so it can be checked.
+The paper leaves three parameters and gives their roles: the pulse short
+against the loop dynamics, the period long enough for the valve to answer
+one pulse before the next, the amplitude (with the width, the pulse energy
+``a tau_k``) large enough to move the stem. The values below follow the
+recommendations reported for the paper in the stiction-compensation
+literature (pulse width one controller sample, period a few widths, amplitude
+of the order of the stick band); they were not re-checked against the full
+text here.
+
+* ``tau_k = scan_s`` (one scan): the shortest pulse a sampled controller
+  applies, two orders of magnitude below the default tank's 80 s time constant.
+* ``h_k = 3 scan_s``: the middle of the reported 2-5 pulse widths, so the
+  valve settles between pulses.
+* ``a = S/2``: with Choudhury's model a reversal needs an input change ``S``;
+  a pulse ``+a`` before the reversal and ``-a`` after it contribute ``2a``, so
+  ``a = S/2`` makes the pulses alone carry the stem through the band, and a
+  larger ``a`` only adds travel (Srinivasan & Rengaswamy 2008 [3]_ find the
+  result governed by ``a`` and the travel growing with it). The choice of
+  ``S/2`` within "of the order of the band" is a rule derived for valve_gym.
+
+The knocker pulses whether or not the valve sticks: on a healthy valve, and
+at the set point under noise, it adds valve travel (the benchmark reports it).
 
 Every setting can be given explicitly (``a``, ``tau_k``, ``h_k``); ``tau_k``
 and ``h_k`` are whole numbers of scans with ``h_k > tau_k``.
