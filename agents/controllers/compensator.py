@@ -69,7 +69,8 @@ def default_hysteresis(Kc, Ti, scan_s: float, noise) -> float | np.ndarray:
     >>> round(default_hysteresis(1.89, 42.4, 1.0, 0.002), 5)
     0.00174
     """
-    return as_setting(3.0 * Kc * noise * np.sqrt(scan_s / np.asarray(Ti)))
+    with np.errstate(over="ignore", divide="ignore"):   # an absurd Ti gives inf: refused by the range check
+        return as_setting(3.0 * Kc * noise * np.sqrt(scan_s / np.asarray(Ti)))
 
 
 def integral_direction(d: np.ndarray, i_ext: np.ndarray, integral: np.ndarray,
