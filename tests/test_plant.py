@@ -9,7 +9,7 @@ import pytest
 from valve_gym import plant as plant_mod
 from valve_gym.core import initial_state, simulate, steady_input
 from valve_gym.friction import FRICTION_MODELS, valve_model
-from valve_gym.params import Cascade, ModelParams, ParameterError, TankParams
+from valve_gym.params import Cascade, ModelParams, ParameterError, TankParams, ValveParams
 from valve_gym.plant import Plant, PlantOutput
 
 
@@ -120,3 +120,27 @@ def test_bad_inputs():
         plant.reset(level=-1.0)
     with pytest.raises(ParameterError, match="ModelParams"):
         Plant("tank", 2)
+
+
+@pytest.mark.parametrize("model", ["kano", "karnopp"])
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_sticky_valve_starts_in_the_middle_of_its_band(model, sign):
+    """From reset, Kano's and the force-balance valve's first move needs (S + J)/2 of input either way
+    and jumps J, never against the input."""
+    S, J, du = 0.05, 0.01, 1e-4
+    p = valve_model(model, S, J, base=ModelParams(dt=1e-3, valve=ValveParams(tau=1e-3)))
+    plant = Plant(p, 1, scan_s=1e-3)
+    u0 = plant.reset().op[0]
+    us = u0 + sign * du * np.arange(1, 600)
+    stems = np.array([plant.step(u).stem[0] for u in us])
+    kb = int(np.argmax(stems != u0))
+    travel = sign * (us[kb] - u0)
+    if model == "kano":
+        assert (S + J) / 2 - 1e-12 < travel <= (S + J) / 2 + du + 1e-12
+    else:   # actuator lag tau_p = 1 ms: at most a few samples of input more
+        assert (S + J) / 2 - 1e-12 < travel <= (S + J) / 2 + 3 * du
+    k2 = kb + 100
+    speed = du / 1e-3
+    viscous = 2 * p.slip_jump.zeta / p.slip_jump.omega_n * speed if model == "karnopp" else 0.0
+    assert sign * (stems[k2] - u0) - sign * (us[k2] - us[kb]) == pytest.approx(J - viscous, abs=3 * du)
+    assert np.all(sign * (stems - u0) >= 0)

@@ -71,6 +71,14 @@ class Plant:
     A friction model registered with a ``sample_law`` (not compiled into the
     kernel, see :class:`valve_gym.friction.FrictionSpec`) is applied here, once
     per scan, to the input; its output drives the core's positioner lag.
+
+    :meth:`reset` leaves the valve in the core's rest state
+    (:func:`valve_gym.core.initial_state`: stuck, no direction of motion yet).
+    From there Kano's model (and He's example) first slips after ``(S + J)/2``
+    of input either way with a jump ``J``; the core's Choudhury block, whose
+    flow chart tests the distance as ``|u - u_s|``, first slips after ``J``
+    to ``u -+ (S - J)/2`` (a step against the input when ``J < S/3``), and
+    behaves as the paper's model from its first reversal on.
     """
 
     def __init__(self, params: ModelParams, n: int, scan_s: float = 1.0, threads: int = 1):
