@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import shutil
 import sys
 import threading
@@ -103,11 +104,14 @@ def _run(folder: str, out: str, settings: FleetSettings, jobs: int, quiet: bool)
     t_ray = time.perf_counter() - t0
     stamps: list[float] = []
     with PeakMemory() as mem:
+        c1 = resource.getrusage(resource.RUSAGE_SELF)
         t1 = time.perf_counter()
         run = run_fleet(folder, out, settings, jobs=jobs, stream=None if quiet else sys.stderr, top=10,
                         on_result=lambda r: stamps.append(time.perf_counter()))
         t_run = time.perf_counter() - t1
+        c2 = resource.getrusage(resource.RUSAGE_SELF)
     ray.shutdown()
+    driver_cpu = (c2.ru_utime + c2.ru_stime) - (c1.ru_utime + c1.ru_stime)
     st = np.array(stamps) - t1
     k = min(2 * jobs, len(st) - 1)          # steady state: after each worker's first loops (numba compiled)
     steady = (len(st) - 1 - k) / (st[-1] - st[k]) if len(st) > k + 1 and st[-1] > st[k] else float("nan")
@@ -117,7 +121,8 @@ def _run(folder: str, out: str, settings: FleetSettings, jobs: int, quiet: bool)
             "ray_start_s": round(t_ray, 2), "run_s": round(t_run, 2), "loops_per_s": round(run.n_loops / t_run, 3),
             "steady_loops_per_s": round(steady, 3), "peak_tree_rss_mb": round(mem.peak, 1),
             "wall_s_per_loop_median": round(float(np.median([r.seconds for r in run.results])), 3),
-            "task_cpu_s": round(cpu, 1), "cpu_share_of_workers": round(cpu / (t_run * jobs), 3),
+            "task_cpu_s": round(cpu, 1), "driver_cpu_s": round(driver_cpu, 1),
+            "cpu_share_of_workers": round(cpu / (t_run * jobs), 3),
             "loadavg_1min": round(os.getloadavg()[0], 2)}
 
 
