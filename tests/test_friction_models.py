@@ -482,3 +482,15 @@ def test_karnopp_sine_phase_plot_numbers(S, J):
         k2 = kb + int(round(0.5 / Ts))
         jump = (h[kstop] - h[k2]) - (u[kb] - u[k2])
         assert abs(jump - J) <= lag_tol + 2e-4
+
+
+def test_choudhury_block_start_from_the_core_rest_state():
+    """The documented start of the core's Choudhury block: from rest (no direction yet) it slips after J of
+    input, to u - (S - J)/2, i.e. against the input when J < S/3."""
+    S, J, step = 0.05, 0.01, 1e-4
+    u = 0.5 + step * np.arange(1, 300)
+    h = simulate(valve_model("choudhury", S, J, base=fine_base()), u).h[:, 0]
+    kb = int(np.argmax(h != 0.5))
+    assert J - 1e-12 < u[kb] - 0.5 <= J + step + 1e-12
+    assert h[kb] == pytest.approx(u[kb] - (S - J) / 2, abs=1e-12)
+    assert h[kb] < 0.5

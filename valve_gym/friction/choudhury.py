@@ -11,10 +11,16 @@ While moving ``x = u - d (S - J)/2``. The valve sticks when the input stops
 (``du = 0``) or reverses (sign of ``du`` differs from ``d``) and slips when
 ``|u - u_s| > S`` after a reversal or ``|u - u_s| > J`` when the input goes on in
 the direction of the last motion; the slip is a jump of ``J`` (with ``S`` of
-input travel after a reversal). The direction is judged by the sign of the
-current input increment and the distance by ``|u - u_s|``, as in the paper's
-flow chart; Kano et al. (2004) judge both by the signed ``u - u_s``
-(:mod:`valve_gym.friction.kano`).
+input travel after a reversal). This block (the core's ``slip_jump`` since its
+first version) judges the direction by the sign of the current input increment
+and the distance by ``|u - u_s|``; other readings of the paper's flow chart
+test the signed distance ``sign(u - u_s)`` instead, as Kano et al. (2004) do
+(:mod:`valve_gym.friction.kano`). All agree on smooth inputs once the valve
+has moved (oracle O5). They differ after a stop followed by a small
+back-and-forth of the input, where this block slips at once, and at the rest
+state of :func:`valve_gym.core.initial_state` (no direction yet), from which it
+slips after ``J`` of input to ``u -+ (S - J)/2`` (against the input when
+``J < S/3``); both are tested in ``tests/test_friction_models.py``.
 """
 from __future__ import annotations
 
