@@ -494,3 +494,17 @@ def test_choudhury_block_start_from_the_core_rest_state():
     assert J - 1e-12 < u[kb] - 0.5 <= J + step + 1e-12
     assert h[kb] == pytest.approx(u[kb] - (S - J) / 2, abs=1e-12)
     assert h[kb] < 0.5
+
+
+def test_friction_module_doctests():
+    import doctest
+
+    import valve_gym.friction as fpkg
+    from valve_gym.friction import choudhury, frictionless, kano, karnopp, riihilahti, spec
+
+    attempted = 0
+    for mod in (fpkg, choudhury, frictionless, kano, karnopp, riihilahti, spec):
+        res = doctest.testmod(mod, optionflags=doctest.ELLIPSIS)
+        assert res.failed == 0, mod.__name__
+        attempted += res.attempted
+    assert attempted > 0

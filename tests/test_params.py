@@ -288,3 +288,44 @@ def test_params_are_hashable_values():
     assert ValveParams(z_max=0.1) == ValveParams(z_max=0.1)
     assert hash(ValveParams(z_max=0.1)) == hash(ValveParams(z_max=0.1))
     assert ModelParams() == ModelParams()
+
+
+# --------------------------------------------------------------------------
+# slip_jump laws and the friction model name
+# --------------------------------------------------------------------------
+
+NEW_BAD = [("omega_n", 0.0, "> 0"), ("omega_n", float("nan"), "finite"), ("zeta", -0.1, ">= 0"),
+           ("dv", 0.0, "> 0"), ("tau_p", -1.0, "> 0")]
+
+
+@pytest.mark.parametrize("name,value,rule", NEW_BAD)
+@pytest.mark.parametrize("law", ["choudhury", "kano", "karnopp"])
+def test_slip_jump_law_fields_validated(law, name, value, rule):
+    with pytest.raises(ParameterError, match=rf"SlipJump\.{name}.*{rule}"):
+        SlipJump(law=law, **{name: value})
+
+
+def test_slip_jump_law_names():
+    assert pmod.SLIP_JUMP_LAWS == ("choudhury", "kano", "karnopp")
+    assert SlipJump().law == "choudhury"
+    with pytest.raises(ParameterError, match="law must be one of .*'kano'"):
+        SlipJump(law="Kano")
+    with pytest.raises(ParameterError, match="kernel law"):
+        pmod.register_sample_law("kano")
+    # overshoot is allowed for the data-driven laws, not for the force balance
+    SlipJump(S=0.02, J=0.03, law="kano")
+    with pytest.raises(ParameterError, match="J must be <= S"):
+        SlipJump(S=np.array([0.02, 0.02]), J=np.array([0.01, 0.03]), law="karnopp")
+
+
+def test_friction_model_follows_the_blocks():
+    assert ModelParams().friction_model == "riihilahti"
+    assert ModelParams(valve=ValveParams(e_dead=np.zeros(2), z_max=np.zeros(2))).friction_model == "none"
+    assert ModelParams(slip_jump=SlipJump(law="karnopp")).friction_model == "karnopp"
+    # friction laws are not effects: the optional blocks stay those of EFFECTS
+    assert ModelParams(slip_jump=SlipJump(law="kano")).effects == ("slip_jump",)
+
+
+def test_batch_size_sees_law_parameters():
+    p = ModelParams(slip_jump=SlipJump(law="karnopp", omega_n=np.array([50.0, 100.0, 200.0])))
+    assert p.batch_size() == 3
