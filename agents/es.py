@@ -38,15 +38,15 @@ import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import NamedTuple, Optional, Tuple
+from typing import NamedTuple
 
 import numpy as np
 
 from valve_gym.config import ConfigError, config_to_dict, load_config
 from valve_gym.envs.regulation import N_ACT, N_OBS, RegulationConfig, pi_action
 
-from .lifecycle import STOP, stop_on_signals
 from .learned import MLPSpec, mlp_forward, normalise, save_learned, unflatten
+from .lifecycle import STOP, stop_on_signals
 from .safe_files import load_model_file, save_model_file
 
 __all__ = ["ESHyper", "ESEvalConfig", "LearnedTrainConfig", "load_learned_train_config", "train_learned",
@@ -78,6 +78,9 @@ class ESHyper:
     reversal_weight : float
         Fitness weight of ``log((reversals + 1) / (reversals_PI + 1))`` of the stem on sticky valves
         (each reversal is half a stick-slip cycle).
+    healthy_symmetric : bool
+        On healthy valves count any departure from the PI's IAE (``|log ratio|``), not only a loss:
+        the block must then behave as the PI where there is no stiction.
     episode_s : float, s
         Episode length used in training (the task's ``episode_s`` is used for validation).
     """
@@ -88,9 +91,10 @@ class ESHyper:
     sigma: float = 0.05
     learning_rate: float = 0.01
     weight_decay: float = 0.005
-    hidden: Tuple[int, ...] = (32, 32)
+    hidden: tuple[int, ...] = (32, 32)
     travel_penalty: float = 0.01
     reversal_weight: float = 0.25
+    healthy_symmetric: bool = False
     episode_s: float = 1200.0
 
     def __post_init__(self):
@@ -268,7 +272,7 @@ def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None) -> Ro
 
 
 def fitness(sc: RolloutScores, ref_iae: np.ndarray, ref_rev: np.ndarray, hyper: ESHyper, hours: float,
-            healthy_max: float = 0.005) -> np.ndarray:
+            healthy_max: float = 0.005) -> np.ndarray:  # noqa: D417
     """Fitness (P,) of scored policies against the PI's IAE ``ref_iae`` (B,) (see the module docstring).
 
     On healthy valves (``S <= healthy_max``) only a loss against the PI counts (``max(log ratio, 0)``),
@@ -276,7 +280,7 @@ def fitness(sc: RolloutScores, ref_iae: np.ndarray, ref_rev: np.ndarray, hyper: 
     """
     lr = np.log(np.maximum(sc.iae, 1e-9) / np.maximum(ref_iae, 1e-9)[None, :])
     healthy = (sc.S <= healthy_max)[None, :]
-    lr = np.where(healthy, np.maximum(lr, 0.0), lr)
+    lr = np.where(healthy, np.abs(lr) if hyper.healthy_symmetric else np.maximum(lr, 0.0), lr)
     rr = np.where(healthy, 0.0, np.log((sc.reversals + 1.0) / (ref_rev[None, :] + 1.0)))
     return -lr.mean(1) - hyper.travel_penalty * sc.travel.mean(1) / hours - hyper.reversal_weight * rr.mean(1)
 
@@ -317,7 +321,7 @@ class ESState:
         save_model_file(path, t, j)
 
     @classmethod
-    def load(cls, path: Path) -> Tuple["ESState", dict]:
+    def load(cls, path: Path) -> tuple[ESState, dict]:
         """Read a checkpoint written by :meth:`save` (never unpickles)."""
         mf = load_model_file(path)
         j, t = mf.meta, mf.tensors
@@ -388,7 +392,7 @@ def es_generation(st: ESState, cfg: LearnedTrainConfig) -> dict:
             "train_fitness_pop_mean": float(f[:-2].mean())}
 
 
-def validate(st: ESState, cfg: LearnedTrainConfig, theta: np.ndarray, ref: Optional[RolloutScores]):
+def validate(st: ESState, cfg: LearnedTrainConfig, theta: np.ndarray, ref: RolloutScores | None):
     """Score ``theta`` against the PI on the validation loops; returns ``(row, ref)``."""
     spec = MLPSpec(cfg.es.hidden)
     seeds = [cfg.eval.seed + i for i in range(cfg.eval.n_loops)]
@@ -441,8 +445,8 @@ def _write_curve(out: Path, curve: list) -> None:
     write_atomic(out / "curve.csv", lambda f: f.write(text.encode()))
 
 
-def train_learned(cfg: LearnedTrainConfig, out: Path, resume: Optional[Path] = None, seed: Optional[int] = None,
-                  generations: Optional[int] = None, command: str = "", progress: bool = True) -> dict:
+def train_learned(cfg: LearnedTrainConfig, out: Path, resume: Path | None = None, seed: int | None = None,
+                  generations: int | None = None, command: str = "", progress: bool = True) -> dict:
     """Train (or resume) the learned compensator; returns the summary (also ``summary.json``).
 
     Returns a summary with ``status``: ``'finished'``, ``'already finished'`` (a resumed finished
@@ -466,6 +470,9 @@ def train_learned(cfg: LearnedTrainConfig, out: Path, resume: Optional[Path] = N
         if st.finished and st.gen >= cfg.es.generations:
             return {"status": "already finished", "gen": st.gen, "out": str(out)}
         st.finished = False
+        if j.get("command") and command:
+            command = f"{j['command']} (continued by: {command})"
+        meta["command"] = command
     else:
         st = init_state(cfg, cfg.seed)
     ref = None

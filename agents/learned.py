@@ -13,9 +13,9 @@ plain numpy, torch is not needed, nothing is unpickled.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import asdict, replace
 from pathlib import Path
-from typing import Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -115,7 +115,7 @@ class LearnedBlock:
     """
 
     def __init__(self, weights: dict, obs_mean: np.ndarray, obs_std: np.ndarray,
-                 settings: BlockSettings = BlockSettings(), name: str = "learned", meta: Optional[dict] = None):
+                 settings: BlockSettings = BlockSettings(), name: str = "learned", meta: dict | None = None):
         self.weights = weights
         self.obs_mean = np.asarray(obs_mean, float)
         self.obs_std = np.asarray(obs_std, float)
@@ -123,7 +123,7 @@ class LearnedBlock:
         self.name = name
         self.scan_s = float(settings.scan_s)
         self.meta = meta or {}
-        self._law: Optional[BlockLaw] = None
+        self._law: BlockLaw | None = None
         self._scalar = True
 
     @property
@@ -167,7 +167,7 @@ class LearnedBlock:
 
 
 def save_learned(path, theta: np.ndarray, spec: MLPSpec, obs_mean, obs_std, settings: BlockSettings,
-                 meta: dict) -> Tuple[str, str]:
+                 meta: dict) -> tuple[str, str]:
     """Write a learned block as ``path.safetensors`` + ``path.json``; returns both paths."""
     w = {k: np.asarray(v, dtype=np.float64).copy() for k, v in unflatten(spec, np.asarray(theta, float)).items()}
     w["obs_mean"] = np.asarray(obs_mean, float)

@@ -29,8 +29,8 @@ def evaluate_learned(path=None, n: int = 90, seed: int = 424242, compensators: b
     """Scores (``agents.bench.scores.LoopScores`` by label) and the scenarios; see the module docstring."""
     from agents.bench.config import load_bench_config
     from agents.bench.runner import ControllerSpec, lineup, run_loops, run_spec
-    from agents.bench.scores import score_runs
     from agents.bench.scenarios import regulation_scenarios
+    from agents.bench.scores import score_runs
 
     from .learned import load_learned
 

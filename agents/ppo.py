@@ -18,10 +18,9 @@ unpickles anything (SB3 ``.zip`` files are refused, see
 """
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import asdict, dataclass
-from typing import NamedTuple, Optional, Tuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -78,8 +77,8 @@ class ObsTransform:
 
     frame_stack: int = 1
     deltas: bool = False
-    offset: Tuple[float, ...] = DEFAULT_OFFSET
-    scale: Tuple[float, ...] = DEFAULT_SCALE
+    offset: tuple[float, ...] = DEFAULT_OFFSET
+    scale: tuple[float, ...] = DEFAULT_SCALE
 
     def __post_init__(self):
         if isinstance(self.frame_stack, bool) or not isinstance(self.frame_stack, (int, np.integer)) \
@@ -107,7 +106,7 @@ class ObsTransform:
     def _nframes(self) -> int:
         return max(self.frame_stack, 2 if self.deltas else 1)
 
-    def start(self, obs) -> Tuple[np.ndarray, ObsHistory]:
+    def start(self, obs) -> tuple[np.ndarray, ObsHistory]:
         """Start a history from the first observations ``(n, d)``."""
         obs = np.asarray(obs, dtype=np.float64)
         f = self.features(obs)
@@ -121,7 +120,7 @@ class ObsTransform:
             stacked = np.concatenate([stacked, frames[:, -1] - frames[:, -2]], 1)
         return stacked.astype(np.float32)
 
-    def step(self, hist: ObsHistory, obs, episode_start=None) -> Tuple[np.ndarray, ObsHistory]:
+    def step(self, hist: ObsHistory, obs, episode_start=None) -> tuple[np.ndarray, ObsHistory]:
         """Push observations ``(n, d)``; rows with ``episode_start`` restart their history."""
         obs = np.asarray(obs, dtype=np.float64)
         f = self.features(obs)
@@ -142,7 +141,7 @@ class ObsTransform:
         return d
 
     @classmethod
-    def from_dict(cls, d: Optional[dict]) -> "ObsTransform":
+    def from_dict(cls, d: dict | None) -> ObsTransform:
         return cls(**(d or {}))
 
 
@@ -168,14 +167,16 @@ class TransformVecEnv(_vec_env_wrapper_base()):
         od = transform.out_dim(d)
         space = spaces.Box(low=-np.inf, high=np.inf, shape=(od,), dtype=np.float32)
         super().__init__(venv, observation_space=space)
-        self._hist: Optional[ObsHistory] = None
+        self._hist: ObsHistory | None = None
 
     def reset(self):
+        """Reset the wrapped env; returns the transformed first observations."""
         obs = self.venv.reset()
         x, self._hist = self.transform.start(obs)
         return x
 
     def step_wait(self):
+        """Step the wrapped env; transforms the observations (and terminal ones)."""
         obs, rew, done, infos = self.venv.step_wait()
         done = np.asarray(done, dtype=bool)
         if done.any():
@@ -279,7 +280,7 @@ class PPOController:
     """
 
     def __init__(self, model, transform: ObsTransform = ObsTransform(), env_mode: str = "direct",
-                 env_overrides: Optional[dict] = None, name: str = "ppo", meta: Optional[dict] = None):
+                 env_overrides: dict | None = None, name: str = "ppo", meta: dict | None = None):
         if env_mode not in ("direct", "residual"):
             raise ValueError(f"env_mode must be 'direct' or 'residual', got {env_mode!r}")
         self.model = model
@@ -306,7 +307,7 @@ class PPOController:
         return (act[0] if single else act), PPOState(hist)
 
 
-def load_policy(path: str, name: Optional[str] = None, device: str = "cpu") -> PPOController:
+def load_policy(path: str, name: str | None = None, device: str = "cpu") -> PPOController:
     """Load a policy written by ``valve-gym train`` (``.json`` + ``.safetensors``) as a :class:`PPOController`.
 
     Parameters

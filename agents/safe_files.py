@@ -12,8 +12,9 @@ from __future__ import annotations
 import json
 import os
 import zipfile
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping, NamedTuple, Tuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -34,7 +35,7 @@ class ModelFile(NamedTuple):
     meta: dict
 
 
-def model_file_paths(path) -> Tuple[Path, Path]:
+def model_file_paths(path) -> tuple[Path, Path]:
     """``(weights, json)`` paths of a model file given either one, or their common stem."""
     p = Path(path)
     if p.suffix in (".safetensors", ".json"):
@@ -92,7 +93,7 @@ def refuse_unsafe(path) -> None:
                               f"any code). {_CONVERT.format(path=path)}")
 
 
-def save_model_file(path, tensors: Mapping[str, np.ndarray], meta: Mapping) -> Tuple[str, str]:
+def save_model_file(path, tensors: Mapping[str, np.ndarray], meta: Mapping) -> tuple[str, str]:
     """Write ``tensors`` (safetensors) and ``meta`` (JSON) atomically; returns both paths.
 
     The weights are written first and the JSON last, so a model file whose JSON exists is complete.

@@ -41,20 +41,20 @@ import os
 import shlex
 import sys
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Mapping, Optional, Tuple
 
 import numpy as np
 
-from valve_gym.config import read_yaml, ConfigError, EnvConfig, config_to_dict, load_config
+from valve_gym.config import ConfigError, EnvConfig, config_to_dict, load_config, read_yaml
 
 from .ppo import ObsTransform
 
 __all__ = ["TrainConfig", "PPOHyper", "PolicyKwargs", "ObsConfig", "CheckpointConfig", "EvalConfig",
            "load_train_config", "make_vec_env", "train", "main", "ENV_OVERRIDE_KEYS"]
 
-Range = Tuple[float, float]
+Range = tuple[float, float]
 
 #: Environment settings a policy needs wherever it is evaluated (stored in its JSON).
 ENV_OVERRIDE_KEYS = ("action_mode", "residual_scale", "pi", "measure_stem", "control_period")
@@ -75,7 +75,7 @@ class PolicyKwargs:
     ortho_init : bool
     """
 
-    net_arch: Tuple[int, ...] = (64, 64)
+    net_arch: tuple[int, ...] = (64, 64)
     activation_fn: str = "tanh"
     log_std_init: float = -0.5
     ortho_init: bool = True
@@ -253,10 +253,10 @@ def load_train_config(path_or_dict) -> TrainConfig:
     ...                          "env": {"action_mode": "residual"}})
     >>> cfg.ppo.policy_kwargs.net_arch, cfg.env.action_mode
     ((32, 32, 32), 'residual')
-    >>> load_train_config({"ppo": {"n_stepz": 10}})
+    >>> load_train_config({"ppo": {"n_stepz": 10}})  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    valve_gym.config.ConfigError: unknown key 'ppo.n_stepz' (did you mean 'n_steps'?); the keys of 'ppo' are: n_envs, n_steps, batch_size, n_epochs, gamma, gae_lambda, learning_rate, lr_schedule, clip_range, ent_coef, vf_coef, max_grad_norm, target_kl, normalize_advantage, normalize_reward, policy_kwargs
+    valve_gym.config.ConfigError: unknown key 'ppo.n_stepz' (did you mean 'n_steps'?); the keys of 'ppo' are: ...
     """
     src = ""
     if isinstance(path_or_dict, (str, os.PathLike)):
@@ -329,7 +329,6 @@ def make_vec_env(env_cfg: EnvConfig, n_envs: int, seed: int, kind: str = "native
         venv = SB3VecEnv(num_envs=n_envs, config=env_cfg)
         venv.seed(seed)
         return venv
-    import gymnasium as gym
     from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
 
     import valve_gym.envs  # noqa: F401  (registration)
@@ -363,7 +362,7 @@ class _EnvFactory:
                         max_episode_steps=self.env_cfg.episode_steps)
 
 
-def build_training_env(cfg: TrainConfig, seed: int, kind: Optional[str] = None):
+def build_training_env(cfg: TrainConfig, seed: int, kind: str | None = None):
     """Vec env + VecMonitor + observation transform, as used by :func:`train`."""
     from stable_baselines3.common.vec_env import VecMonitor
 
@@ -401,7 +400,7 @@ def _policy_kwargs(pk: PolicyKwargs) -> dict:
             "log_std_init": float(pk.log_std_init), "ortho_init": bool(pk.ortho_init)}
 
 
-def make_model(cfg: TrainConfig, env, seed: int, tb_dir: Optional[str] = None):
+def make_model(cfg: TrainConfig, env, seed: int, tb_dir: str | None = None):
     """A fresh SB3 PPO model for ``cfg`` on ``env``."""
     from stable_baselines3 import PPO
 
@@ -552,10 +551,14 @@ def load_ppo_checkpoint(model, venv, path) -> dict:
 
 
 def _callbacks(cfg: TrainConfig, out: Path, command: str, seed: int, venv):
+    """The checkpoint (and stop-on-signal) callback and the validation callback of a PPO run."""
+    return _checkpoint_callback(cfg, out, command, seed, venv), _validate_callback(cfg, out, command, seed)
+
+
+def _checkpoint_callback(cfg: TrainConfig, out: Path, command: str, seed: int, venv):
     from stable_baselines3.common.callbacks import BaseCallback
 
     from .lifecycle import STOP
-    from .ppo import save_policy
 
     ckpt_dir = out / "checkpoints"
 
@@ -591,6 +594,14 @@ def _callbacks(cfg: TrainConfig, out: Path, command: str, seed: int, venv):
                     if old.with_suffix(ext).exists():
                         old.with_suffix(ext).unlink()
 
+    return Checkpoint()
+
+
+def _validate_callback(cfg: TrainConfig, out: Path, command: str, seed: int):
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    from .ppo import save_policy
+
     class Validate(BaseCallback):
         """Validation on drawn valves; keeps ``best`` by mean return."""
 
@@ -621,7 +632,7 @@ def _callbacks(cfg: TrainConfig, out: Path, command: str, seed: int, venv):
                 self.best = ret
                 save_policy(self.model, str(out / "best"), policy_meta(cfg, self.model, command, seed))
 
-    return Checkpoint(), Validate()
+    return Validate()
 
 
 def _write_text(path: Path, text: str) -> None:
@@ -630,9 +641,9 @@ def _write_text(path: Path, text: str) -> None:
     write_atomic(path, lambda f: f.write(text.encode("utf-8")))
 
 
-def train(cfg: TrainConfig, out: Path, resume: Optional[str] = None, seed: Optional[int] = None,
-          timesteps: Optional[int] = None, progress: bool = True, command: str = "",
-          vec_env: Optional[str] = None, final_eval: bool = True) -> dict:
+def train(cfg: TrainConfig, out: Path, resume: str | None = None, seed: int | None = None,
+          timesteps: int | None = None, progress: bool = True, command: str = "",
+          vec_env: str | None = None, final_eval: bool = True) -> dict:
     """Train (or resume) a PPO policy; returns the run summary (also in ``summary.json``).
 
     Parameters
@@ -791,7 +802,7 @@ RUN_FILES = ("config.yaml", "summary.json", "eval.csv", "curve.csv", "final.safe
              "best.safetensors", "best.json", "checkpoints", "tb")
 
 
-def prepare_out(out: Path, resume: Optional[str], overwrite: bool) -> Optional[Path]:
+def prepare_out(out: Path, resume: str | None, overwrite: bool) -> Path | None:
     """Check ``--out`` against ``--resume``/``--overwrite``; returns the checkpoint to resume from (or None).
 
     Raises
@@ -852,8 +863,9 @@ def _raw_algorithm(path: str) -> str:
 
 
 def _main_learned(args, command: str) -> int:
-    from .es import load_learned_train_config, summary_json, train_learned
     from valve_gym._io import write_atomic
+
+    from .es import load_learned_train_config, summary_json, train_learned
 
     cfg = load_learned_train_config(args.config)
     out = Path(args.out) if args.out else Path("runs") / cfg.name

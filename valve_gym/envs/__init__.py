@@ -20,11 +20,12 @@ stable-baselines3) adapts the vector env to Stable-Baselines3.
 """
 from __future__ import annotations
 
-from .valve_tank import ValveTankEnv, draw_episodes, make_config
 from .regulation_env import ValveTankRegulationEnv, ValveTankRegulationVectorEnv
+from .valve_tank import ValveTankEnv, draw_episodes, make_config
 from .vector import ValveTankVectorEnv
 
-__all__ = ["ValveTankEnv", "ValveTankVectorEnv", "ValveTankRegulationEnv", "ValveTankRegulationVectorEnv", "SB3VecEnv", "register_envs", "ENV_IDS",
+__all__ = ["ValveTankEnv", "ValveTankVectorEnv", "ValveTankRegulationEnv", "ValveTankRegulationVectorEnv",
+           "SB3VecEnv", "register_envs", "ENV_IDS",
            "draw_episodes", "make_config"]
 
 #: The registered environment ids.

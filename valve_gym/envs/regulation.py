@@ -32,8 +32,9 @@ saturates.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import NamedTuple, Optional, Sequence, Tuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -42,13 +43,14 @@ from ..config import ConfigError
 from ..params import ModelParams, SlipJump, ValveParams
 
 __all__ = ["RegulationConfig", "BlockSettings", "RegulationDraw", "draw_scenarios", "friction_params",
-           "LoopPlants", "BlockLaw", "pi_action", "step_reward", "parse_options", "available_friction_models", "FRICTION_MODELS_FALLBACK", "N_OBS", "N_ACT",
+           "LoopPlants", "BlockLaw", "pi_action", "step_reward", "parse_options", "available_friction_models",
+           "FRICTION_MODELS_FALLBACK", "N_OBS", "N_ACT",
            "OBS_NAMES"]
 
 #: Friction models available without :mod:`valve_gym.friction` (the core's two models).
 FRICTION_MODELS_FALLBACK = ("riihilahti", "choudhury")
 
-Range = Tuple[float, float]
+Range = tuple[float, float]
 
 
 def _range(name: str, r, lo: float = 0.0, hi: float = math.inf, open_lo: bool = False) -> None:
@@ -146,8 +148,8 @@ class RegulationConfig:
     noise_std: Range = (0.002, 0.002)
     load_std: Range = (0.5e-4, 2.0e-4)
     load_tau: Range = (60.0, 300.0)
-    friction_models: Tuple[str, ...] = FRICTION_MODELS_FALLBACK
-    S_bands: Tuple[float, ...] = (0.0, 0.005, 0.05, 0.10)
+    friction_models: tuple[str, ...] = FRICTION_MODELS_FALLBACK
+    S_bands: tuple[float, ...] = (0.0, 0.005, 0.05, 0.10)
     J_frac: Range = (0.0, 1.0)
     substeps: int = 20
     error_scale: float = 0.01
@@ -184,7 +186,7 @@ class RegulationConfig:
 
 
 # --------------------------------------------------------------------------- friction
-def available_friction_models() -> Tuple[str, ...]:
+def available_friction_models() -> tuple[str, ...]:
     """Names of the friction models the task can draw."""
     try:
         from ..friction import FRICTION_MODELS  # type: ignore[attr-defined]
@@ -193,7 +195,7 @@ def available_friction_models() -> Tuple[str, ...]:
     return tuple(FRICTION_MODELS)
 
 
-def friction_params(model: str, S, J, base: Optional[ModelParams] = None, dt: float = 0.05) -> ModelParams:
+def friction_params(model: str, S, J, base: ModelParams | None = None, dt: float = 0.05) -> ModelParams:
     """Model parameters of valves of friction ``model`` sized by stick band ``S`` and slip jump ``J``.
 
     Parameters

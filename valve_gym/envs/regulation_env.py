@@ -6,7 +6,7 @@ sub-env seeded with ``s`` is step-for-step the single env reset with ``seed=s``.
 """
 from __future__ import annotations
 
-from typing import Mapping, Optional, Sequence, Union
+from collections.abc import Mapping, Sequence
 
 import gymnasium as gym
 import numpy as np
@@ -16,13 +16,22 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ..config import load_config
-from .regulation import (N_ACT, N_OBS, BlockLaw, LoopPlants, RegulationConfig, RegulationDraw, draw_scenarios,
-                         parse_options, step_reward)
+from .regulation import (
+    N_ACT,
+    N_OBS,
+    BlockLaw,
+    LoopPlants,
+    RegulationConfig,
+    RegulationDraw,
+    draw_scenarios,
+    parse_options,
+    step_reward,
+)
 
 __all__ = ["ValveTankRegulationEnv", "ValveTankRegulationVectorEnv", "RegulationLoops", "make_regulation_config"]
 
 
-def make_regulation_config(config: Union[RegulationConfig, Mapping, str, None] = None) -> RegulationConfig:
+def make_regulation_config(config: RegulationConfig | Mapping | str | None = None) -> RegulationConfig:
     """A :class:`RegulationConfig` from a config, a mapping of keys or a YAML file (``None``: defaults)."""
     if isinstance(config, RegulationConfig):
         return config
@@ -53,9 +62,9 @@ class RegulationLoops:
         self.cfg = cfg
         self.n = int(n)
         self.H = cfg.steps
-        self.draw: Optional[RegulationDraw] = None
+        self.draw: RegulationDraw | None = None
 
-    def reset(self, rngs: Sequence[np.random.Generator], pins: Optional[dict] = None) -> np.ndarray:
+    def reset(self, rngs: Sequence[np.random.Generator], pins: dict | None = None) -> np.ndarray:
         """Start all loops at steady state; returns the observation (n, N_OBS) float32."""
         d = _apply_pins(draw_scenarios(rngs, self.cfg), pins or {})
         self.draw = d
@@ -157,13 +166,13 @@ class ValveTankRegulationEnv(gym.Env):
 
     metadata = {"render_modes": []}
 
-    def __init__(self, config: Union[RegulationConfig, Mapping, str, None] = None):
+    def __init__(self, config: RegulationConfig | Mapping | str | None = None):
         self.config = make_regulation_config(config)
         self.observation_space, self.action_space = _spaces()
         self._loops = RegulationLoops(self.config, 1)
         self.episode_steps = self.config.steps
 
-    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None):
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Start an episode at steady state (see the class docstring for ``options``)."""
         pins = parse_options(options, self.config, 1)
         super().reset(seed=seed)
@@ -189,8 +198,8 @@ class ValveTankRegulationVectorEnv(VectorEnv):
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.SAME_STEP}
 
-    def __init__(self, num_envs: int = 1, config: Union[RegulationConfig, Mapping, str, None] = None,
-                 max_episode_steps: Optional[int] = None):
+    def __init__(self, num_envs: int = 1, config: RegulationConfig | Mapping | str | None = None,
+                 max_episode_steps: int | None = None):
         if not (isinstance(num_envs, (int, np.integer)) and num_envs >= 1):
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         self.config = make_regulation_config(config)
@@ -205,7 +214,7 @@ class ValveTankRegulationVectorEnv(VectorEnv):
         self._rngs = [seeding.np_random(None)[0] for _ in range(self.num_envs)]
         self.episode_steps = self.config.steps
 
-    def reset(self, *, seed: Union[int, Sequence[Optional[int]], None] = None, options: Optional[dict] = None):
+    def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict | None = None):
         """Reset all sub-envs; ``options`` as the single env's (scalars or ``(num_envs,)`` arrays)."""
         pins = parse_options(options, self.config, self.num_envs)
         if seed is not None:
