@@ -9,9 +9,9 @@ Controllers are DCS function blocks, built by name::
 
 (:mod:`agents.controllers`). RL code calls Stable-Baselines3's batched
 ``predict(obs, state, episode_start, deterministic) -> (actions, state)``
-(:class:`Controller`); :class:`BlockPolicy` gives any block that call, and
-PI, PI + knocker and PPO policies are evaluated by the same code
-(:func:`rollout`, :func:`run_benchmark`).
+(:class:`Controller`); :class:`BlockPolicy` gives any block that call, so
+:func:`rollout` runs blocks and PPO policies alike. The benchmark
+(:func:`run_benchmark`, ``valve-gym benchmark``) drives the blocks directly.
 
 ==========================  ================================================
 :func:`load_controller`     a controller block by name (settings checked)
