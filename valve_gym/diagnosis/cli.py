@@ -69,8 +69,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="candidate effects, comma-separated, 'all' (default) or 'none'; known: "
                         + ", ".join(CANDIDATE_EFFECTS))
     p.add_argument("--jobs", default="2",
-                   help="worker processes (default 2): recordings in parallel for a folder, "
-                        "candidate fits in parallel for one file")
+                   help="worker processes (default 2): recordings in parallel for a folder (Ray workers "
+                        "with --out), candidate fits in parallel for one file")
     p.add_argument("--effort", default="auto", choices=("auto", "fast", "normal", "thorough"),
                    help="search budget (default auto: thorough up to 1800 samples, normal above)")
     p.add_argument("--seed", default="0", help="seed of the search (default 0)")
