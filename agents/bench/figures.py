@@ -73,13 +73,14 @@ def _bands(res: BenchmarkResult, path: Path) -> Path:
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.5))
     w = 0.8 / max(1, len(labels))
     x = np.arange(len(BAND_NAMES))
+    colours = plt.get_cmap("tab20")
     for k, lab in enumerate(labels):
         for ax, metric in zip(axes, ("lc_share", "R")):
             est = [rows.get((lab, b, metric)) for b in BAND_NAMES]
             v = np.array([e.value if e else np.nan for e in est])
             lo = np.array([e.value - e.lo if e else 0.0 for e in est])
             hi = np.array([e.hi - e.value if e else 0.0 for e in est])
-            ax.bar(x + k * w, v, w, yerr=[lo, hi], capsize=2, label=lab)
+            ax.bar(x + k * w, v, w, yerr=[lo, hi], capsize=2, label=lab, color=colours(k % 20))
     axes[0].set_ylabel("share of loops with a limit cycle")
     axes[1].set_ylabel("median compensation ratio R")
     axes[1].set_ylim(-2.0, 1.2)
@@ -101,13 +102,14 @@ def _pareto(res: BenchmarkResult, path: Path) -> Path:
     pis = [s.label for s in res.specs if s.family in ("pi", "detuned")]
     pts = np.array([[rows[(p, "travel_per_h")].value, rows[(p, "iae_per_h")].value] for p in pis])
     ax.plot(pts[:, 0], pts[:, 1], "o-", color="k", label="PI, Kc x1 ... detuned")
-    for s in res.specs:
-        if (s.label, "iae_per_h") not in rows or s.family in ("pi", "detuned"):
-            continue
+    others = [s for s in res.specs if (s.label, "iae_per_h") in rows and s.family not in ("pi", "detuned")]
+    colours = plt.get_cmap("tab20")
+    for k, s in enumerate(others):
         t, e = rows[(s.label, "travel_per_h")], rows[(s.label, "iae_per_h")]
-        mk = {"frictionless": "s", "learned": "*", "compensator": "^" if s.estimate == 1.0 else "."}[s.family]
+        mk = {"frictionless": "s", "learned": "*", "compensator": "^" if s.estimate == 1.0 else "o"}[s.family]
         ax.errorbar(t.value, e.value, xerr=[[t.value - t.lo], [t.hi - t.value]],
-                    yerr=[[e.value - e.lo], [e.hi - e.value]], fmt=mk, ms=9 if mk == "*" else 6, label=s.label)
+                    yerr=[[e.value - e.lo], [e.hi - e.value]], fmt=mk, ms=12 if mk == "*" else 6,
+                    color="k" if s.family == "learned" else colours(k % 20), label=s.label)
     ax.set_xlabel("median stem travel [full strokes / h]")
     ax.set_ylabel("median IAE [m s / h]")
     ax.set_xscale("log")

@@ -157,7 +157,7 @@ def _check_models(config: BenchConfig) -> None:
 def _progress_line(done: int, total: int, r: TaskResult, t0: float) -> str:
     el = time.perf_counter() - t0
     eta = el / done * (total - done)
-    return (f"[{done:>3}/{total}] {r.part:<10} {r.spec.label:<32} {r.seconds:6.1f} s  "
+    return (f"[{done:>3}/{total}] {r.part:<10} {r.spec.label:<32} {r.seconds:6.1f} s (cpu {r.cpu_seconds:5.1f} s)  "
             f"(elapsed {el:5.0f} s, left ~{eta:4.0f} s)")
 
 

@@ -68,7 +68,7 @@ def _part_table(res: BenchmarkResult, part: str, band: str) -> str:
     cols = [("lc_share", 1.0, 2, "LC share"), ("lc_amplitude_cycling", 1000.0, 1, "LC amp., cycling [mm]"),
             ("lc_period", 1.0, 0, "LC period [s]"),
             ("iae_per_h", 1.0, 2, "IAE [m s/h]"), ("R", 1.0, 2, "R"), ("travel_per_h", 1.0, 1, "travel [strokes/h]"),
-            ("reversals_per_h", 1.0, 0, "reversals [1/h]"), ("abs_offset", 1000.0, 2, "|offset| [mm]")]
+            ("reversals_per_h", 1.0, 0, "reversals [1/h]"), ("abs_offset", 1000.0, 2, "abs. offset [mm]")]
     lines = ["| controller | " + " | ".join(c[3] for c in cols) + " |", "|" + "---|" * (len(cols) + 1)]
     for s in res.specs:
         cells = []
