@@ -13,17 +13,17 @@ Controllers are DCS function blocks, built by name::
 :func:`rollout` runs blocks and PPO policies alike. The benchmark
 (:func:`run_benchmark`, ``valve-gym benchmark``) drives the blocks directly.
 
-==========================  ================================================
-:func:`load_controller`     a controller block by name (settings checked)
-:func:`available_controllers`  the names load_controller accepts
-:class:`BlockPolicy`        SB3 ``predict`` over any controller block
-:class:`PIController`       the plant's PI (SIMC tuning, anti-windup, bumpless)
-:class:`KnockerController`  PI + Hägglund's knocker pulses
-:class:`PPOController`      a trained SB3 policy with its observation transform
-:func:`load_policy`         load a policy zip written by ``valve-gym train``
-:func:`rollout`             one batched episode of any controller on many valves
-:func:`run_benchmark`       the compensator benchmark (``valve-gym benchmark``)
-==========================  ================================================
+===============================  ================================================
+:func:`load_controller`          a controller block by name (settings checked)
+:func:`available_controllers`    the names load_controller accepts
+:class:`BlockPolicy`             SB3 ``predict`` over any controller block
+:class:`PIController`            the plant's PI (SIMC tuning, anti-windup, bumpless)
+:class:`KnockerController`       PI + Hägglund's knocker pulses
+:class:`PPOController`           a trained SB3 policy with its observation transform
+:func:`load_policy`              load a policy zip written by ``valve-gym train``
+:func:`rollout`                  one batched episode of any controller on many valves
+:func:`run_benchmark`            the compensator benchmark (``valve-gym benchmark``)
+===============================  ================================================
 
 Per-valve scores: :func:`agents.evaluate.evaluate`; PPO training:
 :func:`agents.train.train` (``valve-gym train``); both are modules of the
