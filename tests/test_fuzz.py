@@ -341,6 +341,59 @@ def test_fuzz_config_yaml_file(text):
     assert open(p, "rb").read() == before and os.listdir(d) == ["cfg.yaml"]
 
 
+_SHIPPED_CONFIGS = {
+    "env_default.yaml": ("valve_gym.config", "load_config"),
+    "env_fixed.yaml": ("valve_gym.config", "load_config"),
+    "ppo_residual.yaml": ("agents.train", "load_train_config"),
+    "ppo_shipped.yaml": ("agents.train", "load_train_config"),
+    "learned.yaml": ("agents.es", "load_learned_train_config"),
+    "benchmark.yaml": ("agents.bench.config", "load_bench_config"),
+}
+_CONFIG_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "configs")
+
+
+@functools.cache
+def _shipped(name):
+    """(loader, data, leaf paths) of a shipped config file, or None if its loader is absent."""
+    import importlib
+
+    import yaml
+
+    mod, fn = _SHIPPED_CONFIGS[name]
+    path = os.path.join(_CONFIG_DIR, name)
+    try:
+        loader = getattr(importlib.import_module(mod), fn)
+    except (ImportError, AttributeError):
+        return None
+    if not os.path.isfile(path):
+        return None
+    with open(path, encoding="utf-8") as f:
+        data = yaml.safe_load(f) or {}
+    return loader, data, tuple(_paths(data))
+
+
+@pytest.mark.parametrize("name", sorted(_SHIPPED_CONFIGS))
+@FUZZ
+@given(edits=st.lists(st.tuples(st.integers(0, 10**6), leaf_values), min_size=1, max_size=3))
+def test_fuzz_shipped_config_files(name, edits):
+    import copy
+
+    got = _shipped(name)
+    if got is None:
+        pytest.skip(f"no loader or file for configs/{name}")
+    loader, base, paths = got
+    data = copy.deepcopy(base)
+    for idx, value in edits:
+        _set(data, paths[idx % len(paths)], value)
+    try:
+        loader(data)
+    except ValueError as exc:
+        _clean_error(exc)
+    except Exception as exc:  # noqa: BLE001 - the property under test
+        pytest.fail(f"{_SHIPPED_CONFIGS[name][1]} on configs/{name} edited to {data!r} raised "
+                    f"{type(exc).__name__}: {exc}")
+
+
 # --------------------------------------------------------------------------
 # environments
 # --------------------------------------------------------------------------
