@@ -508,3 +508,26 @@ def test_friction_module_doctests():
         assert res.failed == 0, mod.__name__
         attempted += res.attempted
     assert attempted > 0
+
+
+def test_param_spec_rejects_inconsistent_declarations():
+    from valve_gym.friction import ParamSpec
+
+    with pytest.raises(ValueError, match="log prior needs lo > 0"):
+        ParamSpec("zeta", "-", 0.0, 10.0, 1.0, "log", "damping")
+    with pytest.raises(ValueError, match="outside"):
+        ParamSpec("S", "-", 0.0, 0.5, 0.7, "lin", "band")
+    with pytest.raises(ValueError, match="prior must be"):
+        ParamSpec("S", "-", 0.0, 0.5, 0.1, "uniform", "band")
+
+
+@pytest.mark.parametrize("model", ["riihilahti", "choudhury", "kano", "karnopp"])
+def test_mapped_parameters_fall_in_the_declared_ranges(model):
+    S = np.array([0.0, 0.005, 0.05, 0.1, 0.5])
+    J = np.array([0.0, 0.005, 0.01, 0.1, 0.5])
+    p = valve_model(model, S, J)
+    spec = friction_spec(model)
+    block = p.valve if model == "riihilahti" else p.slip_jump
+    for ps in spec.params:
+        v = np.asarray(getattr(block, ps.name), float)
+        assert np.all((v >= ps.lo) & (v <= ps.hi)), (model, ps.name, v)

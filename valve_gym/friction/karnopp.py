@@ -160,7 +160,7 @@ SPEC = register(FrictionSpec(
             ParamSpec("J", "-", 0.0, 0.99, 0.01, "lin", "slip jump (Fs - Fc)/k, fraction of stroke (J <= S)"),
             ParamSpec("tau_p", "s", 1e-3, 10.0, 0.1, "fixed", "actuator lag (from the base valve)"),
             ParamSpec("omega_n", "rad/s", 1.0, 2000.0, 196.5, "log", "stem natural frequency sqrt(k/m)"),
-            ParamSpec("zeta", "-", 0.0, 200.0, 1.146, "log", "viscous damping ratio Fv / (2 sqrt(k m))"),
+            ParamSpec("zeta", "-", 0.01, 200.0, 1.146, "log", "viscous damping ratio Fv / (2 sqrt(k m))"),
             ParamSpec("dv", "1/s", 1e-9, 1e-2, 1e-5, "fixed", "stick-velocity window, strokes per second")),
     kernel="slip_jump block of the core with law='karnopp', every Euler step: actuator lag, then the stem's "
            "force balance on sub-steps with omega_n*h <= 0.05 (semi-implicit Euler), Karnopp's stick window.",

@@ -149,7 +149,7 @@ SPEC = register(FrictionSpec(
     name="riihilahti",
     title="Riihilahti integral-band friction (seed model)",
     params=(ParamSpec("e_dead", "-", 0.0, 0.5, 0.005, "sq", "half the dead band, fraction of stroke"),
-            ParamSpec("z_max", "s", 0.0, 2.0, 0.005, "sq", "half width of the integral friction band"),
+            ParamSpec("z_max", "s", 0.0, 250.0, 0.005, "sq", "half width of the integral friction band"),
             ParamSpec("tau", "s", 1e-3, 10.0, 0.1, "fixed", "stem time constant (from the base valve)"),
             ParamSpec("v_max", "1/s", 1e-3, float("inf"), 0.5, "fixed", "stem speed limit (from the base valve)")),
     kernel="Riihilahti block of the core, every Euler step: dead band on e = u - h, integral band |z| <= z_max, "

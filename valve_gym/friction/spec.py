@@ -61,6 +61,8 @@ class ParamSpec:
         if self.prior not in ("lin", "log", "sq", "fixed"):
             raise ValueError(f"ParamSpec {self.name!r}: prior must be 'lin', 'log', 'sq' or 'fixed', "
                              f"got {self.prior!r}")
+        if self.prior == "log" and not self.lo > 0:
+            raise ValueError(f"ParamSpec {self.name!r}: a log prior needs lo > 0, got {self.lo}")
         if not self.lo <= self.default <= self.hi:
             raise ValueError(f"ParamSpec {self.name!r}: default {self.default} outside [{self.lo}, {self.hi}]")
 
