@@ -13,6 +13,9 @@ Measures
 (d) the numba kernel of :mod:`valve_gym.core` against its pure-Python version
     (``core._kernel.py_func``) at a small size.
 
+``benchmarks/bench_kernel.py`` compares the kernel (one inlined helper per
+block) with its frozen pre-split version, single env and vector env.
+
 Actions are pre-generated uniform samples of the action space (the valve
 moves at every step, the costly case for the kernel); episodes end and reset
 inside the timed loops as in training. Every figure is the best of several
