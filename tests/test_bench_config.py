@@ -56,3 +56,24 @@ def test_quick_version_is_small():
     q = BenchConfig().quick_version()
     assert q.bands.sticky.n == q.quick.n_per_band and q.regulation.duration_s == q.quick.duration_s
     assert q.scores.n_boot == q.quick.n_boot and q.servo.interval_s <= q.servo.duration_s / 2
+
+
+try:
+    from hypothesis import given, settings
+    from hypothesis import strategies as st
+except ImportError:  # pragma: no cover - hypothesis is a test extra
+    given = None
+
+if given is not None:
+    _SECTIONS = ("bands", "regulation", "servo", "controllers", "scores", "quick")
+
+    @settings(max_examples=40, deadline=None)
+    @given(section=st.sampled_from(_SECTIONS),
+           key=st.text(alphabet="abcdefghijklmnopqrstuvwxyz_", min_size=1, max_size=12),
+           value=st.one_of(st.integers(), st.floats(allow_nan=False), st.text(max_size=5)))
+    def test_any_unknown_key_is_named(section, key, value):
+        known = set(BenchConfig.__dataclass_fields__[section].default_factory().__dataclass_fields__)
+        if key in known:
+            return
+        with pytest.raises(ConfigError, match=rf"unknown key '{section}\.{key}'"):
+            load_bench_config({section: {key: value}})
