@@ -29,8 +29,9 @@ from .scenarios import Scenarios
 __all__ = ["ControllerSpec", "Runs", "run_loops", "run_spec", "lineup", "make_controller", "ControllerBank",
            "valve_model", "make_plant", "controller_loader", "ESTIMATE_GRID", "ESTIMATE_MIN"]
 
-#: Relative spacing of the log grid the stiction estimates are rounded to (one block per grid value, so at
-#: most +-10 % off the intended estimate), and the smallest estimate handed to a block (fraction of stroke).
+#: Only for blocks that take scalar settings: relative spacing of the log grid the per-loop stiction estimates
+#: are rounded to (one block per grid value, at most +-10 % off). And the smallest estimate handed to any
+#: block (fraction of stroke).
 ESTIMATE_GRID = 0.20
 ESTIMATE_MIN = 0.001
 
@@ -176,7 +177,11 @@ def _grid(x: np.ndarray) -> np.ndarray:
 
 
 def make_controller(spec: ControllerSpec, scenarios: Scenarios, load: Callable | None = None):
-    """The block of ``spec`` for the loops of ``scenarios`` (a :class:`ControllerBank` for per-loop S).
+    """The block of ``spec`` for the loops of ``scenarios``.
+
+    A compensator gets the per-loop estimate ``S = max(estimate * S_true, ESTIMATE_MIN)`` as an ``(n,)``
+    setting; a block that only takes scalar settings is served by a :class:`ControllerBank` instead, one
+    block per value of the estimate rounded to the :data:`ESTIMATE_GRID` log grid.
 
     Raises
     ------
