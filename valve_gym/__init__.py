@@ -2,11 +2,12 @@
 
 One batched physics core (:mod:`valve_gym.core`) with the valve model of
 Riihilahti / Yamé & El Bahir and optional physics blocks
-(:mod:`valve_gym.params`), the batched PI law (:mod:`valve_gym.control`),
-loop metrics (:mod:`valve_gym.metrics`), YAML configuration
+(:mod:`valve_gym.params`), friction models sized by stick band and slip jump
+(:mod:`valve_gym.friction`: none, Riihilahti, Choudhury, Kano, Karnopp), the
+plant stepper the benchmark and the envs share (:mod:`valve_gym.plant`), loop
+metrics (:mod:`valve_gym.metrics`), YAML configuration
 (:mod:`valve_gym.config`) and Gymnasium environments (:mod:`valve_gym.envs`),
-registered on import as ``valve_gym/ValveTank-v0`` and
-``valve_gym/ValveTankFixed-v0``.
+registered on import (:data:`ENV_IDS`). Less used names live in their modules.
 
 >>> import gymnasium as gym
 >>> import valve_gym
@@ -18,57 +19,22 @@ registered on import as ``valve_gym/ValveTank-v0`` and
 from __future__ import annotations
 
 from . import metrics
-from .config import (
-    ConfigError,
-    EnvConfig,
-    LoadSchedule,
-    PISettings,
-    RewardWeights,
-    SetpointSchedule,
-    ValveRandomisation,
-    config_to_dict,
-    load_config,
-    save_config,
-)
-from .control import PIParams, PIState, pi_init, pi_step
-from .core import Packed, State, Trajectory, check_dt, initial_state, pack, run_packed, simulate, steady_input, step
+from .config import ConfigError, EnvConfig, load_config
+from .core import initial_state, simulate, steady_input, step
 from .envs import ENV_IDS, ValveTankEnv, ValveTankVectorEnv, register_envs
-from .params import (
-    EFFECTS,
-    PROCESSES,
-    Actuator,
-    Cascade,
-    DeadTime,
-    FirstOrderParams,
-    IntegratingParams,
-    Leak,
-    ModelParams,
-    OscillatingDisturbance,
-    Overflow,
-    ParameterError,
-    SensorLag,
-    SlipJump,
-    TankParams,
-    ValveCharacteristic,
-    ValveParams,
-)
+from .friction import FRICTION_MODELS, friction_spec, valve_model
+from .params import ModelParams, ParameterError, SlipJump, TankParams, ValveParams
+from .plant import Plant, PlantOutput
 
 __version__ = "0.1.0"
 
 __all__ = [
-    # physics
-    "ModelParams", "ValveParams", "TankParams", "IntegratingParams", "FirstOrderParams",
-    "SlipJump", "ValveCharacteristic", "DeadTime", "Overflow", "Leak", "SensorLag",
-    "OscillatingDisturbance", "Cascade", "Actuator", "EFFECTS", "PROCESSES", "ParameterError",
-    "State", "Trajectory", "Packed", "pack", "initial_state", "steady_input", "step", "simulate",
-    "run_packed", "check_dt",
-    # control
-    "PIParams", "PIState", "pi_init", "pi_step",
-    # configuration
-    "EnvConfig", "ValveRandomisation", "SetpointSchedule", "LoadSchedule", "PISettings",
-    "RewardWeights", "ConfigError", "load_config", "config_to_dict", "save_config",
-    # environments
-    "ValveTankEnv", "ValveTankVectorEnv", "ENV_IDS", "register_envs",
+    # physics: parameters, the one batched core, friction models, the plant stepper
+    "ModelParams", "ValveParams", "TankParams", "SlipJump", "ParameterError",
+    "simulate", "step", "initial_state", "steady_input",
+    "FRICTION_MODELS", "friction_spec", "valve_model", "Plant", "PlantOutput",
+    # configuration and environments
+    "EnvConfig", "ConfigError", "load_config", "ValveTankEnv", "ValveTankVectorEnv", "ENV_IDS",
     # modules
     "metrics",
     "__version__",
