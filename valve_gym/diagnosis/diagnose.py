@@ -17,7 +17,7 @@ from typing import Callable, List, Optional, Sequence
 
 import numpy as np
 
-from .explain import explain_effect, explain_none, explain_stiction
+from .explain import explain_combined, explain_effect, explain_none, explain_stiction
 from .indices import horch_ccf
 from .fit import (AUTO_THOROUGH_SAMPLES, FitResult, fit_initial_state, fit_structure, fit_with_friction,
                   resolve_effort, rmse, transfer)
@@ -25,6 +25,7 @@ from .locate import MismatchReport, condition_masks, locate_mismatch
 from .model import ACTUATORS, CANDIDATE_EFFECTS, PLANTS, DataScales, ModelStructure, process_pool
 from .recording import Recording, RecordingError
 from .select import Selection, SelectionRule, select_effects
+from .stiction import assess_stiction
 
 __all__ = ["DiagnosisResult", "diagnose", "diagnose_many", "validate_on", "simulate_same_state",
            "JSON_SCHEMA_KEYS"]
@@ -233,12 +234,27 @@ def _friction_params(fit: FitResult) -> dict:
 
 
 def _fit_task(args):
-    st, u, y, seeds, seed, effort = args
-    return fit_structure(st, u, y, None, seeds=seeds, rng=seed, effort=effort)
+    st, u, y, seeds, seed, effort, coarse = args
+    return fit_structure(st, u, y, None, seeds=seeds, rng=seed, effort=effort, coarse=coarse)
+
+
+#: Records of at least this many samples are searched coarse-to-fine.
+COARSE_FROM_SAMPLES = 2400
+
+
+def coarse_factor(n_samples: int) -> int:
+    """Decimation of the coarse-to-fine search for a record of ``n_samples`` (1 = off).
+
+    ``n // 1200`` from :data:`COARSE_FROM_SAMPLES` samples on (3 for 3600
+    samples): the evolution then runs on about 1200 samples, the
+    warm-started refinement on all of them.  Shorter records are searched on
+    every sample, as before.
+    """
+    return max(1, n_samples // 1200) if n_samples >= COARSE_FROM_SAMPLES else 1
 
 
 def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, seed: int,
-                      effort: str, mm: MismatchReport, jobs: int = 1):
+                      effort: str, mm: MismatchReport, jobs: int = 1, coarse: int = 1):
     """Does the valve stick?  Friction models against frictionless ones, whole record.
 
     Friction (the paper's valve and the slip-jump valve, each with the final
@@ -259,7 +275,7 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
     if st.actuator != "valve":
         return ({"present": False, "tested": False,
                  "reason": "the actuator is a pump: there is no valve to stick",
-                 "model": None, "parameters": {}}, None, final)
+                 "model": None, "parameters": {}}, None, final, None)
     u, y = rec.op, rec.pv
     base_eff = tuple(e for e in st.effects if e != "slip_jump")
     st0 = st.with_effects(base_eff, friction=False)
@@ -282,7 +298,7 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
                 sz[0, stf.index(name)] = 0.0
         sf = np.vstack([sz, sf] + ([final.w[None, :]] if stf.effects == st.effects else []))
         tasks.append((stf, sf))
-    args = [(t[0], u, y, t[1], seed + 17 + i, effort) for i, t in enumerate(tasks)]
+    args = [(t[0], u, y, t[1], seed + 17 + i, effort, coarse) for i, t in enumerate(tasks)]
     if jobs > 1:
         with process_pool(jobs) as ex:
             fits = list(ex.map(_fit_task, args))
@@ -334,7 +350,27 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
     for f in fric:
         if f.structure.effects == st.effects and f.cost < final.cost:
             new_final = f
-    return verdict, best0, new_final
+    slip = next((f for f in fric if "slip_jump" in f.structure.effects), None)
+    return verdict, best0, new_final, slip
+
+
+def _combine_verdict(stiction: dict, rec: Recording, plant: str, slip: Optional[FitResult]) -> None:
+    """Add the combined assessment of the stiction methods to the friction verdict.
+
+    Adds ``probability`` and ``verdict`` (``'stiction'``, ``'no stiction'``,
+    ``'undecided'``) of the logistic combination, ``S``, ``J``, ``S_interval``,
+    ``J_interval`` (fractions of stroke, 90 %), ``sizes_agree``, ``sizes``,
+    ``evidence``, ``features`` and ``contributions``.  ``present`` stays the
+    model-based verdict (also under ``model_based_present``): held out, the
+    combination does not yet beat it (``docs/diagnosis.md``, section 4).
+    """
+    a = assess_stiction(rec.op, rec.pv, rec.dt, plant, sp=rec.sp, verdict=stiction, slip_fit=slip)
+    d = a.to_dict()
+    stiction["model_based_present"] = bool(stiction["present"])
+    for k in ("probability", "verdict", "S", "J", "S_interval", "J_interval", "sizes_agree", "sizes",
+              "evidence", "features", "contributions"):
+        stiction[k] = d[k]
+    stiction["explanation"] = (stiction.get("explanation", "") + " " + explain_combined(a)).strip()
 
 
 # --------------------------------------------------------------------------- main API
@@ -342,7 +378,7 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
              candidates: Optional[Sequence[str]] = None, holdout: float = 0.3,
              validate: Optional[Recording] = None, rule: SelectionRule = SelectionRule(),
              effort: str = "auto", seed: int = 0, jobs: int = 1, saturation="auto",
-             n_sub: int = 1,
+             n_sub: int = 1, coarse="auto",
              progress: Optional[Callable[[str], None]] = None) -> DiagnosisResult:
     """Diagnose one recording: base fit, mismatch location, missing physics, friction verdict.
 
@@ -379,6 +415,10 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
         a sample, 2 halves it at twice the cost).  The reported simulations use
         the smallest ``n_sub`` at least this large that passes
         :func:`valve_gym.core.check_dt`.
+    coarse : 'auto' or int
+        Decimation of the coarse-to-fine search (:func:`coarse_factor`:
+        ``'auto'`` is 3 for 3600 samples, 1 below 2400); 1 searches every
+        sample (the slower path of earlier versions).
     progress : callable(str), optional
 
     Returns
@@ -427,13 +467,19 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     say(f"{rec.name}: fitting the base model ({st.label()}, {st.k} parameters)")
     effort_asked, effort = effort, resolve_effort(effort, len(rec))
     plan = _EFFORT_PLAN[effort]
-    base_split, _ = fit_with_friction(st, rec.op, rec.pv, n_fit, rng=seed, effort=plan["base"])
+    if coarse == "auto":
+        q = coarse_factor(T)
+    elif isinstance(coarse, (int, np.integer)) and not isinstance(coarse, bool) and coarse >= 1:
+        q = int(coarse)
+    else:
+        raise ValueError(f"coarse must be 'auto' or a whole number >= 1, got {coarse!r}")
+    base_split, _ = fit_with_friction(st, rec.op, rec.pv, n_fit, rng=seed, effort=plan["base"], coarse=q)
     timing["base_fit"] = time.perf_counter() - t0
     # ---- selection
     t0 = time.perf_counter()
     sel = select_effects(base_split, rec.op, rec.pv, cands, rule=rule, seed=seed,
                          effort=plan["confirm"], screen_effort=plan["screen"],
-                         n_confirm=plan["n_confirm"], jobs=jobs,
+                         n_confirm=plan["n_confirm"], jobs=jobs, coarse=q,
                          progress=lambda s: say(f"{rec.name}: {s}"))
     timing["selection"] = time.perf_counter() - t0
     n_cand = max(len(sel.candidates), 1)
@@ -451,10 +497,11 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     timing["locate"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     say(f"{rec.name}: friction verdict")
-    stiction, fr0, final_v = _friction_verdict(final, rec, rule, seed, plan["verdict"], mm,
-                                               jobs=jobs)
-    if actuator == "valve":     # a model-free second opinion, not part of the verdict
+    stiction, fr0, final_v, slip = _friction_verdict(final, rec, rule, seed, plan["verdict"], mm,
+                                                     jobs=jobs, coarse=q)
+    if actuator == "valve":
         stiction["horch"] = horch_ccf(rec.op, rec.pv, rec.dt, plant)
+        _combine_verdict(stiction, rec, plant, slip)
     if final_v is not final:
         same = final is base
         final = final_v
@@ -503,7 +550,7 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     timing["total"] = time.perf_counter() - t_all
     settings = {"plant": plant, "actuator": actuator, "candidates": list(cands),
                 "holdout": float(holdout), "effort": effort, "effort_asked": effort_asked,
-                "seed": seed,
+                "seed": seed, "coarse_to_fine": q,
                 "rule": dict(rule.__dict__), "n_sub_search": st.n_sub,
                 "sensor_range": {"lo": sc.sat_lo, "hi": sc.sat_hi},
                 "valve_model": ("quasi-static: tau = dt/n_sub, v_max = inf"

@@ -266,3 +266,29 @@ def explain_stiction(present: bool, with_fr: FitResult, without: FitResult, d_ic
                 f"working range of {_pct(op_range or 0.0)}; at least {_pct(floor)}): fitted {fr}.")
     return (f"No significant valve friction: {alt} explains the record as well "
             f"(criterion {d_ic:+.1f}); fitted {fr}.")
+
+
+def explain_combined(a) -> str:
+    """One paragraph on the combined stiction verdict of a :class:`~.stiction.StictionAssessment`.
+
+    Names the probability, the two methods with the largest pull on it and the
+    stiction size with its 90 % interval (when the verdict is stiction).
+    """
+    words = {"stiction": "stiction", "no stiction": "no stiction", "undecided": "undecided"}
+    txt = (f"Second opinion, {len(a.evidence)} methods combined: {words[a.verdict]} "
+           f"(probability of stiction {a.probability:.2f}")
+    pulls = sorted(a.contributions.items(), key=lambda kv: -abs(kv[1]))[:2]
+    pulls = [(k, v) for k, v in pulls if abs(v) > 0.1]
+    if pulls:
+        txt += "; strongest: " + ", ".join(f"{k} {'for' if v > 0 else 'against'}" for k, v in pulls)
+    txt += ")."
+    if a.verdict == "stiction" and np.isfinite(a.S):
+        txt += (f" Fitted stiction band S = {_pct(a.S)} of the stroke "
+                f"(90 % interval {_pct(a.S_interval[0])} to {_pct(a.S_interval[1])}")
+        if a.sizes_agree is not None:
+            txt += "; the size methods " + ("agree" if a.sizes_agree else "disagree")
+        txt += ")"
+        if np.isfinite(a.J):
+            txt += f", slip jump J = {_pct(a.J)} ({_pct(a.J_interval[0])} to {_pct(a.J_interval[1])})"
+        txt += "."
+    return txt

@@ -423,7 +423,7 @@ def fit_structure(structure: ModelStructure, u, y, n_fit: Optional[int] = None, 
                   seeds=None, spread=None, free: Optional[Sequence[str]] = None,
                   w_fixed=None, rng=None, popsize: Optional[int] = None,
                   maxiter: Optional[int] = None, local: bool = True, effort: str = "normal",
-                  final_n_sub: bool = True) -> FitResult:
+                  final_n_sub: bool = True, coarse: int = 1) -> FitResult:
     """Fit ``structure`` to ``y`` (T,) driven by ``u`` (T,), free-run, on the first ``n_fit`` samples.
 
     Parameters
@@ -453,12 +453,25 @@ def fit_structure(structure: ModelStructure, u, y, n_fit: Optional[int] = None, 
     final_n_sub : bool
         Re-simulate the optimum with the smallest ``n_sub`` that passes the
         core's Euler stability check (:func:`valve_gym.core.check_dt`).
+    coarse : int
+        Coarse-to-fine search (``> 1``, all coordinates free): the evolution
+        first runs on every ``coarse``-th sample (controller sample
+        ``coarse * dt``, same parameter ranges), then a short evolution
+        warm-started from that optimum (a quarter of the generations) and the
+        local refinement run on the full record; with ``effort='fast'`` (the
+        screening fits) the coarse optimum is only re-simulated on the full
+        record.  About ``coarse`` times cheaper for long records; ignored
+        when fewer than 300 samples would remain.
 
     Returns
     -------
     FitResult
     """
     t0 = time.perf_counter()
+    if coarse > 1 and free is None and (len(y) if n_fit is None else int(n_fit)) // coarse >= 300:
+        return _coarse_to_fine(structure, u, y, n_fit, seeds=seeds, spread=spread, rng=rng,
+                               popsize=popsize, maxiter=maxiter, local=local, effort=effort,
+                               final_n_sub=final_n_sub, q=int(coarse))
     rng = np.random.default_rng(rng)
     u = np.asarray(u, float)
     y = np.asarray(y, float)
@@ -496,8 +509,42 @@ def fit_structure(structure: ModelStructure, u, y, n_fit: Optional[int] = None, 
     return res
 
 
+def _recode(src: ModelStructure, dst: ModelStructure, W) -> np.ndarray:
+    """Unit coordinates ``W`` (m, k) of ``src`` as coordinates of ``dst`` (same internal values)."""
+    vals = src.decode(W)
+    rows = [dst.encode({k: float(v[i]) for k, v in vals.items()}) for i in range(len(W))]
+    return np.vstack(rows)
+
+
+def _coarse_to_fine(structure: ModelStructure, u, y, n_fit, *, seeds, spread, rng, popsize, maxiter,
+                    local, effort, final_n_sub, q: int) -> FitResult:
+    """Evolution on every ``q``-th sample, then a short warm-started search on all samples."""
+    t0 = time.perf_counter()
+    rng = np.random.default_rng(rng)
+    u = np.asarray(u, float)
+    y = np.asarray(y, float)
+    n_fit = len(y) if n_fit is None else int(n_fit)
+    sc = structure.scales
+    st_c = structure.with_effects(structure.effects, scales=replace(sc, dt=sc.dt * q, n=max(sc.n // q, 1)))
+    seeds_c = None if seeds is None else _recode(structure, st_c, np.atleast_2d(seeds))
+    rc = fit_structure(st_c, u[::q], y[::q], -(-n_fit // q), seeds=seeds_c, spread=spread, rng=rng,
+                       popsize=popsize, maxiter=maxiter, local=False, effort=effort, final_n_sub=False)
+    w_c = _recode(st_c, structure, rc.w[None, :])
+    if resolve_effort(effort, len(u)) == "fast":         # a screening fit: the coarse optimum as it is
+        res = fit_structure(structure, u, y, n_fit, seeds=w_c, w_fixed=w_c[0], free=[], final_n_sub=final_n_sub)
+        return replace(res, n_evals=res.n_evals + rc.n_evals, seconds=time.perf_counter() - t0)
+    seeds_f = w_c if seeds is None else np.vstack([w_c, np.atleast_2d(seeds)])
+    kf = len(structure.params)
+    gens = maxiter or int(round(_EFFORT[resolve_effort(effort, len(u))][1] * (40 + 15 * kf)))
+    spread_f = np.full(kf, 0.05)
+    res = fit_structure(structure, u, y, n_fit, seeds=seeds_f, spread=spread_f, rng=rng, popsize=popsize,
+                        maxiter=max(4, gens // 4), local=local, effort=effort, final_n_sub=final_n_sub)
+    return replace(res, n_evals=res.n_evals + rc.n_evals, seconds=time.perf_counter() - t0)
+
+
 def fit_with_friction(structure: ModelStructure, u, y, n_fit=None, *, seeds=None, rng=None,
-                      effort: str = "normal", frictionless: Optional["FitResult"] = None):
+                      effort: str = "normal", frictionless: Optional["FitResult"] = None,
+                      coarse: int = 1):
     """Fit a valve model and its frictionless twin so that the friction fit is nested.
 
     The frictionless model (``z_max = e_dead = 0``, no slip-jump) is fitted
@@ -512,21 +559,21 @@ def fit_with_friction(structure: ModelStructure, u, y, n_fit=None, *, seeds=None
     """
     rng = np.random.default_rng(rng)
     if structure.actuator != "valve" or not structure.friction:
-        return fit_structure(structure, u, y, n_fit, seeds=seeds, rng=rng, effort=effort), None
+        return fit_structure(structure, u, y, n_fit, seeds=seeds, rng=rng, effort=effort, coarse=coarse), None
     st0 = structure.with_effects(tuple(e for e in structure.effects if e != "slip_jump"),
                                  friction=False)
     if frictionless is None:
         s0 = None
         if seeds is not None:
             s0 = np.vstack([transfer(_pseudo(structure, w), st0)[0] for w in np.atleast_2d(seeds)])
-        frictionless = fit_structure(st0, u, y, n_fit, seeds=s0, rng=rng, effort=effort)
+        frictionless = fit_structure(st0, u, y, n_fit, seeds=s0, rng=rng, effort=effort, coarse=coarse)
     s1, _ = transfer(frictionless, structure)
     for name in ("e_dead", "z_max", "S"):
         if name in structure.names:
             s1[0, structure.index(name)] = 0.0
     if seeds is not None:
         s1 = np.vstack([s1, np.atleast_2d(seeds)])
-    fr = fit_structure(structure, u, y, n_fit, seeds=s1, rng=rng, effort=effort)
+    fr = fit_structure(structure, u, y, n_fit, seeds=s1, rng=rng, effort=effort, coarse=coarse)
     return fr, frictionless
 
 

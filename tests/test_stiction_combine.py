@@ -1,0 +1,62 @@
+"""The logistic combination, the size combination and the textbook loop simulator."""
+import numpy as np
+import pytest
+
+from valve_gym.diagnosis.stiction import FEATURES, LogisticModel, fit_logistic
+from valve_gym.diagnosis.stiction.combine import combine_sizes, verdict_of
+from valve_gym.diagnosis.stiction.hammerstein import SizeEstimate
+from valve_gym.diagnosis.stiction.loops import LoopSpec, _TwoParam, simulate_loop
+
+
+def test_logistic_separates_and_is_calibrated_on_balanced_noise():
+    rng = np.random.default_rng(0)
+    n = 400
+    y = (rng.random(n) < 0.3).astype(float)
+    X = rng.normal(size=(n, len(FEATURES)))
+    X[:, 0] += 2.0 * y                                     # one informative feature
+    m = fit_logistic(X, y)
+    p = m.probability(X)
+    assert p[y == 1].mean() > 0.7 and p[y == 0].mean() < 0.3
+    assert abs(m.coef[0]) > 3 * max(abs(c) for c in m.coef[1:])
+    assert LogisticModel.from_dict(m.to_dict()) == m
+    with pytest.raises(ValueError, match="both classes"):
+        fit_logistic(X, np.zeros(n))
+    with pytest.raises(ValueError, match="do not match"):
+        LogisticModel.from_dict({**m.to_dict(), "names": ["a"]})
+
+
+def test_verdict_bands():
+    assert verdict_of(0.9) == "stiction" and verdict_of(0.1) == "no stiction"
+    assert verdict_of(0.55) == "undecided"
+
+
+def test_combine_sizes_primary_method_and_agreement():
+    fit = SizeEstimate("hammerstein", 0.035, 0.03, 0.045, 0.01, 0.005, 0.015)
+    ell = SizeEstimate("ellipse", 0.03, 0.02, 0.04, np.nan, np.nan, np.nan)
+    s, agree = combine_sizes([fit, ell])
+    assert agree is True and (s.S, s.S_lo, s.S_hi, s.J) == (0.035, 0.03, 0.045, 0.01)
+    far = SizeEstimate("ellipse", 0.08, 0.07, 0.09, np.nan, np.nan, np.nan)
+    assert combine_sizes([fit, far])[1] is False
+    assert combine_sizes([ell])[1] is None
+    assert np.isnan(combine_sizes([])[0].S)
+
+
+def test_choudhury_valve_sticks_for_S_then_jumps_J():
+    v = _TwoParam(S=0.04, J=0.01, kano=False, u0=0.5)
+    up = [v.step(u) for u in np.linspace(0.5, 0.6, 101)]      # first motion: needs S, then moves
+    assert up[30] == 0.5 and up[-1] == pytest.approx(0.6 - 0.015)
+    down = [v.step(u) for u in np.linspace(0.6, 0.55, 51)]    # reversal: stuck for S ...
+    assert down[35] == up[-1]
+    moved = np.nonzero(np.diff(down))[0]
+    jump = down[moved[0] + 1] - down[moved[0]]
+    assert jump == pytest.approx(-0.01, abs=1.5e-3)            # ... then slips by J
+
+
+def test_integrating_loop_limit_cycle_matches_textbook_amplitudes():
+    # DOMAIN: integrating loop with a sticky valve cycles with OP p-p ~ S, PV amplitude ~ S/(2 Kc)
+    spec = LoopSpec(process="integrating", valve="choudhury", S=0.04, J=0.01, k_i=0.1, Kc=2.0, Ti=20.0,
+                    Ts=0.1, theta=0.0, noise=0.0, tau_v=0.01, n=20000, sp_step=0.05)
+    rec = simulate_loop(spec, seed=0)
+    half = rec.op[len(rec.op) // 2:]
+    assert np.ptp(half) == pytest.approx(0.04, rel=0.15)
+    assert 0.5 * np.ptp(rec.pv[len(rec.pv) // 2:]) == pytest.approx(0.04 / (2 * 2.0), rel=0.15)

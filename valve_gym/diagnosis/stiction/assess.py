@@ -1,0 +1,86 @@
+"""One call for the combined stiction assessment of a record.
+
+:func:`assess_stiction` runs the model-free methods on OP and PV, takes the
+model-based evidence of a friction fit when one is given (the diagnosis
+passes its friction verdict and slip-jump fit), combines them with the
+fitted logistic model of :mod:`.combine` and estimates S and J with the two
+size methods (ellipse, fitted slip-jump block).
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from ..fit import FitResult
+from ._base import check_signals
+from .bicoherence import bicoherence_evidence
+from .combine import FEATURES, LogisticModel, StictionAssessment, combine_sizes, features, verdict_of
+from .ellipse import ellipse_evidence
+from .episodes import episodes_evidence
+from .hammerstein import NAN_SIZE, SizeEstimate, hammerstein_evidence, slip_jump_profile
+from .horch import horch_evidence
+from .waveform import waveform_evidence
+
+__all__ = ["assess_stiction", "default_model", "model_free_evidence"]
+
+
+def default_model() -> LogisticModel:
+    """The shipped logistic model (fitted by ``benchmarks/validate_stiction.py --write-model``)."""
+    from ._weights import MODEL
+    return LogisticModel.from_dict(MODEL)
+
+
+def model_free_evidence(op, pv, dt: float, plant: str, sp=None) -> list:
+    """Evidence of the model-free methods (Horch, bicoherence, ellipse, waveform, stick episodes)."""
+    op, pv = check_signals(op, pv, dt)
+    return [horch_evidence(op, pv, dt, plant), bicoherence_evidence(op, pv, dt, sp),
+            ellipse_evidence(op, pv, dt), waveform_evidence(op, pv, dt, plant),
+            episodes_evidence(op, pv, dt, plant, sp)]
+
+
+def _ellipse_size(ev) -> SizeEstimate:
+    e = next((x for x in ev if x.method == "ellipse"), None)
+    if e is None or not e.applicable:
+        return NAN_SIZE
+    d = e.details
+    nan = float("nan")
+    return SizeEstimate("ellipse", d["S_app"], d["S_lo"], d["S_hi"], nan, nan, nan)
+
+
+def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None,
+                    verdict: Mapping | None = None, slip_fit: FitResult | None = None,
+                    model: LogisticModel | None = None) -> StictionAssessment:
+    """Combined stiction probability, verdict and size of one record.
+
+    Parameters
+    ----------
+    op : (T,) controller output, fraction of stroke (0..1)
+    pv : (T,) process variable (any units)
+    dt : float, sample time [s]
+    plant : str, ``'integrating'`` for levels without self-regulation, else self-regulating
+    sp : (T,) set point, optional
+    verdict : mapping, optional, the model-based friction verdict of
+        :func:`valve_gym.diagnosis.diagnose` (``delta_ic``, ``band``, ``band_needed``, ...)
+    slip_fit : FitResult, optional, fitted slip-jump model (for S, J with intervals)
+    model : LogisticModel, optional (default :func:`default_model`)
+
+    Returns
+    -------
+    StictionAssessment
+    """
+    op, pv = check_signals(op, pv, dt)
+    ev = model_free_evidence(op, pv, dt, plant, sp)
+    slip = slip_jump_profile(slip_fit, op, pv) if slip_fit is not None else NAN_SIZE
+    if verdict is not None:
+        ev.append(hammerstein_evidence(verdict, slip.S))
+    model = model or default_model()
+    x = features(ev, plant)
+    p = float(model.probability(x)[0])
+    z = (x - np.asarray(model.mean)) / np.asarray(model.scale) * np.asarray(model.coef)
+    sizes = [s for s in (slip, _ellipse_size(ev)) if np.isfinite(s.S)]
+    size, agree = combine_sizes(sizes)
+    return StictionAssessment(p, verdict_of(p), size.S, size.J, (size.S_lo, size.S_hi),
+                              (size.J_lo, size.J_hi), agree, sizes, ev,
+                              dict(zip(FEATURES, map(float, x))),
+                              dict(zip(FEATURES, map(float, z))))

@@ -1,0 +1,229 @@
+r"""Combine the methods' evidence into one calibrated stiction probability and a stiction size.
+
+Each :class:`~._base.Evidence` becomes one or two features, weighted by the
+method's own reliability on the record (a method that does not apply
+contributes 0, the neutral value).  A logistic model maps the features to the
+probability that the valve sticks; its weights are fitted by
+``benchmarks/validate_stiction.py`` (L2-penalised, class-balanced maximum
+likelihood on simulated loops with known friction and the labelled plant
+loops; the same script measures it held out) and stored in
+:mod:`._weights`.
+
+Notes
+-----
+.. math:: p = \sigma\Big(b + \sum_i w_i \frac{f_i - \mu_i}{s_i}\Big), \qquad
+          \sigma(z) = 1/(1 + e^{-z})
+
+Fitted by Newton's method (iteratively reweighted least squares) on
+``-sum_k c_k [y_k ln p_k + (1-y_k) ln(1-p_k)] + lambda/2 |w|^2`` with class
+weights ``c_k`` that give both classes the same total weight.  Verdict:
+``'stiction'`` for ``p >= 0.5 + margin``, ``'no stiction'`` for
+``p <= 0.5 - margin``, ``'undecided'`` between (``margin = 0.1``).
+"""
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._base import Evidence
+from .hammerstein import NAN_SIZE, SizeEstimate
+
+__all__ = ["FEATURES", "features", "LogisticModel", "fit_logistic", "StictionAssessment",
+           "combine_sizes", "MARGIN"]
+
+#: Names of the features, in the order of :func:`features`.
+FEATURES = ("horch_ccf", "horch_int", "bicoherence", "ellipse", "waveform", "episodes", "hammerstein",
+            "hammerstein_band")
+#: Half-width of the undecided band around p = 0.5.
+MARGIN = 0.1
+
+
+def features(evidence: Sequence[Evidence], plant: str) -> np.ndarray:
+    """Feature vector ``(len(FEATURES),)`` of one record's evidence (neutral value 0)."""
+    ev = {e.method: e for e in evidence}
+    f = dict.fromkeys(FEATURES, 0.0)
+
+    def use(name):
+        e = ev.get(name)
+        return e if (e is not None and e.applicable and np.isfinite(e.value)) else None
+
+    h = use("horch")
+    if h is not None:
+        key, centre = ("horch_int", 0.7) if plant == "integrating" else ("horch_ccf", 0.5)
+        f[key] = h.reliability * (h.value - centre)
+    b = use("bicoherence")
+    if b is not None:
+        f["bicoherence"] = b.reliability * float(np.clip(b.value, 0.0, 0.5))
+    for name in ("ellipse", "waveform"):
+        e = use(name)
+        if e is not None:
+            f[name] = e.reliability * (e.value - 0.5)
+    m = use("hammerstein")
+    if m is not None:
+        f["hammerstein"] = float(np.clip(m.value, -3.0, 5.0))
+        f["hammerstein_band"] = float(np.clip(m.details.get("log_band_ratio", 0.0), -2.0, 1.0))
+    ep = use("episodes")
+    if ep is not None:
+        f["episodes"] = ep.value - 0.3
+    return np.array([f[k] for k in FEATURES])
+
+
+@dataclass(frozen=True)
+class LogisticModel:
+    """A fitted logistic model over :data:`FEATURES`.
+
+    Attributes
+    ----------
+    names : tuple of str, feature names
+    mean, scale : tuple of float, standardisation of each feature
+    coef : tuple of float, weight of each standardised feature
+    intercept : float
+    l2 : float, penalty it was fitted with
+    n_train : int, records it was fitted on
+    """
+
+    names: tuple[str, ...]
+    mean: tuple[float, ...]
+    scale: tuple[float, ...]
+    coef: tuple[float, ...]
+    intercept: float
+    l2: float = 1.0
+    n_train: int = 0
+
+    def decision(self, X) -> np.ndarray:
+        """Log-odds of stiction, ``(n,)`` for features ``X`` (n, len(names))."""
+        X = np.atleast_2d(np.asarray(X, float))
+        Z = (X - np.asarray(self.mean)) / np.asarray(self.scale)
+        return Z @ np.asarray(self.coef) + self.intercept
+
+    def probability(self, X) -> np.ndarray:
+        """Probability of stiction, ``(n,)``."""
+        return 1.0 / (1.0 + np.exp(-np.clip(self.decision(X), -40, 40)))
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict."""
+        return {"names": list(self.names), "mean": list(self.mean), "scale": list(self.scale),
+                "coef": list(self.coef), "intercept": self.intercept, "l2": self.l2,
+                "n_train": self.n_train}
+
+    @staticmethod
+    def from_dict(d: dict) -> LogisticModel:
+        """Inverse of :meth:`to_dict`; checks the feature names."""
+        if tuple(d["names"]) != FEATURES:
+            raise ValueError(f"stiction model features {d['names']} do not match {list(FEATURES)}; "
+                             "refit with benchmarks/validate_stiction.py --write-model")
+        return LogisticModel(tuple(d["names"]), tuple(d["mean"]), tuple(d["scale"]), tuple(d["coef"]),
+                             float(d["intercept"]), float(d.get("l2", 1.0)), int(d.get("n_train", 0)))
+
+
+def fit_logistic(X, y, l2: float = 1.0, iters: int = 50, weights=None) -> LogisticModel:
+    """Class-balanced, L2-penalised logistic regression by Newton's method (see module notes).
+
+    Parameters
+    ----------
+    X : (n, len(FEATURES)) features
+    y : (n,) 0/1 labels (1 = stiction); both classes must occur
+    l2 : float, penalty on the standardised weights (not on the intercept)
+    iters : int, Newton steps at most
+    weights : (n,) array, optional, weight of each record (e.g. 1/records per loop tag)
+    """
+    X = np.asarray(X, float)
+    y = np.asarray(y, float)
+    if X.ndim != 2 or X.shape[1] != len(FEATURES) or len(y) != len(X):
+        raise ValueError(f"X must be (n, {len(FEATURES)}) and y (n,), got {X.shape} and {y.shape}")
+    sw = np.ones(len(y)) if weights is None else np.asarray(weights, float)
+    n1, n0 = np.sum(sw * y), np.sum(sw * (1 - y))
+    if n1 == 0 or n0 == 0:
+        raise ValueError("fit_logistic needs records of both classes (stiction and not)")
+    mu = np.average(X, axis=0, weights=sw)
+    sd = np.sqrt(np.average((X - mu) ** 2, axis=0, weights=sw))
+    sd = np.where(sd > 1e-9, sd, 1.0)
+    Z = np.column_stack([(X - mu) / sd, np.ones(len(X))])
+    c = sw * np.where(y == 1, 0.5 * sw.sum() / n1, 0.5 * sw.sum() / n0)
+    beta = np.zeros(Z.shape[1])
+    pen = np.full(Z.shape[1], l2)
+    pen[-1] = 0.0
+    for _ in range(iters):
+        p = 1 / (1 + np.exp(-np.clip(Z @ beta, -40, 40)))
+        g = Z.T @ (c * (p - y)) + pen * beta
+        H = (Z * (c * p * (1 - p))[:, None]).T @ Z + np.diag(pen + 1e-9)
+        step = np.linalg.solve(H, g)
+        beta -= step
+        if np.max(np.abs(step)) < 1e-8:
+            break
+    return LogisticModel(FEATURES, tuple(map(float, mu)), tuple(map(float, sd)),
+                         tuple(map(float, beta[:-1])), float(beta[-1]), float(l2), int(len(y)))
+
+
+def verdict_of(p: float, margin: float = MARGIN) -> str:
+    """``'stiction'``, ``'no stiction'`` or ``'undecided'`` for probability ``p``."""
+    if p >= 0.5 + margin:
+        return "stiction"
+    if p <= 0.5 - margin:
+        return "no stiction"
+    return "undecided"
+
+
+def combine_sizes(sizes: Sequence[SizeEstimate]) -> tuple[SizeEstimate, bool | None]:
+    """One S, J estimate from several methods, and whether their S intervals overlap.
+
+    The first method with a finite S is the primary one (the fitted friction block: it
+    estimates S itself; the ellipse's apparent stiction is a loop-dependent proxy of it):
+    its S, J and intervals are reported.  The others check it: ``agree`` is True when
+    every S interval overlaps the primary one, False when one does not (then trust
+    neither alone), None with a single method.
+    """
+    ok = [s for s in sizes if np.isfinite(s.S)]
+    if not ok:
+        return NAN_SIZE, None
+    main = ok[0]
+    if len(ok) == 1:
+        return main, None
+    agree = all(s.S_lo <= main.S_hi and main.S_lo <= s.S_hi for s in ok[1:])
+    return main._replace(method="+".join(s.method for s in ok)), bool(agree)
+
+
+@dataclass(frozen=True)
+class StictionAssessment:
+    """The combined stiction verdict of one record.
+
+    Attributes
+    ----------
+    probability : float, 0..1, calibrated probability that the valve sticks
+    verdict : str, ``'stiction'``, ``'no stiction'`` or ``'undecided'``
+    S, J : float, stiction band and slip jump, fractions of stroke (nan if unknown)
+    S_interval, J_interval : (float, float), 90 % intervals, fractions of stroke
+    sizes_agree : bool or None, whether the methods' S intervals overlap (None: one method)
+    sizes : list of SizeEstimate, each method's own estimate
+    evidence : list of Evidence, each method's reading
+    features : dict of str to float, the model's inputs
+    contributions : dict of str to float, each feature's share of the log-odds
+    """
+
+    probability: float
+    verdict: str
+    S: float
+    J: float
+    S_interval: tuple[float, float]
+    J_interval: tuple[float, float]
+    sizes_agree: bool | None
+    sizes: list[SizeEstimate] = field(default_factory=list)
+    evidence: list[Evidence] = field(default_factory=list)
+    features: dict[str, float] = field(default_factory=dict)
+    contributions: dict[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict (nan becomes None)."""
+        def f(x):
+            x = float(x)
+            return x if np.isfinite(x) else None
+        return {"probability": f(self.probability), "verdict": self.verdict, "S": f(self.S),
+                "J": f(self.J), "S_interval": [f(v) for v in self.S_interval],
+                "J_interval": [f(v) for v in self.J_interval], "sizes_agree": self.sizes_agree,
+                "sizes": [{k: (f(v) if k != "method" else v) for k, v in s._asdict().items()}
+                          for s in self.sizes],
+                "evidence": [e.to_dict() for e in self.evidence],
+                "features": {k: f(v) for k, v in self.features.items()},
+                "contributions": {k: f(v) for k, v in self.contributions.items()}}
