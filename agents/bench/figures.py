@@ -83,11 +83,14 @@ def _bands(res: BenchmarkResult, path: Path) -> Path:
             ax.bar(x + k * w, v, w, yerr=[lo, hi], capsize=2, label=lab, color=colours(k % 20))
     axes[0].set_ylabel("share of loops with a limit cycle")
     axes[1].set_ylabel("median compensation ratio R")
-    axes[1].set_ylim(-2.0, 1.2)
+    r_max = max((e.hi for (_, _, m), e in rows.items() if m == "R" and np.isfinite(e.hi)), default=1.0)
+    axes[1].set_ylim(-2.0, min(3.0, max(1.2, r_max + 0.1)))
     for ax in axes:
         ax.set_xticks(x + 0.4 - w / 2, BAND_NAMES)
     axes[1].axhline(0.0, color="k", lw=0.5)
-    axes[1].legend(fontsize=7, ncol=2)
+    axes[1].axhline(1.0, color="k", lw=0.5, ls=":")
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="lower center", ncol=6, fontsize=7,
+               bbox_to_anchor=(0.5, -0.08))
     fig.suptitle("Regulation: limit cycles and compensation by stiction band (95 % bootstrap CIs)", fontsize=10)
     out = _save(fig, path)
     plt.close(fig)
