@@ -331,7 +331,7 @@ class ESState:
         st = cls(theta=t["theta"], m=t["adam_m"], v=t["adam_v"], best_theta=t["best_theta"],
                  obs_mean=t["obs_mean"], obs_std=t["obs_std"], gen=int(j["gen"]), env_steps=int(j["env_steps"]),
                  best_score=-math.inf if bs is None else float(bs), wall_s=float(j["wall_s"]),
-                 rng_state=j["rng_state"], curve=list(j["curve"]), finished=bool(j["finished"]))
+                 rng_state=dict(j["rng_state"]), curve=list(j["curve"]), finished=bool(j["finished"]))
         return st, j
 
 
@@ -350,7 +350,7 @@ def init_state(cfg: LearnedTrainConfig, seed: int) -> ESState:
     seeds = [int(s) for s in np.random.default_rng([seed, 2]).integers(0, 2**31, 16)]
     sc = rollout_scores([None], _train_task(cfg), seeds)
     std = np.maximum(sc.obs_std, 0.25)
-    rng_state = np.random.default_rng([seed, 3]).bit_generator.state
+    rng_state = dict(np.random.default_rng([seed, 3]).bit_generator.state)
     return ESState(theta=theta, m=np.zeros_like(theta), v=np.zeros_like(theta), best_theta=theta.copy(),
                    obs_mean=sc.obs_mean, obs_std=std, rng_state=rng_state)
 

@@ -14,7 +14,8 @@ position (``info['stem']``, the valve position MV) with
 """
 from __future__ import annotations
 
-from typing import Dict, Mapping, NamedTuple, Optional, Sequence, Union
+from collections.abc import Mapping, Sequence
+from typing import NamedTuple
 
 import numpy as np
 
@@ -51,16 +52,17 @@ class Rollout(NamedTuple):
     stem: np.ndarray
     load: np.ndarray
     reward: np.ndarray
-    u_pi: Optional[np.ndarray]
-    valves: Dict[str, np.ndarray]
+    u_pi: np.ndarray | None
+    valves: dict[str, np.ndarray]
     dt: float
 
     @property
     def n(self) -> int:
+        """Number of loops."""
         return self.level.shape[1]
 
 
-def env_config_for(controller, env_config: Union[EnvConfig, Mapping, str, None] = None) -> EnvConfig:
+def env_config_for(controller, env_config: EnvConfig | Mapping | str | None = None) -> EnvConfig:
     """The environment configuration a controller is evaluated in.
 
     ``env_config`` (the scenario: tank, set points, load, noise) with the
@@ -88,7 +90,7 @@ def make_eval_env(controller, n: int, env_config=None):
     return ValveTankVectorEnv(num_envs=n, config=cfg, autoreset_mode="disabled")
 
 
-def _valve_options(valves: Optional[Mapping[str, Sequence[float]]], n: int) -> Optional[dict]:
+def _valve_options(valves: Mapping[str, Sequence[float]] | None, n: int) -> dict | None:
     if valves is None:
         return None
     opts = {}
@@ -102,8 +104,8 @@ def _valve_options(valves: Optional[Mapping[str, Sequence[float]]], n: int) -> O
     return opts
 
 
-def rollout(controller, env, seeds: Union[int, Sequence[int], None] = 0,
-            valves: Optional[Mapping[str, Sequence[float]]] = None, deterministic: bool = True,
+def rollout(controller, env, seeds: int | Sequence[int] | None = 0,
+            valves: Mapping[str, Sequence[float]] | None = None, deterministic: bool = True,
             progress=None) -> Rollout:
     """Run one episode of ``controller`` on every sub-environment of ``env``.
 
@@ -178,7 +180,7 @@ def episode_metrics(ro: Rollout, deadband: float = 0.0, span: float = 1.0):
     for i in range(ro.n):
         m = loop_metrics(ro.dt, ro.setpoint[:, i], ro.level[:, i], ro.u[:, i], mv=ro.stem[:, i],
                          span=span, deadband=deadband)
-        row = {"valve": i}
+        row: dict = {"valve": i}
         row.update({k: float(v[i]) for k, v in ro.valves.items()})
         row.update(m)
         row["return"] = float(ro.reward[:, i].sum())
@@ -186,8 +188,8 @@ def episode_metrics(ro: Rollout, deadband: float = 0.0, span: float = 1.0):
     return pd.DataFrame(rows)
 
 
-def evaluate(controller, valves: Optional[Mapping[str, Sequence[float]]] = None, n: Optional[int] = None,
-             env_config=None, seed: Union[int, Sequence[int]] = 0, deterministic: bool = True,
+def evaluate(controller, valves: Mapping[str, Sequence[float]] | None = None, n: int | None = None,
+             env_config=None, seed: int | Sequence[int] = 0, deterministic: bool = True,
              deadband: float = 0.0, progress=None, return_rollout: bool = False):
     """Evaluate ``controller`` on a batch of valves; per-valve metrics.
 

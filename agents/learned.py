@@ -134,7 +134,7 @@ class LearnedBlock:
     def reset(self, sp, pv, op) -> None:
         """Bumpless start from the current output ``op`` (fraction of stroke); ``sp``, ``pv`` in m."""
         sp_a, pv_a, op_a = (np.asarray(v, dtype=float) for v in (sp, pv, op))
-        shape = np.broadcast_shapes(sp_a.shape, pv_a.shape, op_a.shape)
+        shape = tuple(np.broadcast_shapes(sp_a.shape, pv_a.shape, op_a.shape))
         if len(shape) > 1:
             raise ValueError(f"sp, pv and op must be scalars or (n,) arrays, got shape {shape}")
         for nm, v in (("sp", sp_a), ("pv", pv_a), ("op", op_a)):
@@ -143,7 +143,7 @@ class LearnedBlock:
         if np.any((op_a < 0) | (op_a > 1)):
             raise ValueError(f"op must be the valve input as a fraction 0..1, got {op!r}")
         self._scalar = shape == ()
-        n = 1 if self._scalar else shape[0]
+        n = 1 if self._scalar else int(np.prod(shape))
         self._law = BlockLaw(self.block_settings, n)
         self._law.reset(np.broadcast_to(sp_a, (n,)), np.broadcast_to(pv_a, (n,)), np.broadcast_to(op_a, (n,)))
 

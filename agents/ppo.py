@@ -136,12 +136,14 @@ class ObsTransform:
         return self.step(hist, obs)[0]
 
     def to_dict(self) -> dict:
+        """JSON-able settings (inverse of :meth:`from_dict`)."""
         d = asdict(self)
         d["offset"], d["scale"] = list(self.offset), list(self.scale)
         return d
 
     @classmethod
     def from_dict(cls, d: dict | None) -> ObsTransform:
+        """The transform of :meth:`to_dict` settings (the default transform for ``None``)."""
         return cls(**(d or {}))
 
 
@@ -179,6 +181,7 @@ class TransformVecEnv(_vec_env_wrapper_base()):
         """Step the wrapped env; transforms the observations (and terminal ones)."""
         obs, rew, done, infos = self.venv.step_wait()
         done = np.asarray(done, dtype=bool)
+        assert self._hist is not None, "reset() before step()"
         if done.any():
             for i in np.flatnonzero(done):
                 term = infos[i].get("terminal_observation")

@@ -415,7 +415,7 @@ def make_model(cfg: TrainConfig, env, seed: int, tb_dir: str | None = None):
                device="cpu", verbose=0)
 
 
-def policy_meta(cfg: TrainConfig, model, command: str, seed: int, wall_s: float = None) -> dict:
+def policy_meta(cfg: TrainConfig, model, command: str, seed: int, wall_s: float | None = None) -> dict:
     """Metadata stored in the JSON of every policy file of a run."""
     import stable_baselines3
 
@@ -451,9 +451,13 @@ def heldout_valves(cfg: TrainConfig):
 
 
 def _score(ctrl, cfg: TrainConfig, valves, seeds):
+    import pandas as pd
+
     from .evaluate import evaluate
 
-    return evaluate(ctrl, valves=valves, n=len(seeds), env_config=cfg.env, seed=seeds)
+    df = evaluate(ctrl, valves=valves, n=len(seeds), env_config=cfg.env, seed=seeds)
+    assert isinstance(df, pd.DataFrame)
+    return df
 
 
 def _compare(df, ref):
@@ -499,7 +503,7 @@ def save_ppo_checkpoint(model, venv, path, meta: dict, finished: bool = False) -
         for k, v in st.items():
             t[f"optim/{pid}/{k}"] = v.detach().cpu().numpy() if torch.is_tensor(v) else np.asarray(v)
     t["rng/torch"] = torch.get_rng_state().numpy()
-    nps = np.random.get_state()
+    nps: tuple = tuple(np.random.get_state(legacy=True))
     t["rng/numpy_keys"] = np.asarray(nps[1], dtype=np.uint32)
     pys = random.getstate()
     t["rng/python"] = np.asarray(pys[1], dtype=np.uint64)
@@ -623,10 +627,10 @@ def _validate_callback(cfg: TrainConfig, out: Path, command: str, seed: int):
         def run(self):
             self.last = self.model.num_timesteps
             df = _score(_controller(cfg, self.model), cfg, self.valves, self.seeds)
-            ret = float(df["return"].mean())
+            ret = float(df["return"].to_numpy().mean())
             self.history.append({"timesteps": int(self.model.num_timesteps), "mean_return": ret,
-                                 "median_iae": float(df["iae"].median()),
-                                 "median_valve_travel": float(df["valve_travel"].median())})
+                                 "median_iae": float(np.median(df["iae"].to_numpy())),
+                                 "median_valve_travel": float(np.median(df["valve_travel"].to_numpy()))})
             self.logger.record("eval/mean_return", ret)
             if ret > self.best:
                 self.best = ret
@@ -745,7 +749,7 @@ def _final_eval(cfg: TrainConfig, out: Path, model) -> dict:
     from .pi import PIController
     from .ppo import load_policy
 
-    sets = {"validation": validation_valves(cfg)}
+    sets: dict = {"validation": validation_valves(cfg)}
     if cfg.eval.heldout_n > 0:
         sets["heldout"] = heldout_valves(cfg)
     ctrls = {"pi": PIController(Ts=cfg.env.control_period), "final": _controller(cfg, model, "final"),

@@ -23,10 +23,10 @@ Examples
 ...                    "action_mode": "residual"})
 >>> cfg.model.valve.tau, cfg.model.sensor_lag.tau_s, cfg.substeps
 (0.2, 3.0, 50)
->>> load_config({"model": {"valve": {"tua": 0.2}}})
+>>> load_config({"model": {"valve": {"tua": 0.2}}})  # doctest: +ELLIPSIS
 Traceback (most recent call last):
 ...
-valve_gym.config.ConfigError: unknown key 'model.valve.tua' (did you mean 'tau'?); the keys of 'model.valve' are: tau, v_max, e_dead, z_max
+valve_gym.config.ConfigError: unknown key 'model.valve.tua' (did you mean 'tau'?); the keys of 'model.valve' ...
 """
 from __future__ import annotations
 
@@ -36,9 +36,10 @@ import os
 import re
 import types
 import typing
+from collections.abc import Mapping
 from dataclasses import dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
-from typing import Any, Mapping, Tuple, Union
+from typing import Any, TypeVar, Union
 
 import numpy as np
 
@@ -51,7 +52,7 @@ __all__ = [
     "save_config",
 ]
 
-Range = Tuple[float, float]
+Range = tuple[float, float]
 
 
 class ConfigError(ValueError):
@@ -208,7 +209,9 @@ class PISettings:
 
 @dataclass(frozen=True)
 class RewardWeights:
-    """Weights of the reward (see :class:`~valve_gym.envs.ValveTankEnv`)::
+    """Weights of the reward of :class:`~valve_gym.envs.ValveTankEnv`.
+
+    The reward of a step is::
 
         r = -( error * |sp - L| / error_scale + travel * |dh| + du * |du| )
 
@@ -402,8 +405,8 @@ def _as_number(v, path: str):
         except ValueError:
             raise ConfigError(f"{path} must be a number, got the string {v!r}") from None
         hint = ""
-        if re.fullmatch(r"\s*[-+]?\d+[eE][-+]?\d+\s*", v):
-            m = re.match(r"\s*([-+]?\d+)([eE][-+]?\d+)", v)
+        m = re.match(r"\s*([-+]?\d+)([eE][-+]?\d+)\s*$", v)
+        if m is not None:
             hint = (f"; PyYAML reads exponent notation without a decimal point as a string: "
                     f"write {m.group(1)}.0{m.group(2)}")
         raise ConfigError(f"{path} must be a number, got the string {v!r}{hint}")
@@ -413,11 +416,64 @@ def _as_number(v, path: str):
 _UNIONS = (Union, getattr(types, "UnionType", Union))
 
 
-def _is_optional(tp) -> Tuple[bool, Any]:
+def _is_optional(tp) -> tuple[bool, Any]:
     if typing.get_origin(tp) in _UNIONS:
         args = [a for a in typing.get_args(tp) if a is not type(None)]
         return len(args) < len(typing.get_args(tp)), args
     return False, [tp]
+
+
+def _convert_dataclass(dcs: list, v, path: str, base, parent_data: Mapping, owner) -> Any:
+    """A nested dataclass field (``ModelParams.process``: the class is chosen by ``process_kind``)."""
+    if len(dcs) > 1:
+        kind = parent_data.get("process_kind", getattr(owner, "process_kind", "tank"))
+        cls = PROCESSES.get(kind)
+        if cls is None:
+            raise ConfigError(f"{_join(path.rpartition('.')[0], 'process_kind')} must be one "
+                              f"of {sorted(PROCESSES)}, got {kind!r}")
+    else:
+        cls = dcs[0]
+    if isinstance(v, cls):
+        return v
+    if v is True:  # `sensor_lag: true` switches a block on with defaults
+        v = {}
+    if not isinstance(v, Mapping):
+        raise ConfigError(f"{path} must be a mapping of {cls.__name__} fields, got {_describe(v)}")
+    return _build(cls, v, path, base if isinstance(base, cls) else None)
+
+
+def _convert_tuple(tp, v, path: str) -> tuple:
+    targs = typing.get_args(tp)
+    if not isinstance(v, (list, tuple)):
+        raise ConfigError(f"{path} must be a list, got {_describe(v)}")
+    if len(targs) == 2 and targs[1] is Ellipsis:
+        types = [targs[0]] * len(v)
+    elif targs:
+        if len(v) != len(targs):
+            what = "[low, high]" if len(targs) == 2 else f"of {len(targs)} values"
+            raise ConfigError(f"{path} must be a list {what}, got {_describe(v)}")
+        types = list(targs)
+    else:
+        types = [Any] * len(v)
+    return tuple(_convert(t, x, f"{path}[{i}]", None, {}, None) for i, (t, x) in enumerate(zip(types, v)))
+
+
+def _convert_scalar(tp, v, path: str) -> Any:
+    """``bool``, ``str``, ``int`` or a number (``float`` / ``Number``)."""
+    if tp is bool:
+        if isinstance(v, (bool, np.bool_)):
+            return bool(v)
+        raise ConfigError(f"{path} must be true or false, got {_describe(v)}")
+    if tp is str:
+        if isinstance(v, str):
+            return v
+        raise ConfigError(f"{path} must be a string, got {_describe(v)}")
+    x = _as_number(v, path)
+    if tp is int:
+        if isinstance(x, float) and not x.is_integer():
+            raise ConfigError(f"{path} must be an integer, got {v!r}")
+        return int(x)
+    return float(x)      # float or Number = Union[float, np.ndarray]
 
 
 def _convert(tp, v, path: str, base, parent_data: Mapping, owner) -> Any:
@@ -428,64 +484,23 @@ def _convert(tp, v, path: str, base, parent_data: Mapping, owner) -> Any:
         raise ConfigError(f"{path} must not be empty (null)")
     dcs = [a for a in args if isinstance(a, type) and is_dataclass(a)]
     if dcs:
-        if len(dcs) > 1:  # ModelParams.process: the class is chosen by process_kind
-            kind = parent_data.get("process_kind", getattr(owner, "process_kind", "tank"))
-            cls = PROCESSES.get(kind)
-            if cls is None:
-                raise ConfigError(f"{_join(path.rpartition('.')[0], 'process_kind')} must be one "
-                                  f"of {sorted(PROCESSES)}, got {kind!r}")
-        else:
-            cls = dcs[0]
-        if isinstance(v, cls):
-            return v
-        if v is True:  # `sensor_lag: true` switches a block on with defaults
-            v = {}
-        if not isinstance(v, Mapping):
-            raise ConfigError(f"{path} must be a mapping of {cls.__name__} fields, got {_describe(v)}")
-        return _build(cls, v, path, base if isinstance(base, cls) else None)
+        return _convert_dataclass(dcs, v, path, base, parent_data, owner)
     tp = args[0] if len(args) == 1 else tp
     if tp is Any or tp is object:
         return v
-    if tp is bool:
-        if isinstance(v, (bool, np.bool_)):
-            return bool(v)
-        raise ConfigError(f"{path} must be true or false, got {_describe(v)}")
-    if tp is str:
-        if isinstance(v, str):
-            return v
-        raise ConfigError(f"{path} must be a string, got {_describe(v)}")
     origin = typing.get_origin(tp)
     if origin is tuple or tp is tuple:
-        targs = typing.get_args(tp)
-        if not isinstance(v, (list, tuple)):
-            raise ConfigError(f"{path} must be a list, got {_describe(v)}")
-        if len(targs) == 2 and targs[1] is Ellipsis:
-            types = [targs[0]] * len(v)
-        elif targs:
-            if len(v) != len(targs):
-                what = "[low, high]" if len(targs) == 2 else f"of {len(targs)} values"
-                raise ConfigError(f"{path} must be a list {what}, got {_describe(v)}")
-            types = list(targs)
-        else:
-            types = [Any] * len(v)
-        return tuple(_convert(t, x, f"{path}[{i}]", None, {}, None) for i, (t, x) in enumerate(zip(types, v)))
+        return _convert_tuple(tp, v, path)
     if origin is list or tp is list:
         if not isinstance(v, (list, tuple)):
             raise ConfigError(f"{path} must be a list, got {_describe(v)}")
         targs = typing.get_args(tp) or (Any,)
         return [_convert(targs[0], x, f"{path}[{i}]", None, {}, None) for i, x in enumerate(v)]
-    if origin in (dict, Mapping) or tp in (dict, Mapping) or origin is typing.get_origin(Mapping):
+    if origin in (dict, Mapping) or tp in (dict, Mapping):
         if not isinstance(v, Mapping):
             raise ConfigError(f"{path} must be a mapping, got {_describe(v)}")
         return dict(v)
-    if tp is int:
-        x = _as_number(v, path)
-        if isinstance(x, float) and not x.is_integer():
-            raise ConfigError(f"{path} must be an integer, got {v!r}")
-        return int(x)
-    # float or Number = Union[float, np.ndarray]
-    x = _as_number(v, path)
-    return float(x)
+    return _convert_scalar(tp, v, path)
 
 
 _PARAM_MSG = re.compile(r"^(?:(\w+)\.)?(\w+) ")
@@ -540,7 +555,11 @@ def read_yaml(path, what: str = "config") -> Any:
     return {} if data is None else data
 
 
-def load_config(path_or_dict: Union[str, os.PathLike, Mapping, None], cls=EnvConfig, base=None):
+_T = TypeVar("_T")
+
+
+def load_config(path_or_dict: str | os.PathLike | Mapping | None, cls: type[_T] = EnvConfig,  # type: ignore[assignment]
+                base: _T | None = None) -> _T:
     """Load a configuration from a YAML file or a mapping onto frozen dataclasses.
 
     Parameters
@@ -584,14 +603,14 @@ def load_config(path_or_dict: Union[str, os.PathLike, Mapping, None], cls=EnvCon
     if base is not None and not isinstance(base, cls):
         raise TypeError(f"base must be a {cls.__name__}, got {type(base).__name__}")
     try:
-        return _build(cls, data, "", base)
+        return _build(cls, data, "", base)  # type: ignore[return-value]
     except ConfigError as exc:
         if src:
             raise ConfigError(f"{exc}{src}") from None
         raise
 
 
-def config_to_dict(cfg) -> dict:
+def config_to_dict(cfg) -> Any:
     """Nested plain dict (lists for ranges and arrays) of a config dataclass; inverse of :func:`load_config`.
 
     Examples

@@ -14,7 +14,8 @@ Importing this module imports stable-baselines3 (and torch).
 """
 from __future__ import annotations
 
-from typing import Any, Mapping, Optional, Sequence, Union
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -77,9 +78,9 @@ class SB3VecEnv(VecEnv):
     (4, 4)
     """
 
-    def __init__(self, num_envs: int = 1, config: Union[EnvConfig, Mapping, str, None] = None, *,
-                 preset: str = "default", max_episode_steps: Optional[int] = None,
-                 render_mode: Optional[str] = None, venv: Optional[ValveTankVectorEnv] = None):
+    def __init__(self, num_envs: int = 1, config: EnvConfig | Mapping | str | None = None, *,
+                 preset: str = "default", max_episode_steps: int | None = None,
+                 render_mode: str | None = None, venv: ValveTankVectorEnv | None = None):
         if venv is None:
             venv = ValveTankVectorEnv(num_envs, config, preset=preset, max_episode_steps=max_episode_steps,
                                       autoreset_mode=AutoresetMode.SAME_STEP, render_mode=render_mode)
@@ -114,9 +115,11 @@ class SB3VecEnv(VecEnv):
         return obs
 
     def step_async(self, actions: np.ndarray) -> None:
+        """Store the actions of the next :meth:`step_wait`."""
         self._actions = actions
 
     def step_wait(self):
+        """Step every loop; returns SB3's ``(obs, rewards, dones, infos)``."""
         if not self._started:
             raise RuntimeError("call reset() before step()")
         acts = np.asarray(self._actions, dtype=np.float32).reshape(self.num_envs, -1)
@@ -137,6 +140,7 @@ class SB3VecEnv(VecEnv):
         return obs, rew.astype(np.float32), dones, infos
 
     def close(self) -> None:
+        """Close the wrapped vector env."""
         self.venv.close()
 
     # ------------------------------------------------------------ attributes
@@ -165,11 +169,12 @@ class SB3VecEnv(VecEnv):
         """No Gymnasium wrappers are involved: False for every index."""
         return [False for _ in self._get_indices(indices)]
 
-    def get_images(self) -> Sequence[Optional[np.ndarray]]:
+    def get_images(self) -> Sequence[np.ndarray | None]:
         """The RGB frame of each sub-environment (``render_mode='rgb_array'``)."""
         if self.venv.render_mode != "rgb_array":
             return [None] * self.num_envs
-        return list(self.venv.render())
+        frames = self.venv.render()
+        return [None] * self.num_envs if frames is None else list(frames)
 
 
 def _split(info: dict, n: int) -> list:

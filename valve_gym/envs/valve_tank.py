@@ -13,15 +13,17 @@ as this environment reset with seed ``s``.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import replace
-from typing import Mapping, NamedTuple, Optional, Union
+from typing import Any, NamedTuple
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
 from .. import core
-from ..config import EnvConfig, load_config, preset as _preset
+from ..config import EnvConfig, load_config
+from ..config import preset as _preset
 from ..control import PIParams, pi_init, pi_step
 from ..params import ModelParams, ParameterError, ValveParams
 
@@ -34,7 +36,7 @@ _INF = math.inf
 VALVE_KEYS = ("z_max", "e_dead", "tau", "v_max")
 
 
-def make_config(config: Union[EnvConfig, Mapping, str, None] = None, preset: str = "default") -> EnvConfig:
+def make_config(config: EnvConfig | Mapping | str | None = None, preset: str = "default") -> EnvConfig:
     """The :class:`EnvConfig` of an environment.
 
     Parameters
@@ -129,7 +131,7 @@ def _event_steps(times, plan):
     return steps
 
 
-def draw_episodes(rngs, plan: _Plan, pins: Optional[Mapping[str, np.ndarray]] = None) -> EpisodeDraw:
+def draw_episodes(rngs, plan: _Plan, pins: Mapping[str, np.ndarray] | None = None) -> EpisodeDraw:
     """Draw ``len(rngs)`` episodes, one from each generator.
 
     Each generator gives, in this order, ``rng.random(K)`` uniforms (valve,
@@ -202,7 +204,7 @@ def draw_episodes(rngs, plan: _Plan, pins: Optional[Mapping[str, np.ndarray]] = 
                        load_vals=load_vals, noise=noise, **valve)
 
 
-def _parse_pins(options, n: Optional[int], allow_nan: bool):
+def _parse_pins(options, n: int | None, allow_nan: bool):
     """Validate ``reset(options)``: the pinnable valve parameters only."""
     if options is None:
         return None
@@ -255,8 +257,11 @@ _W, _Hpx = 160, 200
 
 
 def render_frame(level: float, setpoint: float, stem: float, u: float, level_max: float) -> np.ndarray:
-    """A (200, 160, 3) uint8 picture: tank with water level (blue), set point
-    (red line), valve input (grey bar) and stem position (green bar)."""
+    """Draw a (200, 160, 3) uint8 picture of the loop.
+
+    Tank with water level (blue), set point (red line), valve input (grey bar) and stem position
+    (green bar).
+    """
     img = np.full((_Hpx, _W, 3), 255, dtype=np.uint8)
     top, bot, x0, x1 = 20, 180, 20, 100
 
@@ -419,8 +424,8 @@ class ValveTankEnv(gym.Env):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
 
-    def __init__(self, config: Union[EnvConfig, Mapping, str, None] = None, *,
-                 preset: str = "default", render_mode: Optional[str] = None):
+    def __init__(self, config: EnvConfig | Mapping | str | None = None, *,
+                 preset: str = "default", render_mode: str | None = None):
         cfg = make_config(config, preset)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be None or one of {self.metadata['render_modes']}, "
@@ -476,7 +481,7 @@ class ValveTankEnv(gym.Env):
                                                  self._Y, self._Hs, self._LV)
 
     # ------------------------------------------------------------------ reset
-    def reset(self, *, seed: Optional[int] = None, options: Optional[dict] = None):
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Start an episode; see the class docstring for ``options`` and ``info``."""
         pins = _parse_pins(options, None, allow_nan=False)
         _check_pins(pins, self.config.model)
@@ -548,7 +553,7 @@ class ValveTankEnv(gym.Env):
         self._U[0, 0] = u
         load = self._load[kk]
         self._D[0, 0] = load
-        core.run_packed(*args)
+        core.run_packed(*args)  # pyright: ignore[reportArgumentType]
         y, h, lv = self._outf.tolist()
         k += 1
         self._k = k
@@ -600,19 +605,23 @@ def _scalar_action(action) -> float:
 
 
 def _level_bounds(cfg: EnvConfig):
-    """Range of the measured level [m]: for tanks, the steady level at full inflow
-    (valve open plus the largest load) bounds the true level; 10 noise std added."""
+    """Range of the measured level [m].
+
+    For tanks, the steady level at full inflow (valve open plus the largest load) bounds the true
+    level; 10 noise standard deviations are added.
+    """
     m = cfg.model
     if m.process_kind not in ("tank", "cascade"):
         return -math.inf, math.inf
-    q_in = float(m.process.q_max) + float(cfg.load.magnitude[1])
+    pr: Any = m.process                      # TankParams here
+    q_in = float(pr.q_max) + float(cfg.load.magnitude[1])
     if m.oscillating_disturbance is not None:
         q_in += float(m.oscillating_disturbance.amplitude)
-    if m.process_kind == "cascade":
+    if m.process_kind == "cascade" and m.cascade is not None:
         k, L0 = float(m.cascade.k_out2), float(m.cascade.level2_0)
         top = float(m.overflow.L2_max) if m.overflow is not None else math.inf
     else:
-        k, L0 = float(m.process.k_out), float(m.process.level0)
+        k, L0 = float(pr.k_out), float(pr.level0)
         top = float(m.overflow.L_max) if m.overflow is not None else math.inf
     if k <= 0.0:
         return -math.inf, math.inf

@@ -13,8 +13,8 @@ with the same rule as :class:`~valve_gym.envs.ValveTankEnv`
 """
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
-from typing import Mapping, Optional, Sequence, Union
 
 import gymnasium as gym
 import numpy as np
@@ -26,8 +26,17 @@ from .. import core
 from ..config import EnvConfig
 from ..control import PIParams, pi_init, pi_step
 from ..params import ValveParams
-from .valve_tank import (NEVER, VALVE_KEYS, _check_pins, _observation_space, _parse_pins, _Plan,
-                         draw_episodes, make_config, render_frame)
+from .valve_tank import (
+    NEVER,
+    VALVE_KEYS,
+    _check_pins,
+    _observation_space,
+    _parse_pins,
+    _Plan,
+    draw_episodes,
+    make_config,
+    render_frame,
+)
 
 try:
     from numba import njit
@@ -191,10 +200,10 @@ class ValveTankVectorEnv(VectorEnv):
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10,
                 "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs: int = 1, config: Union[EnvConfig, Mapping, str, None] = None, *,
-                 preset: str = "default", max_episode_steps: Optional[int] = None,
-                 autoreset_mode: Union[AutoresetMode, str] = AutoresetMode.NEXT_STEP,
-                 render_mode: Optional[str] = None, threads: int = 1):
+    def __init__(self, num_envs: int = 1, config: EnvConfig | Mapping | str | None = None, *,
+                 preset: str = "default", max_episode_steps: int | None = None,
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+                 render_mode: str | None = None, threads: int = 1):
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         N = int(num_envs)
@@ -290,7 +299,7 @@ class ValveTankVectorEnv(VectorEnv):
         elif isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
             seeds = [int(seed) + i for i in range(N)]
         else:
-            seeds = list(seed)
+            seeds = list(seed)  # type: ignore[arg-type]
             if len(seeds) != N:
                 raise ValueError(f"seed must be None, an int or a sequence of {N} seeds (one per "
                                  f"sub-environment), got {len(seeds)} seeds")
@@ -300,8 +309,8 @@ class ValveTankVectorEnv(VectorEnv):
                 self._rngs[i], _ = seeding.np_random(None if s is None else int(s))
 
     # ------------------------------------------------------------------ reset
-    def reset(self, *, seed: Union[int, Sequence[Optional[int]], None] = None,
-              options: Optional[dict] = None):
+    def reset(self, *, seed: int | Sequence[int | None] | None = None,
+              options: dict | None = None):
         """Reset all (or, with ``options['reset_mask']``, some) sub-environments.
 
         Returns
@@ -413,20 +422,8 @@ class ValveTankVectorEnv(VectorEnv):
             info["_" + key] = mask
         return info
 
-    # ------------------------------------------------------------------- step
-    def step(self, actions):
-        """Step all sub-environments with ``actions`` (N, 1) in [-1, 1] (clipped).
-
-        Returns
-        -------
-        obs : (N, 4|5) float32
-        rewards : (N,) float64
-        terminated : (N,) bool, always False
-        truncated : (N,) bool, True at ``max_episode_steps``
-        info : dict of (N,) arrays (see the class docstring)
-        """
-        if self._pk is None:
-            raise RuntimeError("call reset() before step()")
+    def _valve_inputs(self, actions):
+        """Validate ``actions`` (N, 1) and turn them into the valve inputs ``u`` (N,) (and the PI's, residual mode)."""
         N = self.num_envs
         a = np.asarray(actions)
         if a.dtype != np.float32 and a.dtype != np.float64:
@@ -441,7 +438,6 @@ class ValveTankVectorEnv(VectorEnv):
             a = a.reshape(N, 1)
         if not a.flags.c_contiguous:
             a = np.ascontiguousarray(a)
-        H = self._plan.H
         upi = None
         if self.residual:
             a = a.reshape(N).astype(np.float64)
@@ -460,6 +456,25 @@ class ValveTankVectorEnv(VectorEnv):
                 f"actions of sub-environments {idx[:10].tolist()} are not finite "
                 f"({flat[idx[:10]].tolist()}); pass numbers in [-1, 1] (check the policy for NaN "
                 f"outputs, e.g. from diverging training)")
+        return u, upi
+
+    # ------------------------------------------------------------------- step
+    def step(self, actions):
+        """Step all sub-environments with ``actions`` (N, 1) in [-1, 1] (clipped).
+
+        Returns
+        -------
+        obs : (N, 4|5) float32
+        rewards : (N,) float64
+        terminated : (N,) bool, always False
+        truncated : (N,) bool, True at ``max_episode_steps``
+        info : dict of (N,) arrays (see the class docstring)
+        """
+        if self._pk is None:
+            raise RuntimeError("call reset() before step()")
+        N = self.num_envs
+        H = self._plan.H
+        u, upi = self._valve_inputs(actions)
         load = self._load
         Y = np.empty((1, N))
         Hs = np.empty((1, N))
