@@ -713,9 +713,11 @@ def test_long_fast_record_windowed(tmp_path):
     op[20_000:21_000] += 0.3 * np.sign(np.sin(np.arange(1000) / 20))  # the informative part
     pv = np.convolve(op, np.ones(3) / 3, mode="same") + 0.01 * rng.normal(size=n)
     t2, sig, cond = condition(t, {"op": op, "pv": pv}, 1.0, max_samples=5_000)
-    assert cond is not None and cond.factor == 1 and cond.window is not None
+    assert cond is not None and cond.window is not None
+    q = cond.factor  # as coarse as 8 samples per time scale allow, then the window
+    assert q == max(1, int(cond.time_scale // 8)) and q < 30_000 / 5_000
     i0, i1 = cond.window
-    assert i1 - i0 == 5_000 and len(t2) == 5_000 and i0 <= 20_000 and i1 >= 21_000
+    assert i1 - i0 == 5_000 and len(t2) == 5_000 and i0 * q <= 20_000 and i1 * q >= 21_000
     assert any("most informative window" in s for s in cond.statements(float(t2[0])))
     assert condition(t, {"op": op, "pv": pv}, 1.0, max_samples=None)[2] is None
 
@@ -774,3 +776,23 @@ def test_wide_header_beyond_sniff_prefix(tmp_path):
     for engine in ("rows", "columns"):
         rec = load_recording(tmp_path / "w.csv", op_range=(0, 100), engine=engine)
         assert len(rec) == 200 and rec.columns == {"t": "t", "op": "op", "pv": "pv"}
+
+
+def test_decimation_coarser_to_fit_the_budget():
+    from scipy.signal import lfilter
+
+    from valve_gym.diagnosis.recording import condition
+    from valve_gym.diagnosis.recording.decimate import time_scale
+
+    rng = np.random.default_rng(3)
+    n, tau = 100_000, 100.0  # AR(1) signals with a 100 s time scale, sampled at 1 s
+    a = np.exp(-1.0 / tau)
+    op = lfilter([1 - a], [1, -a], rng.normal(size=n))
+    pv = lfilter([1 - a], [1, -a], op) + 0.01 * rng.normal(size=n)
+    scale = min(time_scale(op, 1.0), time_scale(pv, 1.0))
+    assert 50 < scale < 200
+    t2, sig, cond = condition(np.arange(n) * 1.0, {"op": op, "pv": pv}, 1.0, max_samples=12_000)
+    # 20 samples per time scale would leave more than 12,000 samples; 8 per time scale allow fitting them all
+    assert cond is not None and cond.window is None
+    assert cond.factor == -(-n // 12_000) and len(t2) <= 12_000
+    assert scale / cond.dt_out >= 8

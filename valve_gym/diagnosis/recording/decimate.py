@@ -16,14 +16,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["DEFAULT_MAX_SAMPLES", "MIN_AFTER_DECIMATION", "SAMPLES_PER_TIME_SCALE", "Conditioning",
+__all__ = ["DEFAULT_MAX_SAMPLES", "MIN_AFTER_DECIMATION", "MIN_SAMPLES_PER_TIME_SCALE", "SAMPLES_PER_TIME_SCALE",
+           "Conditioning",
            "condition", "time_scale"]
 
 #: Records longer than this (samples) are conditioned by :func:`load_recording`.
-DEFAULT_MAX_SAMPLES = 20_000
+DEFAULT_MAX_SAMPLES = 12_000
 
-#: Samples kept per dominant time scale when decimating.
+#: Samples kept per dominant time scale when decimating, by preference.
 SAMPLES_PER_TIME_SCALE = 20
+
+#: Fewest samples per dominant time scale that decimation may leave to fit
+#: ``max_samples``; beyond that a window is kept instead.
+MIN_SAMPLES_PER_TIME_SCALE = 8
 
 #: Decimation never leaves fewer samples than this.
 MIN_AFTER_DECIMATION = 2_000
@@ -58,8 +63,8 @@ class Conditioning:
 
     @property
     def dt_out(self) -> float:
-        """Sample time after conditioning [s]."""
-        return self.factor * self.dt_in
+        """Sample time after conditioning [s] (``factor * dt_in`` to 12 significant digits)."""
+        return float(f"{self.factor * self.dt_in:.12g}")
 
     def statements(self, t0: float) -> list[str]:
         """Lines for ``Recording.repairs`` (``t0``: time of the first sample kept [s])."""
@@ -173,9 +178,10 @@ def condition(t: np.ndarray, signals: dict[str, np.ndarray], dt: float,
     Notes
     -----
     The decimation factor is ``q = floor(T / (20 dt))`` with ``T`` the
-    smaller dominant time scale of op and pv (:func:`time_scale`), at least 1
-    and at most ``n // 2000``.  Block means are a moving-average anti-alias
-    filter (first zero at the new sampling frequency, no overshoot, so a
+    smaller dominant time scale of op and pv (:func:`time_scale`), raised
+    towards ``ceil(n / max_samples)`` as far as ``floor(T / (8 dt))`` allows
+    (at least 8 samples per time scale), at least 1 and at most ``n // 2000``.
+    Block means are a moving-average anti-alias filter (first zero at the new sampling frequency, no overshoot, so a
     normalised op stays in 0..1); each mean is placed at its block's centre,
     so no phase shift is added.  If ``n / q`` still exceeds `max_samples`,
     the window of `max_samples` decimated samples with the largest sum of op
@@ -185,12 +191,15 @@ def condition(t: np.ndarray, signals: dict[str, np.ndarray], dt: float,
     if max_samples is None or n <= max_samples:
         return t, signals, None
     scale = min(time_scale(signals["op"], dt), time_scale(signals["pv"], dt))
-    q = int(np.clip(np.floor(scale / (SAMPLES_PER_TIME_SCALE * dt)), 1, max(1, n // MIN_AFTER_DECIMATION)))
+    q_pref = int(np.floor(scale / (SAMPLES_PER_TIME_SCALE * dt)))
+    q_coarsest = int(np.floor(scale / (MIN_SAMPLES_PER_TIME_SCALE * dt)))
+    q_budget = -(-n // max_samples)
+    q = int(np.clip(max(q_pref, min(q_budget, q_coarsest)), 1, max(1, n // MIN_AFTER_DECIMATION)))
     out = signals
     t_out = t
     if q > 1:
         out = {r: _block_mean(v, q) for r, v in signals.items()}
-        t_out = t[0] + (q - 1) / 2 * dt + q * dt * np.arange(len(out["op"]))
+        t_out = t[0] + (q - 1) / 2 * dt + float(f"{q * dt:.12g}") * np.arange(len(out["op"]))
     m = len(t_out)
     window = None
     if m > max_samples:

@@ -95,7 +95,7 @@ def load_recording(
     mv_range : (float, float), optional
         Raw stem-position values that map to 0..1; default the same as the
         controller output's range (`op_range`, or (0, 1)).
-    max_samples : int or None, default 20000
+    max_samples : int or None, default 12000
         A longer record is decimated to the sample time its dynamics need and,
         if still longer, windowed to its most informative `max_samples`
         samples (see :func:`~.decimate.condition`); both stated in
