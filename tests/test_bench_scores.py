@@ -4,8 +4,16 @@ import pytest
 
 from agents.bench.config import BenchConfig
 from agents.bench.scenarios import regulation_scenarios
-from agents.bench.scores import (REFERENCE_FRICTIONLESS, REFERENCE_PI, LoopScores, bootstrap_mean,
-                                 bootstrap_median, compare_learned, compensation_ratio, summarise)
+from agents.bench.scores import (
+    REFERENCE_FRICTIONLESS,
+    REFERENCE_PI,
+    LoopScores,
+    bootstrap_mean,
+    bootstrap_median,
+    compare_learned,
+    compensation_ratio,
+    summarise,
+)
 
 
 def test_compensation_ratio_constructed():
