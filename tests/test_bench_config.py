@@ -77,3 +77,15 @@ if given is not None:
             return
         with pytest.raises(ConfigError, match=rf"unknown key '{section}\.{key}'"):
             load_bench_config({section: {key: value}})
+
+
+def test_docstring_examples_of_the_benchmark_modules():
+    import doctest
+
+    import agents.bench.config
+    import agents.bench.scenarios
+    import agents.bench.scores
+
+    for mod in (agents.bench.config, agents.bench.scenarios, agents.bench.scores):
+        res = doctest.testmod(mod)
+        assert res.attempted > 0 and res.failed == 0, mod.__name__
