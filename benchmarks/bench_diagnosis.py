@@ -19,10 +19,11 @@ times: the machine's load affects both alike.  Both give the same result.
 ``--old`` also diagnoses every recording with the search of earlier versions
 (every fit on every sample, ``coarse=1``) in the same run and reports the
 wall-time ratio and whether the effects named and the stiction verdict are the
-same.  The default path searches records of 2400 samples and more
-coarse-to-fine (:func:`valve_gym.diagnosis.diagnose.coarse_factor`): the
-evolution of every fit runs on every third sample of a 3600-sample record, a
-short warm-started evolution and the least-squares refinement on all samples.
+same.  The timed run can search records of 2400 samples and more
+coarse-to-fine with ``--coarse auto`` (:func:`valve_gym.diagnosis.diagnose.coarse_factor`,
+opt-in, off by default): the evolution of every fit runs on every third sample of a
+3600-sample record, a short warm-started evolution and the least-squares refinement on
+all samples.
 """
 from __future__ import annotations
 
@@ -87,6 +88,8 @@ def main(argv=None):
                     help="also time a serial diagnosis (1 process, no kernel threads) of each recording")
     ap.add_argument("--old", action="store_true",
                     help="also time the search of earlier versions (coarse=1) on each recording")
+    ap.add_argument("--coarse", default="1",
+                    help="coarse-to-fine decimation of the timed run: 'auto' or a whole number (default 1)")
     a = ap.parse_args(argv)
     diagnose(make_case("none", seed=1, n=300).recording, candidates=(), effort="fast")  # warm-up
     rate = kernel_rate(a.samples)
@@ -109,8 +112,9 @@ def main(argv=None):
             case = make_case(eff.strip(), seed=100 + rep, n=a.samples)
             t0 = time.perf_counter()
             c0 = _cpu()
+            coarse = a.coarse if a.coarse == "auto" else int(a.coarse)
             res = diagnose(case.recording, plant="tank", actuator="valve", jobs=a.jobs,
-                           effort=a.effort)
+                           effort=a.effort, coarse=coarse)
             wall = time.perf_counter() - t0
             cpu.append(_cpu() - c0)
             totals.append(wall)

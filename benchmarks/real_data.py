@@ -14,7 +14,10 @@
    judged right) is reported too.  Nothing is tuned on these labels.  As a
    reference method in the same run, Horch's model-free cross-correlation test
    (:mod:`valve_gym.diagnosis.indices`) is scored on the self-regulating tags
-   next to the verdict on the same tags.
+   next to the verdict on the same tags.  The combined probability of the
+   stiction methods is listed too; its weights were fitted on these loops, so
+   it is an in-sample number here: the held-out scores are in
+   ``benchmarks/validate_stiction.py``.
 
 Usage::
 
@@ -66,6 +69,10 @@ def cascaded_tanks(effort="auto", jobs=2):
     return d
 
 
+def _p(x):
+    return "n/a" if x is None else f"{x:.2f}"
+
+
 def _plant_for(path):
     return "integrating" if "LIC" in os.path.basename(path).upper() else "first_order"
 
@@ -94,8 +101,9 @@ def plant_loops(effort="auto", jobs=2, limit=None):
         per_tag[r["tag"]].append((label, verdict))
         table.append((os.path.basename(r["csv_file"]), r["tag"], label, verdict, s))
     print("## Industrial loops (StictionGPT plant data): friction verdict vs expert label\n")
-    print("| record | tag | plant | label | verdict | criterion change | model params | Horch test |")
-    print("|---|---|---|---|---|---|---|---|")
+    print("| record | tag | plant | label | verdict | criterion change | model params | Horch test | "
+          "combined p (in-sample) |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for name, tag, label, verdict, s in table:
         if verdict is None:
             print(f"| {name} | {tag} | | {'stiction' if label else 'no'} | ERROR | {s} | | |")
@@ -108,7 +116,7 @@ def plant_loops(effort="auto", jobs=2, limit=None):
             hx += f" ({h['phase_index']:.2f})"
         print(f"| {name[:48]} | {tag} | {_plant_for(name)} | {'stiction' if label else 'no'} | "
               f"{'stiction' if verdict else 'no'} | {s.get('delta_ic', float('nan')):.1f} | "
-              f"{par} | {hx} |")
+              f"{par} | {hx} | {_p(s.get('probability'))} |")
     # group-aware scores
     tp = tn = npos = nneg = 0
     acc_pos, acc_neg = [], []

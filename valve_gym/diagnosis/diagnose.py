@@ -11,16 +11,24 @@ import json
 import math
 import os
 import time
+from collections.abc import Callable, Sequence
 from concurrent.futures import as_completed
 from dataclasses import dataclass
-from typing import Callable, List, Optional, Sequence
 
 import numpy as np
 
 from .explain import explain_combined, explain_effect, explain_none, explain_stiction
+from .fit import (
+    AUTO_THOROUGH_SAMPLES,
+    FitResult,
+    fit_initial_state,
+    fit_structure,
+    fit_with_friction,
+    resolve_effort,
+    rmse,
+    transfer,
+)
 from .indices import horch_ccf
-from .fit import (AUTO_THOROUGH_SAMPLES, FitResult, fit_initial_state, fit_structure, fit_with_friction,
-                  resolve_effort, rmse, transfer)
 from .locate import MismatchReport, condition_masks, locate_mismatch
 from .model import ACTUATORS, CANDIDATE_EFFECTS, PLANTS, DataScales, ModelStructure, process_pool
 from .recording import Recording, RecordingError
@@ -28,7 +36,7 @@ from .select import Selection, SelectionRule, select_effects
 from .stiction import assess_stiction
 
 __all__ = ["DiagnosisResult", "diagnose", "diagnose_many", "validate_on", "simulate_same_state",
-           "JSON_SCHEMA_KEYS"]
+           "JSON_SCHEMA_KEYS", "AUTO_THOROUGH_SAMPLES", "coarse_factor"]
 
 #: Top-level keys every diagnosis JSON has.
 JSON_SCHEMA_KEYS = ("recording", "settings", "effects", "base", "final", "holdout", "mismatch",
@@ -85,7 +93,7 @@ class DiagnosisResult:
     recording: Recording
     plant: str
     actuator: str
-    effects: List[str]
+    effects: list[str]
     base: FitResult
     final: FitResult
     base_split: FitResult
@@ -93,12 +101,12 @@ class DiagnosisResult:
     selection: Selection
     mismatch: MismatchReport
     mismatch_final: MismatchReport
-    explanation: List[str]
+    explanation: list[str]
     stiction: dict
-    validation: Optional[dict]
+    validation: dict | None
     timing: dict
     settings: dict
-    frictionless: Optional[FitResult] = None
+    frictionless: FitResult | None = None
 
     # ------------------------------------------------------------------ output
     def to_dict(self) -> dict:
@@ -198,7 +206,7 @@ def _locate(rec: Recording, res: FitResult) -> MismatchReport:
                            sat_hi=sc.sat_hi, sat_lo=sc.sat_lo)
 
 
-def validate_on(fitted: Sequence[FitResult], other: Recording, seed: int = 0) -> List[FitResult]:
+def validate_on(fitted: Sequence[FitResult], other: Recording, seed: int = 0) -> list[FitResult]:
     """Simulate fitted models on another recording's input, initial state refitted.
 
     Returns one :class:`FitResult` per model, on ``other`` (``rmse_all`` is
@@ -354,7 +362,7 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
     return verdict, best0, new_final, slip
 
 
-def _combine_verdict(stiction: dict, rec: Recording, plant: str, slip: Optional[FitResult]) -> None:
+def _combine_verdict(stiction: dict, rec: Recording, plant: str, slip: FitResult | None) -> None:
     """Add the combined assessment of the stiction methods to the friction verdict.
 
     Adds ``probability`` and ``verdict`` (``'stiction'``, ``'no stiction'``,
@@ -364,7 +372,7 @@ def _combine_verdict(stiction: dict, rec: Recording, plant: str, slip: Optional[
     model-based verdict (also under ``model_based_present``): held out, the
     combination does not yet beat it (``docs/diagnosis.md``, section 4).
     """
-    a = assess_stiction(rec.op, rec.pv, rec.dt, plant, sp=rec.sp, verdict=stiction, slip_fit=slip)
+    a = assess_stiction(rec.op, rec.pv, float(rec.dt or 1.0), plant, sp=rec.sp, verdict=stiction, slip_fit=slip)
     d = a.to_dict()
     stiction["model_based_present"] = bool(stiction["present"])
     for k in ("probability", "verdict", "S", "J", "S_interval", "J_interval", "sizes_agree", "sizes",
@@ -373,13 +381,38 @@ def _combine_verdict(stiction: dict, rec: Recording, plant: str, slip: Optional[
     stiction["explanation"] = (stiction.get("explanation", "") + " " + explain_combined(a)).strip()
 
 
+def _resolve_coarse(coarse, n_samples: int) -> int:
+    """The decimation factor ``coarse`` stands for (see :func:`coarse_factor`)."""
+    if coarse == "auto":
+        return coarse_factor(n_samples)
+    if isinstance(coarse, (int, np.integer)) and not isinstance(coarse, bool) and coarse >= 1:
+        return int(coarse)
+    raise ValueError(f"coarse must be 'auto' or a whole number >= 1, got {coarse!r}")
+
+
+def _validate_other(base: FitResult, final: FitResult, validate: Recording, seed: int) -> dict:
+    """Base and final model on another recording: initial state refitted and kept."""
+    vb, vf = validate_on([base, final], validate, seed=seed)
+    same = [rmse(validate.pv, simulate_same_state(f, validate)) for f in (base, final)]
+    return {"recording": validate.name, "n": len(validate),
+            "initial_state": "refitted on this recording (the *_same_state RMSEs keep "
+                             "the fitted recording's initial state)",
+            "base_rmse": vb.rmse_all, "final_rmse": vf.rmse_all,
+            "base_rmse_same_state": same[0], "final_rmse_same_state": same[1],
+            "base_fit_percent": vb.fit_percent_all,
+            "final_fit_percent": vf.fit_percent_all,
+            "base_initial_state": {k: v for k, v in vb.physical.items() if k.startswith("init.")},
+            "final_initial_state": {k: v for k, v in vf.physical.items() if k.startswith("init.")},
+            "_y_base": vb.y_sim, "_y_final": vf.y_sim}
+
+
 # --------------------------------------------------------------------------- main API
 def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve", *,
-             candidates: Optional[Sequence[str]] = None, holdout: float = 0.3,
-             validate: Optional[Recording] = None, rule: SelectionRule = SelectionRule(),
+             candidates: Sequence[str] | None = None, holdout: float = 0.3,
+             validate: Recording | None = None, rule: SelectionRule = SelectionRule(),
              effort: str = "auto", seed: int = 0, jobs: int = 1, saturation="auto",
-             n_sub: int = 1, coarse="auto",
-             progress: Optional[Callable[[str], None]] = None) -> DiagnosisResult:
+             n_sub: int = 1, coarse=1,
+             progress: Callable[[str], None] | None = None) -> DiagnosisResult:
     """Diagnose one recording: base fit, mismatch location, missing physics, friction verdict.
 
     Parameters
@@ -417,8 +450,11 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
         :func:`valve_gym.core.check_dt`.
     coarse : 'auto' or int
         Decimation of the coarse-to-fine search (:func:`coarse_factor`:
-        ``'auto'`` is 3 for 3600 samples, 1 below 2400); 1 searches every
-        sample (the slower path of earlier versions).
+        ``'auto'`` is 3 for 3600 samples, 1 below 2400).  Default 1: every
+        fit searches every sample.  Coarse-to-fine is opt-in: on two
+        3600-sample test records it named the same effects and verdicts with
+        about 1.2x less CPU time (``benchmarks/bench_diagnosis.py --coarse auto
+        --old``), too little evidence and too little gain to make it the default.
     progress : callable(str), optional
 
     Returns
@@ -467,12 +503,7 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     say(f"{rec.name}: fitting the base model ({st.label()}, {st.k} parameters)")
     effort_asked, effort = effort, resolve_effort(effort, len(rec))
     plan = _EFFORT_PLAN[effort]
-    if coarse == "auto":
-        q = coarse_factor(T)
-    elif isinstance(coarse, (int, np.integer)) and not isinstance(coarse, bool) and coarse >= 1:
-        q = int(coarse)
-    else:
-        raise ValueError(f"coarse must be 'auto' or a whole number >= 1, got {coarse!r}")
+    q = _resolve_coarse(coarse, T)
     base_split, _ = fit_with_friction(st, rec.op, rec.pv, n_fit, rng=seed, effort=plan["base"], coarse=q)
     timing["base_fit"] = time.perf_counter() - t0
     # ---- selection
@@ -511,7 +542,7 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
         mm_final = mm if final is base else _locate(rec, final)
     timing["friction_verdict"] = time.perf_counter() - t0
     # ---- explanation
-    expl: List[str] = []
+    expl: list[str] = []
     sc_f = final.structure.scales
     masks = condition_masks(rec.op, rec.pv, rec.sp, rec.dt, mm.window, sc_f.sat_hi, sc_f.sat_lo)
     fits_by_effect = {c.effect: c for c in sel.candidates if c.accepted}
@@ -532,20 +563,7 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     if validate is not None:
         t0 = time.perf_counter()
         say(f"{rec.name}: validating on {validate.name}")
-        vb, vf = validate_on([base, final], validate, seed=seed)
-        same = [rmse(validate.pv, simulate_same_state(f, validate)) for f in (base, final)]
-        validation = {"recording": validate.name, "n": len(validate),
-                      "initial_state": "refitted on this recording (the *_same_state RMSEs keep "
-                                       "the fitted recording's initial state)",
-                      "base_rmse": vb.rmse_all, "final_rmse": vf.rmse_all,
-                      "base_rmse_same_state": same[0], "final_rmse_same_state": same[1],
-                      "base_fit_percent": vb.fit_percent_all,
-                      "final_fit_percent": vf.fit_percent_all,
-                      "base_initial_state": {k: v for k, v in vb.physical.items()
-                                             if k.startswith("init.")},
-                      "final_initial_state": {k: v for k, v in vf.physical.items()
-                                              if k.startswith("init.")},
-                      "_y_base": vb.y_sim, "_y_final": vf.y_sim}
+        validation = _validate_other(base, final, validate, seed)
         timing["validation"] = time.perf_counter() - t0
     timing["total"] = time.perf_counter() - t_all
     settings = {"plant": plant, "actuator": actuator, "candidates": list(cands),
@@ -592,10 +610,10 @@ def _diagnose_job(args):
                 "seconds": time.perf_counter() - t0}
 
 
-def diagnose_many(paths: Sequence[str], jobs: int = 2, load_kw: Optional[dict] = None,
-                  diag_kw: Optional[dict] = None, json_dir: Optional[str] = None,
-                  report_dir: Optional[str] = None,
-                  progress: Optional[Callable[[str], None]] = None) -> List[dict]:
+def diagnose_many(paths: Sequence[str], jobs: int = 2, load_kw: dict | None = None,
+                  diag_kw: dict | None = None, json_dir: str | None = None,
+                  report_dir: str | None = None,
+                  progress: Callable[[str], None] | None = None) -> list[dict]:
     """Diagnose many recording files in parallel worker processes.
 
     Parameters
@@ -622,7 +640,7 @@ def diagnose_many(paths: Sequence[str], jobs: int = 2, load_kw: Optional[dict] =
         oj = os.path.join(json_dir, stem + ".json") if json_dir else None
         orp = os.path.join(report_dir, stem) if report_dir else None
         tasks.append((str(p), load_kw, dk, oj, orp))
-    out: List[Optional[dict]] = [None] * len(tasks)
+    out: list[dict | None] = [None] * len(tasks)
     n = len(tasks)
     done = 0
     t0 = time.perf_counter()

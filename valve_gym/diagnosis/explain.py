@@ -6,8 +6,6 @@ parameters in the recording's units.
 """
 from __future__ import annotations
 
-from typing import Optional
-
 import numpy as np
 
 from .fit import FitResult
@@ -214,7 +212,7 @@ def explain_effect(effect: str, before: FitResult, after: FitResult, mm: Mismatc
     return f"{effect}: {imp}."
 
 
-def explain_none(base: FitResult, mm: MismatchReport, best_candidate: Optional[str] = None) -> str:
+def explain_none(base: FitResult, mm: MismatchReport, best_candidate: str | None = None) -> str:
     """Why no effect was added."""
     t = mm.tests
     s = (f"No candidate effect pays: the base model ({base.label}) explains the record, "

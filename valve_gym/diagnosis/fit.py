@@ -24,8 +24,8 @@ References
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Dict, Optional, Sequence
 
 import numpy as np
 
@@ -60,7 +60,7 @@ def fit_percent(y, yhat) -> float:
     return float(100.0 * (1.0 - np.linalg.norm(y - yhat) / den))
 
 
-def effective_n(residual, max_lag: Optional[int] = None) -> float:
+def effective_n(residual, max_lag: int | None = None) -> float:
     """Effective number of independent samples of an autocorrelated residual.
 
     ``N / (1 + 2 sum_k rho_k)``, summing the sample autocorrelation up to its
@@ -124,8 +124,8 @@ class FitResult:
     structure: ModelStructure
     w: np.ndarray
     params: ModelParams
-    physical: Dict[str, float]
-    units: Dict[str, str]
+    physical: dict[str, float]
+    units: dict[str, str]
     y_sim: np.ndarray
     y: np.ndarray
     n_fit: int
@@ -419,10 +419,10 @@ def resolve_effort(effort: str, n_samples: int) -> str:
     return effort
 
 
-def fit_structure(structure: ModelStructure, u, y, n_fit: Optional[int] = None, *,
-                  seeds=None, spread=None, free: Optional[Sequence[str]] = None,
-                  w_fixed=None, rng=None, popsize: Optional[int] = None,
-                  maxiter: Optional[int] = None, local: bool = True, effort: str = "normal",
+def fit_structure(structure: ModelStructure, u, y, n_fit: int | None = None, *,
+                  seeds=None, spread=None, free: Sequence[str] | None = None,
+                  w_fixed=None, rng=None, popsize: int | None = None,
+                  maxiter: int | None = None, local: bool = True, effort: str = "normal",
                   final_n_sub: bool = True, coarse: int = 1) -> FitResult:
     """Fit ``structure`` to ``y`` (T,) driven by ``u`` (T,), free-run, on the first ``n_fit`` samples.
 
@@ -458,10 +458,8 @@ def fit_structure(structure: ModelStructure, u, y, n_fit: Optional[int] = None, 
         first runs on every ``coarse``-th sample (controller sample
         ``coarse * dt``, same parameter ranges), then a short evolution
         warm-started from that optimum (a quarter of the generations) and the
-        local refinement run on the full record; with ``effort='fast'`` (the
-        screening fits) the coarse optimum is only re-simulated on the full
-        record.  About ``coarse`` times cheaper for long records; ignored
-        when fewer than 300 samples would remain.
+        local refinement run on the full record.  Cheaper for long records;
+        ignored when fewer than 300 samples would remain.
 
     Returns
     -------
@@ -477,7 +475,6 @@ def fit_structure(structure: ModelStructure, u, y, n_fit: Optional[int] = None, 
     y = np.asarray(y, float)
     T = len(y)
     n_fit = T if n_fit is None else int(n_fit)
-    k_all = len(structure.params)
     if w_fixed is None:
         w_fixed = (np.atleast_2d(seeds)[0] if seeds is not None
                    else np.array([structure.neutral_coord(p) for p in structure.params]))
@@ -530,9 +527,6 @@ def _coarse_to_fine(structure: ModelStructure, u, y, n_fit, *, seeds, spread, rn
     rc = fit_structure(st_c, u[::q], y[::q], -(-n_fit // q), seeds=seeds_c, spread=spread, rng=rng,
                        popsize=popsize, maxiter=maxiter, local=False, effort=effort, final_n_sub=False)
     w_c = _recode(st_c, structure, rc.w[None, :])
-    if resolve_effort(effort, len(u)) == "fast":         # a screening fit: the coarse optimum as it is
-        res = fit_structure(structure, u, y, n_fit, seeds=w_c, w_fixed=w_c[0], free=[], final_n_sub=final_n_sub)
-        return replace(res, n_evals=res.n_evals + rc.n_evals, seconds=time.perf_counter() - t0)
     seeds_f = w_c if seeds is None else np.vstack([w_c, np.atleast_2d(seeds)])
     kf = len(structure.params)
     gens = maxiter or int(round(_EFFORT[resolve_effort(effort, len(u))][1] * (40 + 15 * kf)))
@@ -543,7 +537,7 @@ def _coarse_to_fine(structure: ModelStructure, u, y, n_fit, *, seeds, spread, rn
 
 
 def fit_with_friction(structure: ModelStructure, u, y, n_fit=None, *, seeds=None, rng=None,
-                      effort: str = "normal", frictionless: Optional["FitResult"] = None,
+                      effort: str = "normal", frictionless: FitResult | None = None,
                       coarse: int = 1):
     """Fit a valve model and its frictionless twin so that the friction fit is nested.
 
@@ -710,11 +704,11 @@ class ModelFitter:
     """
 
     def __init__(self, plant: str = "tank", actuator: str = "valve", effects: Sequence[str] = (),
-                 *, friction: bool = True, variants: Optional[dict] = None,
+                 *, friction: bool = True, variants: dict | None = None,
                  holdout: float = 0.0, n_sub: int = 2, saturation="auto",
-                 period_hint: Optional[float] = None, output_offset: Optional[bool] = None,
-                 effort: str = "normal", popsize: Optional[int] = None,
-                 maxiter: Optional[int] = None, local: bool = True, seed: int = 0):
+                 period_hint: float | None = None, output_offset: bool | None = None,
+                 effort: str = "normal", popsize: int | None = None,
+                 maxiter: int | None = None, local: bool = True, seed: int = 0):
         self.plant = plant
         self.actuator = actuator
         self.effects = effects
@@ -741,7 +735,7 @@ class ModelFitter:
                               n_sub=self.n_sub, friction=self.friction, variants=self.variants,
                               period_hint=self.period_hint, output_offset=self.output_offset)
 
-    def fit(self, recording: Recording, init=None) -> "ModelFitter":
+    def fit(self, recording: Recording, init=None) -> ModelFitter:
         """Fit to ``recording``; returns ``self``.
 
         Parameters

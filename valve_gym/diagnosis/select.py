@@ -30,8 +30,8 @@ plus the band ``min_band``.
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Dict, List, Optional, Sequence, Tuple
 
 import numpy as np
 
@@ -100,7 +100,7 @@ class CandidateFit:
 
     round: int
     effect: str
-    variant: Optional[str]
+    variant: str | None
     fit: FitResult
     delta_ic: float
     holdout_change: float
@@ -139,15 +139,15 @@ class Selection:
 
     base: FitResult
     final: FitResult
-    effects: List[str]
-    candidates: List[CandidateFit]
-    skipped: Dict[str, str]
+    effects: list[str]
+    candidates: list[CandidateFit]
+    skipped: dict[str, str]
     n_eff: float
     seconds: float
 
 
 def compare(old: FitResult, new: FitResult, rule: SelectionRule,
-            n_eff: Optional[float] = None) -> Tuple[float, float, bool]:
+            n_eff: float | None = None) -> tuple[float, float, bool]:
     """Criterion change, relative held-out RMSE change and whether ``new`` pays against ``old``.
 
     Both fits must share the fit samples.  ``n_eff`` defaults to the
@@ -168,7 +168,7 @@ def compare(old: FitResult, new: FitResult, rule: SelectionRule,
     return float(d_ic), float(h), bool(d_ic < -rule.ic_margin and h_ok)
 
 
-def candidate_variants(effect: str, actuator: str) -> List[Optional[str]]:
+def candidate_variants(effect: str, actuator: str) -> list[str | None]:
     """Variants tried for a candidate effect (None = the only one)."""
     if effect == "valve_characteristic":
         return ["equal_percentage", "quick_opening"]
@@ -238,8 +238,8 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
     """
     t0 = time.perf_counter()
     st = base.structure
-    skipped: Dict[str, str] = {}
-    pool: List[str] = []
+    skipped: dict[str, str] = {}
+    pool: list[str] = []
     for e in candidates:
         ok, why = effect_applicability(e, st.plant, st.actuator)
         if ok:
@@ -249,8 +249,8 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
     n_fit = base.n_fit
     n_eff0 = effective_n(base.residual[:n_fit])
     current = base
-    effects: List[str] = []
-    tried: List[CandidateFit] = []
+    effects: list[str] = []
+    tried: list[CandidateFit] = []
     rnd = 0
     ex = process_pool(jobs) if jobs > 1 else None
     try:
@@ -283,7 +283,7 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
             for i, r in zip(short, confirmed):
                 if r.cost <= screened[i].cost:
                     results[i] = r
-            by_effect: Dict[str, CandidateFit] = {}
+            by_effect: dict[str, CandidateFit] = {}
             for i, ((e, v), res) in enumerate(zip(meta, results)):
                 d_ic, h, pays = compare(current, res, rule, n_eff)
                 cf = CandidateFit(round=rnd, effect=e, variant=v, fit=res, delta_ic=d_ic,
