@@ -514,13 +514,18 @@ def _copy_state(st: ESState) -> ESState:
     return copy.deepcopy(st)
 
 
+def _fmt(x, spec: str) -> str:
+    return "n/a" if x is None else format(x, spec)
+
+
 def _print_row(row: dict, total: int) -> None:
     msg = (f"gen {row['gen']}/{total}  steps {row['env_steps']:.3g}  wall {row['wall_s']:.0f} s  "
            f"fitness {row['train_fitness_center']:+.3f}")
     if "val_fitness" in row:
-        msg += (f"  | val fitness {row['val_fitness']:+.3f}, IAE/PI sticky+severe "
-                f"{row['val_iae_ratio_sticky_severe']:.3f}, healthy {row['val_iae_ratio_healthy']:.3f}, "
-                f"travel {row['val_travel_per_h']:.2f}/h (PI {row['val_pi_travel_per_h']:.2f}/h)")
+        msg += (f"  | val fitness {_fmt(row['val_fitness'], '+.3f')}, IAE/PI sticky+severe "
+                f"{_fmt(row['val_iae_ratio_sticky_severe'], '.3f')}, "
+                f"healthy {_fmt(row['val_iae_ratio_healthy'], '.3f')}, "
+                f"travel {_fmt(row['val_travel_per_h'], '.2f')}/h (PI {_fmt(row['val_pi_travel_per_h'], '.2f')}/h)")
     print(msg, flush=True)
 
 

@@ -914,6 +914,12 @@ def main(argv=None) -> int:
     except (ValueError, OSError) as exc:
         print(f"valve-gym train: {exc}", file=sys.stderr)
         return 1
+    except Exception as exc:  # noqa: BLE001 - one line instead of a traceback; the variable shows it
+        if os.environ.get("VALVE_GYM_DEBUG"):
+            raise
+        print(f"valve-gym train: internal error {type(exc).__name__}: {exc} (set VALVE_GYM_DEBUG=1 for the "
+              f"traceback and report it)", file=sys.stderr)
+        return 1
 
 
 def _main_ppo(args, command: str) -> int:
