@@ -77,7 +77,7 @@ def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None
     model = model or default_model()
     x = features(ev, plant)
     p = float(model.probability(x)[0])
-    z = (x - np.asarray(model.mean)) / np.asarray(model.scale) * np.asarray(model.coef)
+    z = x / np.asarray(model.scale) * np.asarray(model.coef)     # pull away from a silent method (0)
     sizes = [s for s in (slip, _ellipse_size(ev)) if np.isfinite(s.S)]
     size, agree = combine_sizes(sizes)
     return StictionAssessment(p, verdict_of(p), size.S, size.J, (size.S_lo, size.S_hi),

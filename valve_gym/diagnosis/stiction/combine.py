@@ -199,7 +199,8 @@ class StictionAssessment:
     sizes : list of SizeEstimate, each method's own estimate
     evidence : list of Evidence, each method's reading
     features : dict of str to float, the model's inputs
-    contributions : dict of str to float, each feature's share of the log-odds
+    contributions : dict of str to float, each feature's pull on the log-odds relative to the
+        same method being silent (feature 0): ``coef * f / scale``
     """
 
     probability: float
