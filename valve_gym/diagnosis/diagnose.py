@@ -411,7 +411,7 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
              candidates: Sequence[str] | None = None, holdout: float = 0.3,
              validate: Recording | None = None, rule: SelectionRule = SelectionRule(),
              effort: str = "auto", seed: int = 0, jobs: int = 1, saturation="auto",
-             n_sub: int = 1, coarse=1,
+             n_sub: int = 1, coarse: int | str = 1,
              progress: Callable[[str], None] | None = None) -> DiagnosisResult:
     """Diagnose one recording: base fit, mismatch location, missing physics, friction verdict.
 
