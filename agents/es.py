@@ -14,7 +14,7 @@ runs ``2 * pairs`` perturbed networks, the current network and the plain PI on
 Fitness of a network on a batch of loops (higher is better)::
 
     f = -mean_b l_b - travel_penalty * mean_b travel_b / hours
-        - reversal_weight * mean_b r_b
+        - reversal_weight * mean_b r_b - lc_weight * mean_b (lc_b - lc_PI,b)
     l_b = log(IAE_b / IAE_PI,b)             (max(., 0) on healthy valves)
     r_b = log((rev_b + 1) / (rev_PI,b + 1))  (0 on healthy valves)
 
@@ -23,7 +23,8 @@ signals: only the policy's inputs are restricted), each against the plain PI on 
 The log ratios weigh a healthy valve as much as a severe one; on healthy valves only a loss
 against the PI counts (the block is not rewarded for out-tuning the PI where there is no
 stiction), and on sticky valves fewer stem reversals than the PI's (fewer stick-slip cycles)
-are rewarded beside a lower IAE.
+are rewarded beside a lower IAE; with ``lc_weight > 0`` so are fewer detections of the benchmark's
+limit-cycle detector (``lc_b`` = 1 where it fires on the measured error, sticky valves only).
 
 References
 ----------
@@ -78,6 +79,9 @@ class ESHyper:
     reversal_weight : float
         Fitness weight of ``log((reversals + 1) / (reversals_PI + 1))`` of the stem on sticky valves
         (each reversal is half a stick-slip cycle).
+    lc_weight : float
+        Fitness weight of the limit-cycle detections on sticky valves (the benchmark's ACF detector
+        on the measured error) against the PI's; 0 = not run.
     healthy_symmetric : bool
         On healthy valves count any departure from the PI's IAE (``|log ratio|``), not only a loss:
         the block must then behave as the PI where there is no stiction.
@@ -95,6 +99,7 @@ class ESHyper:
     travel_penalty: float = 0.01
     reversal_weight: float = 0.25
     healthy_symmetric: bool = False
+    lc_weight: float = 0.0
     episode_s: float = 1200.0
 
     def __post_init__(self):
@@ -105,8 +110,8 @@ class ESHyper:
         for nm in ("sigma", "learning_rate", "episode_s"):
             if not getattr(self, nm) > 0:
                 raise ConfigError(f"es.{nm} must be > 0, got {getattr(self, nm)!r}")
-        if self.weight_decay < 0 or self.travel_penalty < 0 or self.reversal_weight < 0:
-            raise ConfigError("es.weight_decay, es.travel_penalty and es.reversal_weight must be >= 0")
+        if min(self.weight_decay, self.travel_penalty, self.reversal_weight, self.lc_weight) < 0:
+            raise ConfigError("es.weight_decay, es.travel_penalty, es.reversal_weight and es.lc_weight must be >= 0")
         if not self.hidden or any((not isinstance(h, int)) or h < 1 for h in self.hidden):
             raise ConfigError(f"es.hidden must be a list of positive layer sizes, got {self.hidden!r}")
 
@@ -179,6 +184,7 @@ class RolloutScores(NamedTuple):
     iae : (P, B) IAE of the true level [m s]
     travel : (P, B) stem travel [strokes]
     reversals : (P, B) stem reversals (moves back by more than :data:`REVERSAL_DEADBAND`)
+    lc : (P, B) 1 where the limit-cycle detector fired (0 everywhere unless asked for)
     obs : (N_OBS,) mean and (N_OBS,) std of the observations (of the last policy)
     S : (B,) stick band of each loop [fraction of stroke]
     """
@@ -186,6 +192,7 @@ class RolloutScores(NamedTuple):
     iae: np.ndarray
     travel: np.ndarray
     reversals: np.ndarray
+    lc: np.ndarray
     obs_mean: np.ndarray
     obs_std: np.ndarray
     S: np.ndarray
@@ -219,7 +226,7 @@ class _Reversals:
         self.dir = new_dir
 
 
-def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None) -> RolloutScores:
+def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None, lc: bool = False) -> RolloutScores:
     """Run ``P`` policies on the loops of ``seeds`` (B,), all in one vector env of ``P * B`` loops.
 
     Parameters
@@ -230,6 +237,9 @@ def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None) -> Ro
     seeds : sequence of int
     obs_norm : (mean, std), optional
         Observation normaliser of the networks.
+    lc : bool
+        Run the limit-cycle detector of the benchmark (:func:`valve_gym.metrics.acf_oscillation`)
+        on each loop's measured error.
     """
     from valve_gym.envs.regulation_env import ValveTankRegulationVectorEnv
 
@@ -248,7 +258,8 @@ def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None) -> Ro
     stem = None
     s1 = np.zeros(N_OBS)
     s2 = np.zeros(N_OBS)
-    for _ in range(task.steps):
+    err = np.empty((task.steps, P * B)) if lc else None
+    for k in range(task.steps):
         if STOP["flag"]:
             raise Interrupted()
         o = obs.reshape(P, B, N_OBS).astype(np.float64)
@@ -261,18 +272,26 @@ def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None) -> Ro
         lv = inf["final_info"]["level"] if "final_info" in inf else inf["level"]
         sp = inf["final_info"]["setpoint"] if "final_info" in inf else inf["setpoint"]
         iae += np.abs(sp - lv) * task.block.scan_s
+        if err is not None:
+            pv = inf["final_info"]["pv"] if "final_info" in inf else inf["pv"]
+            err[k] = sp - pv
         if stem is not None:
             trav += np.abs(st - stem)
         rev.update(st)
         stem = st
     m = s1 / (B * task.steps)
     sd = np.sqrt(np.maximum(s2 / (B * task.steps) - m * m, 0.0))
+    lc_present = np.zeros(P * B)
+    if err is not None:
+        from valve_gym.metrics import acf_oscillation
+
+        lc_present = np.array([float(acf_oscillation(err[:, i], task.block.scan_s).present) for i in range(P * B)])
     return RolloutScores(iae=iae.reshape(P, B), travel=trav.reshape(P, B), reversals=rev.count.reshape(P, B),
-                         obs_mean=m, obs_std=sd, S=np.asarray(info["S"]).reshape(P, B)[0])
+                         lc=lc_present.reshape(P, B), obs_mean=m, obs_std=sd, S=np.asarray(info["S"]).reshape(P, B)[0])
 
 
 def fitness(sc: RolloutScores, ref_iae: np.ndarray, ref_rev: np.ndarray, hyper: ESHyper, hours: float,
-            healthy_max: float = 0.005) -> np.ndarray:  # noqa: D417
+            healthy_max: float = 0.005, ref_lc: np.ndarray | None = None) -> np.ndarray:  # noqa: D417
     """Fitness (P,) of scored policies against the PI's IAE ``ref_iae`` (B,) (see the module docstring).
 
     On healthy valves (``S <= healthy_max``) only a loss against the PI counts (``max(log ratio, 0)``),
@@ -282,7 +301,10 @@ def fitness(sc: RolloutScores, ref_iae: np.ndarray, ref_rev: np.ndarray, hyper: 
     healthy = (sc.S <= healthy_max)[None, :]
     lr = np.where(healthy, np.abs(lr) if hyper.healthy_symmetric else np.maximum(lr, 0.0), lr)
     rr = np.where(healthy, 0.0, np.log((sc.reversals + 1.0) / (ref_rev[None, :] + 1.0)))
-    return -lr.mean(1) - hyper.travel_penalty * sc.travel.mean(1) / hours - hyper.reversal_weight * rr.mean(1)
+    f = -lr.mean(1) - hyper.travel_penalty * sc.travel.mean(1) / hours - hyper.reversal_weight * rr.mean(1)
+    if hyper.lc_weight > 0 and ref_lc is not None:
+        f = f - hyper.lc_weight * np.where(healthy, 0.0, sc.lc - ref_lc[None, :]).mean(1)
+    return f
 
 
 def centered_ranks(f: np.ndarray) -> np.ndarray:
@@ -373,9 +395,9 @@ def es_generation(st: ESState, cfg: LearnedTrainConfig) -> dict:
     pop = np.concatenate([st.theta + h.sigma * eps, st.theta - h.sigma * eps, st.theta[None]])
     task = _train_task(cfg)
     pols = [unflatten(spec, p) for p in pop] + [None]
-    sc = rollout_scores(pols, task, seeds, (st.obs_mean, st.obs_std))
+    sc = rollout_scores(pols, task, seeds, (st.obs_mean, st.obs_std), lc=h.lc_weight > 0)
     hours = task.episode_s / 3600.0
-    f = fitness(sc, sc.iae[-1], sc.reversals[-1], h, hours, cfg.task.S_bands[1])
+    f = fitness(sc, sc.iae[-1], sc.reversals[-1], h, hours, cfg.task.S_bands[1], sc.lc[-1])
     r = centered_ranks(f[:2 * h.pairs])
     grad = ((r[:h.pairs] - r[h.pairs:]) @ eps) / (2 * h.pairs * h.sigma)
     g = -grad + h.weight_decay * st.theta          # minimise -f
@@ -396,17 +418,21 @@ def validate(st: ESState, cfg: LearnedTrainConfig, theta: np.ndarray, ref: Rollo
     """Score ``theta`` against the PI on the validation loops; returns ``(row, ref)``."""
     spec = MLPSpec(cfg.es.hidden)
     seeds = [cfg.eval.seed + i for i in range(cfg.eval.n_loops)]
+    lc = cfg.es.lc_weight > 0
     if ref is None:
-        ref = rollout_scores([None], cfg.task, seeds)
-    sc = rollout_scores([unflatten(spec, theta)], cfg.task, seeds, (st.obs_mean, st.obs_std))
+        ref = rollout_scores([None], cfg.task, seeds, lc=lc)
+    sc = rollout_scores([unflatten(spec, theta)], cfg.task, seeds, (st.obs_mean, st.obs_std), lc=lc)
     hours = cfg.task.episode_s / 3600.0
-    f = float(fitness(sc, ref.iae[0], ref.reversals[0], cfg.es, hours, cfg.task.S_bands[1])[0])
+    f = float(fitness(sc, ref.iae[0], ref.reversals[0], cfg.es, hours, cfg.task.S_bands[1], ref.lc[0])[0])
     ratio = sc.iae[0] / ref.iae[0]
     stick = ref.S > 0.005
     row = {"val_fitness": f, "val_iae_ratio_sticky_severe": float(np.median(ratio[stick])) if stick.any() else None,
            "val_iae_ratio_healthy": float(np.median(ratio[~stick])) if (~stick).any() else None,
            "val_travel_per_h": float(np.median(sc.travel[0]) / hours),
            "val_pi_travel_per_h": float(np.median(ref.travel[0]) / hours)}
+    if lc and stick.any():
+        row["val_lc_share_sticky_severe"] = float(sc.lc[0][stick].mean())
+        row["val_pi_lc_share_sticky_severe"] = float(ref.lc[0][stick].mean())
     return row, ref
 
 

@@ -273,3 +273,32 @@ def test_learned_config_errors(tmp_path):
     r = subprocess.run([sys.executable, "-m", "agents.train", "--config", str(bad)], capture_output=True, text=True,
                        cwd=Path(__file__).resolve().parents[1], env={**os.environ})
     assert r.returncode == 2 and "es.pairz" in r.stderr and "Traceback" not in r.stderr
+
+
+def test_es_fitness_terms_and_reversal_count():
+    from agents.es import ESHyper, RolloutScores, _Reversals, centered_ranks, fitness
+
+    r = _Reversals(2, 0.01)
+    x = np.array([[0.0, 0.0], [0.05, 0.005], [0.02, -0.004], [0.06, 0.003], [0.01, 0.0]])
+    for row in x:
+        r.update(row)
+    assert r.count.tolist() == [3.0, 0.0]                      # moves under the dead band do not count
+    S = np.array([0.001, 0.03])                                # one healthy, one sticky loop
+    ref_iae, ref_rev, ref_lc = np.array([1.0, 2.0]), np.array([10.0, 10.0]), np.array([0.0, 1.0])
+
+    def sc(iae, rev, lc, travel=(0.0, 0.0)):
+        return RolloutScores(np.array([iae]), np.array([travel]), np.array([rev]), np.array([lc]),
+                             np.zeros(11), np.ones(11), S)
+
+    h = ESHyper(travel_penalty=0.0, reversal_weight=0.0, lc_weight=0.0)
+    base = fitness(sc([1.0, 2.0], [10, 10], [0, 1]), ref_iae, ref_rev, h, 1.0, ref_lc=ref_lc)[0]
+    assert base == pytest.approx(0.0)
+    # better than PI on the healthy valve earns nothing; on the sticky one it does
+    assert fitness(sc([0.5, 2.0], [10, 10], [0, 1]), ref_iae, ref_rev, h, 1.0)[0] == pytest.approx(0.0)
+    assert fitness(sc([1.0, 1.0], [10, 10], [0, 1]), ref_iae, ref_rev, h, 1.0)[0] == pytest.approx(np.log(2) / 2)
+    h2 = ESHyper(travel_penalty=0.0, reversal_weight=0.0, lc_weight=1.0)
+    assert fitness(sc([1.0, 2.0], [10, 10], [1, 0]), ref_iae, ref_rev, h2, 1.0, ref_lc=ref_lc)[0] \
+        == pytest.approx(0.5)                                  # the healthy loop's detection does not count
+    h3 = ESHyper(travel_penalty=0.0, reversal_weight=1.0)
+    assert fitness(sc([1.0, 2.0], [10, 21], [0, 1]), ref_iae, ref_rev, h3, 1.0)[0] == pytest.approx(-np.log(2) / 2)
+    assert centered_ranks(np.array([3.0, 1.0, 2.0])).tolist() == [0.5, -0.5, 0.0]
