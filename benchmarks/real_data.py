@@ -39,6 +39,7 @@ import numpy as np
 
 from valve_gym.diagnosis import data_path, diagnose, load_recording
 from valve_gym.diagnosis.diagnose import diagnose_many
+from valve_gym.diagnosis.fit import parameter_uncertainty
 
 
 def cascaded_tanks(effort="auto", jobs=2):
@@ -58,6 +59,13 @@ def cascaded_tanks(effort="auto", jobs=2):
           f"{d['base']['rmse']:.3f} | {d['base']['fit_percent']:.1f} |")
     print(f"| final (+ {', '.join(d['effects'])}) | {res.final_split.rmse:.3f} | {h['final_rmse']:.3f} | "
           f"{d['final']['rmse']:.3f} | {d['final']['fit_percent']:.1f} |")
+    print("\nParameters of the final model fitted on the first 2/3 (90 % intervals from the free-run "
+          "Jacobian with the effective sample size, `valve_gym.diagnosis.fit.parameter_uncertainty`):\n")
+    print("| parameter | value | 90 % interval | unit |")
+    print("|---|---|---|---|")
+    for pu in parameter_uncertainty(res.final_split, rec.op, rec.pv):
+        print(f"| {pu.name} | {pu.value:.4g} | {pu.value - 1.645 * pu.sd:.4g} .. {pu.value + 1.645 * pu.sd:.4g} "
+              f"| {pu.unit} |")
     print("\nMismatch regions of the base model (whole record):\n")
     print("| t_start [s] | t_end [s] | share of squared error | PV high (top 10 %) | PV at 10 V |")
     print("|---|---|---|---|---|")

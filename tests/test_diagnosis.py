@@ -246,3 +246,23 @@ def test_auto_effort_follows_the_record_length():
     res = diagnose(make_recording("none", seed=4, n=300), candidates=())
     assert res.to_dict()["settings"]["effort"] == "thorough"
     assert res.to_dict()["settings"]["effort_asked"] == "auto"
+
+
+def test_parameter_uncertainty_covers_the_truth():
+    import numpy as np
+
+    from valve_gym.diagnosis.fit import fit_structure, parameter_uncertainty
+    from valve_gym.diagnosis.model import DataScales, ModelStructure
+    rng = np.random.default_rng(0)
+    t = np.arange(800)
+    u = 0.5 + 0.2 * np.sign(np.sin(2 * np.pi * t / 200))
+    sc = DataScales.from_signals(u, np.linspace(0.0, 2.0, 800), 1.0)
+    st = ModelStructure("first_order", "valve", (), sc, n_sub=2, friction=False)
+    w_true = np.full(len(st.params), 0.5)
+    y = st.simulate(w_true[None, :], u)[:, 0] + 0.01 * rng.normal(size=800)
+    fit = fit_structure(st, u, y, rng=1, effort="fast", final_n_sub=False)
+    pus = parameter_uncertainty(fit, u, y)
+    truth = st.decode(w_true[None, :])
+    assert {p.name for p in pus} <= set(truth)
+    for p in pus:
+        assert p.sd > 0 and abs(p.value - float(truth[p.name][0])) <= 4 * p.sd + 1e-9, p

@@ -52,3 +52,4 @@ def test_default_model_is_fitted_and_coarse_factor():
     assert coarse_factor(1800) == 1 and coarse_factor(3600) == 3
     with pytest.raises(ValueError, match="coarse"):
         diagnose(simulate_loop(STICKY, seed=3), plant="integrating", candidates=(), coarse=0)
+
