@@ -552,8 +552,6 @@ def test_fuzz_diagnose_finite(scale, offset, dt, op_gain, plant, seed):
 # --------------------------------------------------------------------------
 
 
-@pytest.mark.xfail(reason="agents/controllers: a setting given as None (scan_s, op_lo, op_hi, S) raises TypeError "
-                          "instead of a ValueError naming the allowed range", strict=False)
 @pytest.mark.parametrize("name,setting", [("pi", "scan_s"), ("pi", "op_lo"), ("knocker", "S"), ("two_move", "S")])
 def test_finding_controller_none_setting(name, setting):
     if not _controllers():

@@ -99,4 +99,8 @@ def load_controller(name: str, **settings) -> FunctionBlock:
     """
     if not isinstance(name, str) or name not in _LOADERS:
         raise ValueError(f"unknown controller {name!r}; available: {', '.join(available_controllers())}")
+    unset = sorted(k for k, v in settings.items() if v is None and not (name == "learned" and k == "path"))
+    if unset:
+        raise ValueError(f"{name}: setting(s) {unset} given as None; leave a setting out to use its default, "
+                         "or give a number")
     return _LOADERS[name](**settings)  # type: ignore[return-value]
