@@ -228,3 +228,12 @@ def test_wide_export_fleet(ray_session, tmp_path):
     assert rows["FIC101"].status == "ok" and rows["FIC101"].tag == "FIC101"
     assert rows["LIC202"].status == "ok" and rows["LIC202"].oscillating
     assert any("MODE manual" in n for n in rows["LIC202"].notes)
+
+
+def test_csv_with_a_long_gap_keeps_the_longest_stretch(tmp_path):
+    t = np.arange(400.0)
+    rows = ["t_s,OP,PV"] + [f"{a},{50 + 10 * np.sin(a / 20)},{1 + 0.1 * np.sin(a / 20 - 0.5)}" for a in t]
+    (tmp_path / "g.csv").write_text("\n".join(rows[:101] + rows[121:]))          # 20 samples missing
+    loop = load_loop(discover_loops(str(tmp_path))[0], op_range=(0, 100))
+    assert len(loop.gaps) == 1 and len(loop.recording) == 280
+    assert any("gap" in n for n in loop.notes)

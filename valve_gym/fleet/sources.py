@@ -61,9 +61,10 @@ class Gap(NamedTuple):
 
     Attributes
     ----------
-    role : str, the signal (``'pv'``, ``'op'``, ``'sp'``, ``'mode'``)
-    t_start : float, seconds from the first sample of the loop
-    seconds : float, length of the stretch without a sample [s]
+    role : str, the signal (``'pv'``, ``'op'``)
+    t_start : float, seconds from the first sample of the loop (NaN for a one-recording CSV: the
+        loader's note gives the times)
+    seconds : float, length of the stretch without a sample [s] (NaN likewise)
     """
 
     role: str
@@ -480,4 +481,6 @@ def load_loop(src: LoopSource, columns=None, op_range=None, max_gap: int = 5) ->
         return _load_wide(src, op_range, max_gap)
     rec = load_recording(src.path, columns=columns, op_range=op_range, name=src.name, max_gap=max_gap,
                          gaps="longest")
-    return LoadedLoop(rec, (), tuple(rec.repairs))
+    n_gaps = sum(int(m) for r in rec.repairs for m in re.findall(r"(\d+) gap\(s\)", r))
+    gaps = tuple(Gap("pv", math.nan, math.nan) for _ in range(n_gaps))     # times are in the notes
+    return LoadedLoop(rec, gaps, tuple(rec.repairs))
