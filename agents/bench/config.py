@@ -173,7 +173,9 @@ class ControllersConfig:
     Parameters
     ----------
     detune : tuple of float
-        Factors on the SIMC ``Kc`` of the detuned PIs (``Ti`` kept), each in (0, 1).
+        Factors on the SIMC ``Kc`` of the re-tuned PIs (``Ti`` kept), each in (0, 4] and not 1:
+        below 1 the detuned PI (the usual plant answer to a sticky valve), above 1 a tighter PI;
+        together they trace the IAE-vs-travel Pareto front over ``Kc`` that any compensator must beat.
     compensators : tuple of str
         Compensator names for ``load_controller``; each gets the loop's stiction estimate ``S``.
     estimate_factors : tuple of float
@@ -182,14 +184,15 @@ class ControllersConfig:
         Include ``load_controller("learned")`` (skipped with a note when it cannot be loaded).
     """
 
-    detune: tuple[float, ...] = (0.7, 0.5, 0.35, 0.25)
+    detune: tuple[float, ...] = (2.0, 1.5, 0.7, 0.5, 0.35, 0.25)
     compensators: tuple[str, ...] = ("knocker", "constant_reinforcement", "two_move", "integral_freeze")
     estimate_factors: tuple[float, ...] = (1.0, 0.5, 1.5)
     learned: bool = True
 
     def __post_init__(self):
-        if any(not (0.0 < k < 1.0) for k in self.detune):
-            raise ConfigError(f"detune factors must be in (0, 1), got {list(self.detune)!r}")
+        if any(not (0.0 < k <= 4.0) or k == 1.0 for k in self.detune):
+            raise ConfigError(f"detune factors must be in (0, 4] and not 1 (the SIMC PI runs anyway), "
+                              f"got {list(self.detune)!r}")
         if not self.estimate_factors or self.estimate_factors[0] != 1.0 or min(self.estimate_factors) <= 0:
             raise ConfigError(f"estimate_factors must start with 1.0 and be > 0, got {list(self.estimate_factors)!r}")
 
