@@ -36,7 +36,7 @@ Examples
 >>> t = np.arange(2000.0)
 >>> e = 0.05 * np.sin(2 * np.pi * t / 100) + 0.01 * np.random.default_rng(0).normal(size=t.size)
 >>> osc = oscillation_index(e, dt=1.0)
->>> osc.oscillating, round(osc.period_s), round(osc.amplitude, 3)
+>>> osc.oscillating, round(osc.period_s), round(osc.amplitude, 2)
 (True, 100, 0.05)
 """
 from __future__ import annotations

@@ -25,8 +25,10 @@ Examples
 >>> t = np.array([0.0, 1.0, 2.1, 2.9, 4.0, 5.0, 13.0, 14.0, 15.0])
 >>> x = np.arange(9.0)
 >>> grid, out, gaps, notes = resample_loop(t, {"pv": x, "op": x / 10}, max_gap=5)
->>> float(grid[1] - grid[0]), len(gaps), round(gaps[0].seconds, 1)
-(1.0, 1, 8.0)
+>>> float(grid[1] - grid[0]), [g.role for g in gaps], round(gaps[0].seconds, 1)   # an 8 s hole in both
+(1.0, ['pv', 'op'], 8.0)
+>>> float(grid[0]), len(grid)       # the hole 5-13 s is cut; the longer stretch left, 0-5 s, is kept
+(0.0, 6)
 """
 from __future__ import annotations
 
