@@ -872,6 +872,11 @@ def _main_learned(args, command: str) -> int:
     from .es import load_learned_train_config, summary_json, train_learned
 
     cfg = load_learned_train_config(args.config)
+    for flag, val in (("--timesteps", args.timesteps), ("--vec-env", args.vec_env),
+                      ("--no-final-eval", args.no_final_eval or None)):
+        if val is not None:
+            raise UsageError(f"{flag} is for PPO configs; {args.config} trains the learned compensator "
+                             f"(use --generations to change its length)")
     out = Path(args.out) if args.out else Path("runs") / cfg.name
     ck = prepare_out(out, args.resume, args.overwrite)
     if ck is None:
@@ -924,6 +929,9 @@ def main(argv=None) -> int:
 
 def _main_ppo(args, command: str) -> int:
     cfg = load_train_config(args.config)
+    if args.generations is not None:
+        raise UsageError(f"--generations is for the learned compensator (algorithm: es); {args.config} is a PPO "
+                         f"config: use --timesteps")
     out = Path(args.out) if args.out else Path("runs") / cfg.name
     ck = prepare_out(out, args.resume, args.overwrite)
     s = train(cfg, out, resume=None if ck is None else str(ck), seed=args.seed, timesteps=args.timesteps,

@@ -302,3 +302,15 @@ def test_es_fitness_terms_and_reversal_count():
     h3 = ESHyper(travel_penalty=0.0, reversal_weight=1.0)
     assert fitness(sc([1.0, 2.0], [10, 21], [0, 1]), ref_iae, ref_rev, h3, 1.0)[0] == pytest.approx(-np.log(2) / 2)
     assert centered_ranks(np.array([3.0, 1.0, 2.0])).tolist() == [0.5, -0.5, 0.0]
+
+
+def test_flags_of_the_other_trainer_are_refused(tmp_path, capsys):
+    cfg = _es_cfg(tmp_path)
+    for extra in (["--timesteps", "10"], ["--vec-env", "dummy"], ["--no-final-eval"]):
+        assert cli_main(["train", "--config", str(cfg), "--out", str(tmp_path / "x")] + extra) == 2
+        assert "PPO" in capsys.readouterr().err
+    ppo = tmp_path / "tiny.yaml"
+    ppo.write_text(yaml.safe_dump(TINY))
+    assert cli_main(["train", "--config", str(ppo), "--out", str(tmp_path / "y"), "--generations", "3"]) == 2
+    assert "--timesteps" in capsys.readouterr().err
+    assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
