@@ -117,7 +117,7 @@ def test_actions_table():
     assert recommend("ok", "", False, "yes", 0.9, 0.03, 0.0)[0] == "inspect"
     assert recommend("ok", "", True, "yes", 0.9, 0.08, 0.03)[0] == "repair"
     name, text = recommend("ok", "", True, "yes", 0.9, 0.02, 0.03)
-    assert name == "compensate" and "constant reinforcement" in text and "2.0 %" in text
+    assert name == "compensate" and "knocker" in text and "2.0 %" in text
     assert recommend("ok", "", True, "no", 0.1, math.nan, 0.03)[0] == "retune"
     assert recommend("ok", "", True, "undecided", 0.5, math.nan, 0.03)[0] == "undecided"
     assert recommend("ok", "", True, "not tested", 0.9, math.nan, 0.07)[0] == "repair"   # OP swing stands in
