@@ -71,6 +71,8 @@ class LoopSpec:
     tau_v : float, positioner time constant [s]
     n : int, samples
     sp_step : float, set-point offset from the initial steady state [PV] (excites a noise-free loop)
+    sp_moves : float, set-point steps of this size [PV] (random sign) every n/6 samples (0: none)
+    leak : float, extra constant outflow of the tank [m^3/s] (``'tank'`` only)
 
     The measurement noise of :func:`random_spec` is drawn in controller-output
     terms (0.03-0.3 % of stroke after the PI gain), so that it matters as much
@@ -99,6 +101,8 @@ class LoopSpec:
     tau_v: float = 0.3
     n: int = 1800
     sp_step: float = 0.0
+    sp_moves: float = 0.0
+    leak: float = 0.0
 
     @property
     def sticky(self) -> bool:
@@ -185,7 +189,7 @@ def _process_rate(spec: LoopSpec, y, x):
         return (-y + spec.K * x) / spec.tau
     if spec.process == "integrating":
         return spec.k_i * (x - 0.5)
-    return (spec.q_max * x - spec.c_out * math.sqrt(max(y, 0.0))) / spec.area
+    return (spec.q_max * x - spec.c_out * math.sqrt(max(y, 0.0)) - spec.leak) / spec.area
 
 
 def _steady(spec: LoopSpec, x0: float) -> float:
@@ -193,7 +197,7 @@ def _steady(spec: LoopSpec, x0: float) -> float:
         return spec.K * x0
     if spec.process == "integrating":
         return 1.0
-    return (spec.q_max * x0 / spec.c_out) ** 2
+    return (max(spec.q_max * x0 - spec.leak, 1e-9) / spec.c_out) ** 2
 
 
 def simulate_loop(spec: LoopSpec, seed: int = 0, name: str | None = None) -> Recording:
@@ -221,10 +225,11 @@ def simulate_loop(spec: LoopSpec, seed: int = 0, name: str | None = None) -> Rec
     e_prev = 0.0
     op = np.empty(n_total)
     pv = np.empty(n_total)
+    sps = _sp_profile(rng, n_total, sp, spec.sp_moves)
     for k in range(n_total):
         t = k * spec.Ts
         ym = y + nz[k]
-        e = sp - ym
+        e = sps[k] - ym
         u = u + spec.Kc * (e - e_prev + spec.Ts / spec.Ti * e)
         u = float(min(max(u, 0.0), 1.0))
         e_prev = e
@@ -243,9 +248,25 @@ def simulate_loop(spec: LoopSpec, seed: int = 0, name: str | None = None) -> Rec
             y += h * _process_rate(spec, y, min(max(xd + dist, 0.0), 1.0))
     k0 = n_total - spec.n
     t = np.arange(spec.n) * spec.Ts
-    return Recording(t=t, op=op[k0:], pv=pv[k0:], sp=np.full(spec.n, sp), dt=spec.Ts,
+    return Recording(t=t, op=op[k0:], pv=pv[k0:], sp=sps[k0:], dt=spec.Ts,
                      name=name or f"{spec.process}_{spec.valve}_{seed}", op_range=(0.0, 1.0),
                      columns={"t": "t", "op": "op", "pv": "pv", "sp": "sp"})
+
+
+def _sp_profile(rng, n: int, sp0: float, size: float) -> np.ndarray:
+    """Set point: ``sp0``, moved by +-``size`` every n/6 samples (kept within 2 sizes of ``sp0``)."""
+    out = np.full(n, sp0)
+    if size <= 0:
+        return out
+    cur = sp0
+    seg = max(n // 6, 1)
+    for k in range(seg, n, seg):
+        step = size * (1.0 if rng.random() < 0.5 else -1.0)
+        if abs(cur + step - sp0) > 2 * size:
+            step = -step
+        cur += step
+        out[k:] = cur
+    return out
 
 
 def _tuning(rng, spec: dict[str, float], process: str, aggressive: bool):
