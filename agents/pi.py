@@ -70,12 +70,12 @@ class PIController(BlockPolicy):
     @property
     def Kc(self) -> float:
         """Gain [1/m]."""
-        return self.params.Kc
+        return float(np.asarray(self.params.Kc).reshape(-1)[0])
 
     @property
     def Ti(self) -> float:
         """Integral time [s]."""
-        return self.params.Ti
+        return float(np.asarray(self.params.Ti).reshape(-1)[0])
 
     @property
     def Ts(self) -> float:

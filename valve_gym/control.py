@@ -49,8 +49,8 @@ class PIParams:
     u_lo, u_hi : float, output limits (0..1 by default).
     """
 
-    Kc: float = 1.0
-    Ti: float = 20.0
+    Kc: float | np.ndarray = 1.0
+    Ti: float | np.ndarray = 20.0
     Ts: float = 1.0
     u_lo: float = 0.0
     u_hi: float = 1.0
