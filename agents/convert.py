@@ -43,7 +43,7 @@ def convert_sb3_zip(src: str, dst: str) -> str:
 
 def main(argv=None) -> int:
     """Command line; exit 0 done, 1 failed, 2 bad usage."""
-    p = argparse.ArgumentParser(prog="python -m agents.convert", description=(__doc__ or "").split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="valve-gym convert-policy", description=(__doc__ or "").split("\n\n")[0])
     p.add_argument("--trust-pickle", action="store_true", required=True,
                    help="required: you trust the file (unpickling runs any code inside it)")
     p.add_argument("src", help="old policy .zip (stable-baselines3)")

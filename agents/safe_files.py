@@ -44,7 +44,7 @@ def model_file_paths(path) -> tuple[Path, Path]:
 
 
 _CONVERT = ("If you trust its origin (only then), convert it once with "
-            "`python -m agents.convert --trust-pickle {path} OUT`")
+            "`valve-gym convert-policy --trust-pickle {path} OUT`")
 
 
 def describe_file(path) -> str:

@@ -122,3 +122,12 @@ def test_shipped_policies_are_safe_files():
     for s in stems:
         assert (pol / f"{s}.json").is_file()
         assert describe_file(pol / f"{s}.safetensors") == "safetensors"
+
+
+def test_convert_policy_is_a_cli_command_and_requires_trust(capsys):
+    from valve_gym.cli import main
+
+    assert main(["convert-policy", "--help"]) == 0
+    assert "--trust-pickle" in capsys.readouterr().out
+    # without the explicit opt-in the conversion refuses to start (bad usage)
+    assert main(["convert-policy", "old.zip", "out"]) == 2

@@ -3,9 +3,10 @@
 Sub-commands (each module's ``main(argv)`` does the work)::
 
     valve-gym benchmark  --out DIR [--quick] [--config FILE] [--jobs N]   compensator benchmark (the main job)
-    valve-gym train      --config configs/ppo_residual.yaml [--out DIR] [--resume ZIP]
+    valve-gym train      --config configs/learned.yaml --out DIR [--resume | --overwrite]
     valve-gym figures    --out DIR                  teaching figures of valve friction
-    valve-gym diagnose   REC.csv [options]          model-mismatch diagnosis of a recording
+    valve-gym diagnose   REC.csv|DIR [options]      model-mismatch diagnosis of a recording or a fleet
+    valve-gym convert-policy --trust-pickle IN.zip OUT   one-off conversion of a trusted old SB3 zip
 """
 from __future__ import annotations
 
@@ -14,15 +15,17 @@ import sys
 
 _COMMANDS = {
     "benchmark": ("agents.bench.cli", "compensator benchmark: regulation and servo on sticky valves"),
-    "train": ("agents.train", "train a PPO policy from a YAML config"),
+    "train": ("agents.train", "train the learned compensator (ES) or a PPO policy from a YAML config"),
     "figures": ("valve_gym.figures", "write the teaching figures (PNG)"),
-    "diagnose": ("valve_gym.diagnosis.cli", "diagnose a recording: locate the mismatch, name the missing physics"),
+    "diagnose": ("valve_gym.diagnosis.cli", "diagnose a recording (or a folder of loops, on Ray): locate the "
+                 "mismatch, name the missing physics, rank the valves"),
+    "convert-policy": ("agents.convert", "convert a TRUSTED old pickle-based SB3 zip to safetensors + JSON"),
 }
 
 
 def _usage() -> str:
     lines = ["usage: valve-gym COMMAND [options]", "", "commands:"]
-    lines += [f"  {k:<10} {v[1]}" for k, v in _COMMANDS.items()]
+    lines += [f"  {k:<15} {v[1]}" for k, v in _COMMANDS.items()]
     lines += ["", "valve-gym COMMAND --help shows the options of a command."]
     return "\n".join(lines)
 
@@ -40,6 +43,8 @@ def main(argv=None) -> int:
     mod = importlib.import_module(_COMMANDS[cmd][0])
     try:
         rc = mod.main(rest)
+    except SystemExit as exc:  # argparse's --help (0) and usage errors (2)
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
     except KeyboardInterrupt:
         print("valve-gym: interrupted", file=sys.stderr)
         return 130
