@@ -20,14 +20,15 @@ Controllers are DCS function blocks, built by name::
 :class:`PIController`            the plant's PI (SIMC tuning, anti-windup, bumpless)
 :class:`KnockerController`       PI + Hägglund's knocker pulses
 :class:`PPOController`           a trained SB3 policy with its observation transform
-:func:`load_policy`              load a policy zip written by ``valve-gym train``
+:func:`load_policy`              a PPO policy (safetensors + JSON; never a pickle)
 :func:`rollout`                  one batched episode of any controller on many valves
 :func:`run_benchmark`            the compensator benchmark (``valve-gym benchmark``)
 ===============================  ================================================
 
-Per-valve scores: :func:`agents.evaluate.evaluate`; PPO training:
-:func:`agents.train.train` (``valve-gym train``); both are modules of the
-same name, so they are not re-exported here.
+The learned compensator is ``load_controller("learned")``
+(:mod:`agents.learned`). Per-valve scores: :func:`agents.evaluate.evaluate`;
+training (evolution strategies for the learned compensator, PPO for policies):
+:func:`agents.train.train` (``valve-gym train``).
 
 The PPO, training and benchmark parts import stable-baselines3/torch on first
 use only.
