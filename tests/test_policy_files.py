@@ -127,7 +127,11 @@ def test_shipped_policies_are_safe_files():
 def test_convert_policy_is_a_cli_command_and_requires_trust(capsys):
     from valve_gym.cli import main
 
-    assert main(["convert-policy", "--help"]) == 0
+    with pytest.raises(SystemExit) as exc:
+        main(["convert-policy", "--help"])
+    assert exc.value.code == 0
     assert "--trust-pickle" in capsys.readouterr().out
     # without the explicit opt-in the conversion refuses to start (bad usage)
-    assert main(["convert-policy", "old.zip", "out"]) == 2
+    with pytest.raises(SystemExit) as exc:
+        main(["convert-policy", "old.zip", "out"])
+    assert exc.value.code == 2

@@ -43,8 +43,6 @@ def main(argv=None) -> int:
     mod = importlib.import_module(_COMMANDS[cmd][0])
     try:
         rc = mod.main(rest)
-    except SystemExit as exc:  # argparse's --help (0) and usage errors (2)
-        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
     except KeyboardInterrupt:
         print("valve-gym: interrupted", file=sys.stderr)
         return 130
