@@ -53,7 +53,8 @@ def cascaded_tanks(effort="auto", jobs=2):
     print("Command: `valve-gym diagnose valve_gym/data/cascaded_tanks/estimation.csv --plant cascade "
           "--actuator pump --op-range 0,10 --holdout 0.3333`\n")
     print(f"Effects named, in order: {', '.join(d['effects']) or 'none'}\n")
-    print("| model | RMSE fit part (first 2/3) [V] | RMSE held-out last 1/3 [V] | RMSE whole record, refitted [V] | fit % whole |")
+    print("| model | RMSE fit part (first 2/3) [V] | RMSE held-out last 1/3 [V] | "
+          "RMSE whole record, refitted [V] | fit % whole |")
     print("|---|---|---|---|---|")
     print(f"| base (Schoukens nominal + sensor range) | {res.base_split.rmse:.3f} | {h['base_rmse']:.3f} | "
           f"{d['base']['rmse']:.3f} | {d['base']['fit_percent']:.1f} |")
@@ -149,7 +150,7 @@ def plant_loops(effort="auto", jobs=2, limit=None):
     tnr = tn / max(nneg, 1)
     bal = 0.5 * (tpr + tnr)
     bal_mean = 0.5 * (np.mean(acc_pos) + np.mean(acc_neg)) if acc_pos and acc_neg else float("nan")
-    files_right = sum(vv == l for v in per_tag.values() for l, vv in v)
+    files_right = sum(vv == lab for v in per_tag.values() for lab, vv in v)
     n_files = sum(len(v) for v in per_tag.values())
     loto = leave_one_tag_out([(t[1], t[2], t[4]) for t in table if t[3] is not None])
     print(f"\nTags: {npos} stiction, {nneg} no stiction. Per-tag majority vote: TPR {tpr:.2f}, "
@@ -169,7 +170,7 @@ def plant_loops(effort="auto", jobs=2, limit=None):
           f"records judged 'stiction' are at least those judged 'no stiction'; 'undetermined' "
           f"records abstain, and a tag with no other verdict raises no alarm: "
           f"{len(ref['silent_tags'])} tags, "
-          f"{', '.join(t + (' (stiction)' if l else ' (no stiction)') for t, l in ref['silent_tags']) or '-'}). "
+          f"{', '.join(t + (' (stiction)' if lab else ' (no stiction)') for t, lab in ref['silent_tags']) or '-'}). "
           f"valve_gym's verdict on the same tags: TPR {ref['ours_tpr']:.2f}, "
           f"TNR {ref['ours_tnr']:.2f}, balanced accuracy **{ref['ours_balanced']:.2f}**.\n")
     return {"balanced_accuracy_majority": bal, "balanced_accuracy_tag_mean": bal_mean,
@@ -202,7 +203,8 @@ def horch_reference(items):
         ours = sum(vv for _, vv, _ in v) >= len(v) / 2
         (hp if label else hn).append(horch if label else not horch)
         (op if label else on).append(ours if label else not ours)
-    f = (lambda x: float(np.mean(x)) if x else float("nan"))
+    def f(x):
+        return float(np.mean(x)) if x else float("nan")
     return {"n_pos": len(hp), "n_neg": len(hn), "silent_tags": silent,
             "horch_tpr": f(hp), "horch_tnr": f(hn),
             "horch_balanced": 0.5 * (f(hp) + f(hn)), "ours_tpr": f(op), "ours_tnr": f(on),

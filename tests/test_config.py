@@ -6,10 +6,16 @@ from pathlib import Path
 import pytest
 import yaml
 
-from valve_gym.config import (ConfigError, EnvConfig, ValveRandomisation, config_to_dict,
-                              load_config, preset, save_config)
-from valve_gym.params import (DeadTime, IntegratingParams, ModelParams, SensorLag, TankParams,
-                              ValveParams)
+from valve_gym.config import (
+    ConfigError,
+    EnvConfig,
+    ValveRandomisation,
+    config_to_dict,
+    load_config,
+    preset,
+    save_config,
+)
+from valve_gym.params import DeadTime, IntegratingParams, ModelParams, SensorLag, TankParams, ValveParams
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 

@@ -3,8 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from valve_gym.diagnosis.locate import (apparent_band, condition_masks, dominant_period,
-                                        locate_mismatch, op_reversals)
+from valve_gym.diagnosis.locate import apparent_band, condition_masks, dominant_period, locate_mismatch, op_reversals
 
 
 def test_region_found_where_the_model_misses():

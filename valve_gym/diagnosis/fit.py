@@ -1,13 +1,13 @@
-"""Free-run simulation-error fitting of a model structure to a recording.
+r"""Free-run simulation-error fitting of a model structure to a recording.
 
 The fitter simulates whole populations of candidate parameter sets in one
 call of the batched physics core and minimises the free-run simulation error
 
-.. math:: J(\\theta) = \\sum_{k \\in \\text{fit}} (y_k - \\hat y_k(\\theta))^2
+.. math:: J(\theta) = \sum_{k \in \text{fit}} (y_k - \hat y_k(\theta))^2
 
-where :math:`\\hat y` is simulated from the recorded controller output alone
+where :math:`\hat y` is simulated from the recorded controller output alone
 (no measured output is fed back), starting from an initial state that is
-part of :math:`\\theta`.  Search: differential evolution written over the
+part of :math:`\theta`.  Search: differential evolution written over the
 batch axis (JADE's *current-to-pbest/1/bin* with dithered ``F`` and ``CR``
 [1]_), then a bounded Gauss-Newton refinement (:func:`scipy.optimize.least_squares`,
 trust-region reflective) whose finite-difference Jacobian is one batched
@@ -149,6 +149,7 @@ class FitResult:
 
     @property
     def label(self) -> str:
+        """Short name of the fitted structure (base and named effects)."""
         return self.structure.label()
 
     def summary(self) -> dict:
@@ -217,8 +218,8 @@ def _de(obj: _Objective, rng, pop: int, gens: int, seeds=None, spread=None, tol=
     several independent populations make the search much less of a lottery.
     """
     k = len(obj.free)
-    I = max(1, int(islands))
-    X = np.stack([_lhs(rng, pop, k) for _ in range(I)])          # (I, pop, k)
+    n_isl = max(1, int(islands))
+    X = np.stack([_lhs(rng, pop, k) for _ in range(n_isl)])          # (n_isl, pop, k)
     if seeds is not None:
         S = np.atleast_2d(np.asarray(seeds, float))[:, obj.free]
         m = min(len(S), pop)
@@ -226,30 +227,30 @@ def _de(obj: _Objective, rng, pop: int, gens: int, seeds=None, spread=None, tol=
         if spread is not None and m < pop:
             sp = np.asarray(spread, float)[obj.free]
             nc = min(pop - m, pop // 2)
-            for j in range(I):
+            for j in range(n_isl):
                 C = S[0][None, :] + rng.normal(size=(nc, k)) * sp[None, :]
                 wide = sp >= 1.0
                 C[:, wide] = rng.random((nc, int(wide.sum())))
                 X[j, m:m + nc] = np.clip(C, 0.0, 1.0)
-    budget = I * pop * gens
-    fx = obj(X.reshape(-1, k)).reshape(I, pop)
-    used = I * pop
+    budget = n_isl * pop * gens
+    fx = obj(X.reshape(-1, k)).reshape(n_isl, pop)
+    used = n_isl * pop
     best = fx.min(axis=1)
     med = np.median(fx, axis=1)
-    stall = np.zeros(I, int)
-    muF = np.full(I, 0.6)
-    muCR = np.full(I, 0.9)
+    stall = np.zeros(n_isl, int)
+    muF = np.full(n_isl, 0.6)
+    muCR = np.full(n_isl, 0.9)
     gi = np.unravel_index(int(np.argmin(fx)), fx.shape)
     gbest_x, gbest_f = X[gi].copy(), float(fx[gi])
     p = max(2, int(round(_PBEST * pop)))
     ar = np.arange(pop)
     while used < budget:
         order = np.argsort(fx, axis=1)
-        pb = np.take_along_axis(order, rng.integers(0, p, (I, pop)), axis=1)
-        r1 = rng.integers(0, pop, (I, pop))
-        r2 = rng.integers(0, pop, (I, pop))
-        F = np.clip(muF[:, None] + 0.1 * rng.standard_cauchy((I, pop)), 0.1, 1.0)[..., None]
-        CR = np.clip(rng.normal(muCR[:, None], 0.1, (I, pop)), 0.0, 1.0)[..., None]
+        pb = np.take_along_axis(order, rng.integers(0, p, (n_isl, pop)), axis=1)
+        r1 = rng.integers(0, pop, (n_isl, pop))
+        r2 = rng.integers(0, pop, (n_isl, pop))
+        F = np.clip(muF[:, None] + 0.1 * rng.standard_cauchy((n_isl, pop)), 0.1, 1.0)[..., None]
+        CR = np.clip(rng.normal(muCR[:, None], 0.1, (n_isl, pop)), 0.0, 1.0)[..., None]
         Xp = np.take_along_axis(X, pb[..., None], axis=1)
         X1 = np.take_along_axis(X, r1[..., None], axis=1)
         X2 = np.take_along_axis(X, r2[..., None], axis=1)
@@ -257,15 +258,15 @@ def _de(obj: _Objective, rng, pop: int, gens: int, seeds=None, spread=None, tol=
         low, high = V < 0, V > 1
         V[low] = X[low] * rng.random(low.sum())
         V[high] = X[high] + (1 - X[high]) * rng.random(high.sum())
-        cross = rng.random((I, pop, k)) < CR
-        jr = rng.integers(0, k, (I, pop))
-        cross[np.arange(I)[:, None], ar[None, :], jr] = True
+        cross = rng.random((n_isl, pop, k)) < CR
+        jr = rng.integers(0, k, (n_isl, pop))
+        cross[np.arange(n_isl)[:, None], ar[None, :], jr] = True
         U = np.where(cross, V, X)
-        fu = obj(U.reshape(-1, k)).reshape(I, pop)
-        used += I * pop
+        fu = obj(U.reshape(-1, k)).reshape(n_isl, pop)
+        used += n_isl * pop
         better = fu <= fx
         strict = fu < fx
-        for j in range(I):
+        for j in range(n_isl):
             if strict[j].any():
                 sF, sC = F[j, strict[j], 0], CR[j, strict[j], 0]
                 muF[j] = 0.9 * muF[j] + 0.1 * float(np.sum(sF ** 2) / np.sum(sF))

@@ -1,4 +1,4 @@
-"""Data-driven stiction indices, reported beside the model-based friction verdict.
+r"""Data-driven stiction indices, reported beside the model-based friction verdict.
 
 The friction verdict of :func:`valve_gym.diagnosis.diagnose` comes from fitting
 the simulator with and without friction.  Plant engineers also know the
@@ -14,7 +14,7 @@ from aggressive tuning or an external disturbance gives an *even* one (output
 and PV in counter-phase).  With ``tau_l`` and ``tau_r`` the distances from lag
 0 to the first zero crossing on the left and on the right, the phase index
 
-.. math:: \\Delta\\phi = \\pi\\,\\frac{|\\tau_r - \\tau_l|}{\\tau_r + \\tau_l}
+.. math:: \Delta\phi = \pi\,\frac{|\tau_r - \tau_l|}{\tau_r + \tau_l}
 
 is near 0 for an even and near ``pi`` for an odd function; the decision bands
 used in the stiction literature are ``< pi/3`` no stiction, ``> 2 pi/3``
@@ -47,6 +47,24 @@ def _first_crossing(c):
     return None
 
 
+def _checked_inputs(op, pv, dt: float, max_lag) -> tuple[np.ndarray, np.ndarray]:
+    """Validate the inputs of :func:`horch_ccf`; ``op`` and ``pv`` as float arrays, (T,) each."""
+    op = np.asarray(op, float)
+    pv = np.asarray(pv, float)
+    if op.ndim != 1 or pv.ndim != 1 or op.shape != pv.shape:
+        raise ValueError(f"op and pv must be 1-D arrays of the same length, got shapes {op.shape} "
+                         f"and {pv.shape}")
+    if not (np.isfinite(op).all() and np.isfinite(pv).all()):
+        raise ValueError("op and pv contain NaN or inf values; repair or drop those samples first "
+                         "(load_recording does)")
+    if not (np.isfinite(dt) and dt > 0):
+        raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
+    if max_lag is not None and not (isinstance(max_lag, (int, np.integer)) and 1 <= max_lag < len(op)):
+        raise ValueError(f"max_lag must be a whole number from 1 to len(op) - 1 = {len(op) - 1}, "
+                         f"got {max_lag!r}")
+    return op, pv
+
+
 def horch_ccf(op, pv, dt: float = 1.0, plant: str = "first_order", max_lag=None) -> dict:
     """Horch's cross-correlation stiction test on one record.
 
@@ -64,19 +82,7 @@ def horch_ccf(op, pv, dt: float = 1.0, plant: str = "first_order", max_lag=None)
     or ``'not applicable'``), ``phase_index`` (``delta_phi / pi``, 0..1, or
     None), ``tau_left_s``, ``tau_right_s``, ``ccf_at_zero`` and ``reason``.
     """
-    op = np.asarray(op, float)
-    pv = np.asarray(pv, float)
-    if op.ndim != 1 or pv.ndim != 1 or op.shape != pv.shape:
-        raise ValueError(f"op and pv must be 1-D arrays of the same length, got shapes {op.shape} "
-                         f"and {pv.shape}")
-    if not (np.isfinite(op).all() and np.isfinite(pv).all()):
-        raise ValueError("op and pv contain NaN or inf values; repair or drop those samples first "
-                         "(load_recording does)")
-    if not (np.isfinite(dt) and dt > 0):
-        raise ValueError(f"dt must be a positive number of seconds, got {dt!r}")
-    if max_lag is not None and not (isinstance(max_lag, (int, np.integer)) and 1 <= max_lag < len(op)):
-        raise ValueError(f"max_lag must be a whole number from 1 to len(op) - 1 = {len(op) - 1}, "
-                         f"got {max_lag!r}")
+    op, pv = _checked_inputs(op, pv, dt, max_lag)
     out = {"method": "Horch 1999, cross-correlation of OP and PV", "verdict": "undetermined",
            "phase_index": None, "tau_left_s": None, "tau_right_s": None, "ccf_at_zero": None,
            "reason": ""}

@@ -32,7 +32,6 @@ References
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
-from typing import Dict, List, Optional
 
 import numpy as np
 
@@ -63,7 +62,7 @@ class Region:
     mean: float
     peak: float
     share_sse: float
-    conditions: Dict[str, float] = field(default_factory=dict)
+    conditions: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass
@@ -120,20 +119,20 @@ class ResidualTests:
     n_eff : float, effective number of independent residual samples
     """
 
-    lags: List[int]
-    acf: List[float]
+    lags: list[int]
+    acf: list[float]
     acf_bound: float
     acf_outside: float
     ljung_box_q: float
     ljung_box_p: float
     white: bool
-    ccf_lags: List[int]
-    ccf: List[float]
+    ccf_lags: list[int]
+    ccf: list[float]
     ccf_bound: float
     ccf_outside: float
     ccf_peak_lag: int
     ccf_peak: float
-    period: Optional[float]
+    period: float | None
     noise_std: float
     n_eff: float
 
@@ -153,15 +152,15 @@ class MismatchReport:
     moving_rms : (T,) ndarray, the moving RMS (for plots)
     """
 
-    regions: List[Region]
-    conditions: List[ConditionStat]
+    regions: list[Region]
+    conditions: list[ConditionStat]
     tests: ResidualTests
     threshold: float
     window: int
     rms: float
     moving_rms: np.ndarray = field(repr=False, default=None)
 
-    def condition(self, name: str) -> Optional[ConditionStat]:
+    def condition(self, name: str) -> ConditionStat | None:
         """The :class:`ConditionStat` called ``name`` (None if not computed)."""
         for c in self.conditions:
             if c.condition == name:
@@ -219,8 +218,8 @@ def noise_level(r) -> float:
     return float(np.median(np.abs(d - np.median(d))) / 0.6745 / np.sqrt(2.0))
 
 
-def dominant_period(r, dt: float, min_period: Optional[float] = None,
-                    max_period: Optional[float] = None) -> Optional[float]:
+def dominant_period(r, dt: float, min_period: float | None = None,
+                    max_period: float | None = None) -> float | None:
     """Period [s] of the strongest periodogram peak of ``r`` (None if flat).
 
     Frequencies with fewer than 2.5 cycles in the record are skipped; the
@@ -251,7 +250,7 @@ def dominant_period(r, dt: float, min_period: Optional[float] = None,
     return float(1.0 / fi) if fi > 0 else None
 
 
-def op_reversals(op, delta: Optional[float] = None) -> np.ndarray:
+def op_reversals(op, delta: float | None = None) -> np.ndarray:
     """Indices where the controller output reverses direction (with hysteresis).
 
     A reversal is counted when ``op`` moves back from its last extreme by more
@@ -285,12 +284,12 @@ def op_reversals(op, delta: Optional[float] = None) -> np.ndarray:
 
 
 def condition_masks(op, pv, sp=None, dt: float = 1.0, window: int = 5,
-                    sat_hi: Optional[float] = None, sat_lo: Optional[float] = None) -> Dict[str, tuple]:
+                    sat_hi: float | None = None, sat_lo: float | None = None) -> dict[str, tuple]:
     """Boolean masks ``(T,)`` of the operating conditions, with a description each."""
     u = np.asarray(op, float)
     y = np.asarray(pv, float)
     T = len(u)
-    masks: Dict[str, tuple] = {}
+    masks: dict[str, tuple] = {}
     us = _moving_mean(u, 3)
     du = np.gradient(us)
     eps = max(noise_level(u), 0.0005 * max(np.ptp(u), 1e-9))
@@ -328,10 +327,10 @@ def condition_masks(op, pv, sp=None, dt: float = 1.0, window: int = 5,
     return masks
 
 
-def _regions(r, t, dt, above, w, masks, sse) -> List[Region]:
+def _regions(r, t, dt, above, w, masks, sse) -> list[Region]:
     """Merge samples flagged ``above`` into regions (gaps < ``w`` merged, < ``w/2`` dropped)."""
     idx = np.flatnonzero(above)
-    out: List[Region] = []
+    out: list[Region] = []
     if not idx.size:
         return out
     starts = [idx[0]]
@@ -354,9 +353,9 @@ def _regions(r, t, dt, above, w, masks, sse) -> List[Region]:
 
 
 # --------------------------------------------------------------------------- main
-def locate_mismatch(t, op, pv, y_sim, sp=None, dt: Optional[float] = None, window: Optional[int] = None,
-                    max_lag: Optional[int] = None, sat_hi: Optional[float] = None,
-                    sat_lo: Optional[float] = None, max_regions: int = 12) -> MismatchReport:
+def locate_mismatch(t, op, pv, y_sim, sp=None, dt: float | None = None, window: int | None = None,
+                    max_lag: int | None = None, sat_hi: float | None = None,
+                    sat_lo: float | None = None, max_regions: int = 12) -> MismatchReport:
     """Locate where and when the simulation ``y_sim`` misses the measured ``pv``.
 
     Parameters
@@ -414,7 +413,7 @@ def locate_mismatch(t, op, pv, y_sim, sp=None, dt: Optional[float] = None, windo
     # effective samples
     from .fit import effective_n
     neff = effective_n(r)
-    conds: List[ConditionStat] = []
+    conds: list[ConditionStat] = []
     r2 = r * r
     for name, (m, desc) in masks.items():
         nin = int(m.sum())
@@ -452,7 +451,7 @@ def locate_mismatch(t, op, pv, y_sim, sp=None, dt: Optional[float] = None, windo
                           window=w, rms=float(np.sqrt(np.mean(r * r))), moving_rms=mrms)
 
 
-def apparent_band(op, stem, delta: Optional[float] = None) -> dict:
+def apparent_band(op, stem, delta: float | None = None) -> dict:
     """Controller-output travel a (simulated) valve needs before it moves after a reversal.
 
     For every reversal of the controller output ``op`` (hysteresis ``delta``,

@@ -18,8 +18,6 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
-from typing import List, Optional
 
 import numpy as np
 
@@ -196,11 +194,11 @@ def _g(x, nd=4):
     return f"{x:.{nd}g}"
 
 
-def render_markdown(res, figures: Optional[dict] = None) -> str:
+def render_markdown(res, figures: dict | None = None) -> str:
     """Short markdown report of a :class:`DiagnosisResult`."""
     d = res.to_dict()
     rec = d["recording"]
-    L: List[str] = []
+    L: list[str] = []
     L.append(f"# Diagnosis of `{rec['name']}`")
     L.append("")
     L.append(f"{rec['n']} samples, dt = {_g(rec['dt'])} s, plant `{res.plant}`, actuator "
@@ -304,7 +302,7 @@ def render_markdown(res, figures: Optional[dict] = None) -> str:
     return "\n".join(L) + "\n"
 
 
-def write_report(res, folder) -> List[str]:
+def write_report(res, folder) -> list[str]:
     """Write ``diagnosis.json``, ``report.md`` and the PNG figures into ``folder``.
 
     Returns the written paths.
@@ -321,7 +319,7 @@ def write_report(res, folder) -> List[str]:
     return paths
 
 
-def summary_table(rows: List[dict]) -> str:
+def summary_table(rows: list[dict]) -> str:
     """Markdown table of :meth:`DiagnosisResult.summary_row` rows (or error rows)."""
     L = ["| recording | plant | effects | stiction | RMSE base | RMSE final | fit % base | "
          "fit % final | held-out RMSE base -> final | s |",

@@ -26,14 +26,23 @@ Examples
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Dict, List
 
 import numpy as np
 
 from ..control import PIParams, pi_init, pi_step
 from ..core import initial_state, pack, run_packed
-from ..params import (DeadTime, Leak, ModelParams, OscillatingDisturbance, Overflow, SensorLag,
-                      SlipJump, TankParams, ValveCharacteristic, ValveParams)
+from ..params import (
+    DeadTime,
+    Leak,
+    ModelParams,
+    OscillatingDisturbance,
+    Overflow,
+    SensorLag,
+    SlipJump,
+    TankParams,
+    ValveCharacteristic,
+    ValveParams,
+)
 from .recording import Recording
 
 __all__ = ["SUITE_EFFECTS", "SyntheticCase", "make_case", "make_recording", "concealed_suite",
@@ -61,7 +70,7 @@ class SyntheticCase:
     name: str
     effect: str
     recording: Recording
-    truth: Dict[str, float]
+    truth: dict[str, float]
     params: ModelParams
 
 
@@ -256,7 +265,7 @@ def make_recording(effect: str = "none", seed: int = 0, n: int = 1800, **kw) -> 
 
 
 def concealed_suite(n_per_effect: int = 6, n_none: int = 12, seed: int = 0, n: int = 1800,
-                    effects=SUITE_EFFECTS, **kw) -> List[SyntheticCase]:
+                    effects=SUITE_EFFECTS, **kw) -> list[SyntheticCase]:
     """The concealed-effect suite: ``n_per_effect`` cases per effect plus ``n_none`` base cases.
 
     Seeds are ``seed * 1000 + i``; every case differs in plant, valve,
