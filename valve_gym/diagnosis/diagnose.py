@@ -13,7 +13,8 @@ import os
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import as_completed
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -51,7 +52,7 @@ def _f(x):
     return x if math.isfinite(x) else None
 
 
-def _clean(o):
+def _clean(o: Any) -> Any:
     """Make ``o`` JSON-safe (numpy scalars, nan -> None)."""
     if isinstance(o, dict):
         return {str(k): _clean(v) for k, v in o.items()}
@@ -107,6 +108,8 @@ class DiagnosisResult:
     timing: dict
     settings: dict
     frictionless: FitResult | None = None
+    #: Simulated PV of the base and final models on the validation recording, and that recording
+    _validation_series: tuple[np.ndarray, np.ndarray, Recording] | None = field(default=None, repr=False)
 
     # ------------------------------------------------------------------ output
     def to_dict(self) -> dict:
@@ -286,6 +289,46 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
                  "model": None, "parameters": {}}, None, final, None)
     u, y = rec.op, rec.pv
     base_eff = tuple(e for e in st.effects if e != "slip_jump")
+    tasks, n_frictionless = _verdict_tasks(final, base_eff)
+    args = [(t[0], u, y, t[1], seed + 17 + i, effort, coarse) for i, t in enumerate(tasks)]
+    if jobs > 1:
+        with process_pool(jobs) as ex:
+            fits = list(ex.map(_fit_task, args))
+    else:
+        fits = [_fit_task(a) for a in args]
+    frictionless, fric = fits[:n_frictionless], fits[n_frictionless:]
+    _nest_on_frictionless(fric, frictionless[0], u, y)
+    n = len(y)
+    from .fit import effective_n, information_criterion
+    best0 = min(frictionless, key=lambda f: information_criterion(
+        f.cost, effective_n(f.residual), f.k, n, rule.criterion))
+    n_eff = effective_n(best0.residual)
+
+    def ic(f: FitResult) -> float:
+        return information_criterion(f.cost, n_eff, f.k, n, rule.criterion)
+
+    best1 = min(fric, key=ic)
+    verdict = _verdict_dict(best0, best1, ic(best1) - ic(best0), n_eff, frictionless + fric, u, rule, mm,
+                            lag_alt=[e for e in best0.structure.effects if e not in base_eff])
+    # keep the nested optimum as the final model when it is the same structure and better
+    new_final = final
+    for f in fric:
+        if f.structure.effects == st.effects and f.cost < final.cost:
+            new_final = f
+    slip = next((f for f in fric if "slip_jump" in f.structure.effects), None)
+    return verdict, best0, new_final, slip
+
+
+def _verdict_tasks(final: FitResult,
+                   base_eff: tuple[str, ...]) -> tuple[list[tuple[ModelStructure, np.ndarray]], int]:
+    """Fits of the friction verdict, all seeded from the final model, and how many are frictionless.
+
+    Returns ``(structure, seeds (m, k))`` pairs: the frictionless alternatives
+    first (the final model's effects with a frictionless valve, then with a
+    dead time or a sensor lag added), then the two friction forms (the
+    paper's valve and the slip-jump valve).
+    """
+    st = final.structure
     st0 = st.with_effects(base_eff, friction=False)
     tasks = []          # (structure, seeds): all seeded from the final model, independent
     seeds0, _ = transfer(final, st0)
@@ -306,14 +349,11 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
                 sz[0, stf.index(name)] = 0.0
         sf = np.vstack([sz, sf] + ([final.w[None, :]] if stf.effects == st.effects else []))
         tasks.append((stf, sf))
-    args = [(t[0], u, y, t[1], seed + 17 + i, effort, coarse) for i, t in enumerate(tasks)]
-    if jobs > 1:
-        with process_pool(jobs) as ex:
-            fits = list(ex.map(_fit_task, args))
-    else:
-        fits = [_fit_task(a) for a in args]
-    frictionless, fric = fits[:n_frictionless], fits[n_frictionless:]
-    fr0 = frictionless[0]
+    return tasks, n_frictionless
+
+
+def _nest_on_frictionless(fric: list[FitResult], fr0: FitResult, u: np.ndarray, y: np.ndarray) -> None:
+    """Replace, in place, a friction fit worse than the frictionless one by the nested optimum."""
     for i, f in enumerate(fric):
         if f.cost > fr0.cost:
             # nested: friction at zero reproduces the frictionless optimum exactly
@@ -322,14 +362,16 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
                 if name in f.structure.names:
                     w[0, f.structure.index(name)] = 0.0
             fric[i] = fit_structure(f.structure, u, y, None, seeds=w, w_fixed=w[0], free=[])
-    n = len(y)
-    from .fit import effective_n, information_criterion
-    best0 = min(frictionless, key=lambda f: information_criterion(
-        f.cost, effective_n(f.residual), f.k, n, rule.criterion))
-    n_eff = effective_n(best0.residual)
-    ic = lambda f: information_criterion(f.cost, n_eff, f.k, n, rule.criterion)  # noqa: E731
-    best1 = min(fric, key=ic)
-    d_ic = ic(best1) - ic(best0)
+
+
+def _verdict_dict(best0: FitResult, best1: FitResult, d_ic: float, n_eff: float,
+                  compared: list[FitResult], u: np.ndarray, rule: SelectionRule, mm: MismatchReport,
+                  lag_alt: list[str]) -> dict:
+    """The friction verdict of the best frictionless (``best0``) and friction (``best1``) fits.
+
+    ``d_ic`` is the change of the information criterion from ``best0`` to
+    ``best1``; ``compared`` are all the fits of the verdict.
+    """
     band = _friction_band(best1)
     op_range = float(np.quantile(u, 0.98) - np.quantile(u, 0.02))
     need = max(rule.min_band, min(rule.abs_band, rule.rel_band * op_range))
@@ -337,7 +379,6 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
     big = band >= need
     present = bool(significant and big)
     params = _friction_params(best1)
-    lag_alt = [e for e in best0.structure.effects if e not in base_eff]
     verdict = {"present": present, "tested": True, "model": params["model"],
                "parameters": params,
                "units": {"S": "fraction of stroke", "J": "fraction of stroke",
@@ -347,19 +388,13 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
                "band_needed": need, "op_working_range": op_range, "n_eff": n_eff,
                "frictionless_model": best0.label, "frictionless_rmse": best0.rmse_all,
                "friction_rmse": best1.rmse_all,
-               "compared": {f.label: f.rmse_all for f in frictionless + fric}}
+               "compared": {f.label: f.rmse_all for f in compared}}
     verdict["explanation"] = explain_stiction(present, best1, best0, d_ic, float("nan"), mm,
                                               significant=significant, band=band,
                                               min_band=need, lag_alt=lag_alt,
                                               op_range=op_range, abs_band=rule.abs_band,
                                               rel_band=rule.rel_band, floor=rule.min_band)
-    # keep the nested optimum as the final model when it is the same structure and better
-    new_final = final
-    for f in fric:
-        if f.structure.effects == st.effects and f.cost < final.cost:
-            new_final = f
-    slip = next((f for f in fric if "slip_jump" in f.structure.effects), None)
-    return verdict, best0, new_final, slip
+    return verdict
 
 
 def _combine_verdict(stiction: dict, rec: Recording, plant: str, slip: FitResult | None) -> None:
@@ -472,18 +507,7 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     1.35
     """
     t_all = time.perf_counter()
-    if not isinstance(recording, Recording):
-        raise TypeError("diagnose() needs a Recording (see load_recording)")
-    if plant not in PLANTS:
-        raise ValueError(f"unknown plant {plant!r}; choose one of {', '.join(PLANTS)}")
-    if actuator not in ACTUATORS:
-        raise ValueError(f"unknown actuator {actuator!r}; choose 'valve' or 'pump'")
-    if not 0.0 <= float(holdout) <= 0.6:
-        raise ValueError(f"holdout must be a fraction between 0 and 0.6, got {holdout!r}")
-    cands = tuple(CANDIDATE_EFFECTS if candidates is None else candidates)
-    for c in cands:
-        if c not in CANDIDATE_EFFECTS:
-            raise ValueError(f"unknown effect {c!r}; candidates are {', '.join(CANDIDATE_EFFECTS)}")
+    cands = _check_arguments(recording, plant, actuator, holdout, candidates)
     rec = recording
     T = len(rec)
     n_fit = T - int(round(float(holdout) * T))
@@ -493,10 +517,7 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     timing = {}
     # ---- base fit on the fit part
     t0 = time.perf_counter()
-    sc = DataScales.from_signals(rec.op[:n_fit], rec.pv[:n_fit], rec.dt, saturation=saturation)
-    if saturation == "auto":
-        full = DataScales.from_signals(rec.op, rec.pv, rec.dt, saturation="auto")
-        sc = DataScales(**{**sc.__dict__, "sat_hi": full.sat_hi, "sat_lo": full.sat_lo})
+    sc = _data_scales(rec, n_fit, saturation)
     if not isinstance(n_sub, (int, np.integer)) or n_sub < 1:
         raise ValueError(f"n_sub must be a positive whole number, got {n_sub!r}")
     st = ModelStructure(plant, actuator, (), sc, n_sub=int(n_sub))
@@ -528,36 +549,10 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     timing["locate"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     say(f"{rec.name}: friction verdict")
-    stiction, fr0, final_v, slip = _friction_verdict(final, rec, rule, seed, plan["verdict"], mm,
-                                                     jobs=jobs, coarse=q)
-    if actuator == "valve":
-        stiction["horch"] = horch_ccf(rec.op, rec.pv, rec.dt, plant)
-        _combine_verdict(stiction, rec, plant, slip)
-    if final_v is not final:
-        same = final is base
-        final = final_v
-        if same:
-            base = final
-            mm = _locate(rec, base)
-        mm_final = mm if final is base else _locate(rec, final)
+    fv = _friction_stage(rec, plant, actuator, base, final, mm, mm_final, rule, seed, plan["verdict"], jobs, q)
+    base, final, mm, mm_final = fv.base, fv.final, fv.mismatch, fv.mismatch_final
     timing["friction_verdict"] = time.perf_counter() - t0
-    # ---- explanation
-    expl: list[str] = []
-    sc_f = final.structure.scales
-    masks = condition_masks(rec.op, rec.pv, rec.sp, rec.dt, mm.window, sc_f.sat_hi, sc_f.sat_lo)
-    fits_by_effect = {c.effect: c for c in sel.candidates if c.accepted}
-    chain = [base]
-    for e in sel.effects:
-        chain.append(fits_by_effect[e].fit)
-    for i, e in enumerate(sel.effects):
-        before_split, after_split = chain[i], chain[i + 1]
-        after = final if i == len(sel.effects) - 1 else after_split
-        before = base if i == 0 else before_split
-        mm_i = mm if i == 0 else _locate(rec, before_split)
-        expl.append(explain_effect(e, before, after, mm_i, masks=masks))
-    if not sel.effects:
-        best = min(sel.candidates, key=lambda c: c.delta_ic).effect if sel.candidates else None
-        expl.append(explain_none(base, mm, best))
+    expl = _explanations(rec, sel, base, final, mm)
     # ---- validation
     validation = None
     if validate is not None:
@@ -576,12 +571,98 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     res = DiagnosisResult(recording=rec, plant=plant, actuator=actuator, effects=list(sel.effects),
                           base=base, final=final, base_split=base_split, final_split=final_split,
                           selection=sel, mismatch=mm, mismatch_final=mm_final, explanation=expl,
-                          stiction=stiction, validation=None, timing=timing, settings=settings,
-                          frictionless=fr0)
+                          stiction=fv.stiction, validation=None, timing=timing, settings=settings,
+                          frictionless=fv.frictionless)
     if validation is not None:
+        assert validate is not None
         res._validation_series = (validation.pop("_y_base"), validation.pop("_y_final"), validate)
         res.validation = validation
     return res
+
+
+def _check_arguments(recording: Recording, plant: str, actuator: str, holdout: float,
+                     candidates: Sequence[str] | None) -> tuple[str, ...]:
+    """Check the arguments of :func:`diagnose`; the candidate effects as a tuple."""
+    if not isinstance(recording, Recording):
+        raise TypeError("diagnose() needs a Recording (see load_recording)")
+    if plant not in PLANTS:
+        raise ValueError(f"unknown plant {plant!r}; choose one of {', '.join(PLANTS)}")
+    if actuator not in ACTUATORS:
+        raise ValueError(f"unknown actuator {actuator!r}; choose 'valve' or 'pump'")
+    if not 0.0 <= float(holdout) <= 0.6:
+        raise ValueError(f"holdout must be a fraction between 0 and 0.6, got {holdout!r}")
+    cands = tuple(CANDIDATE_EFFECTS if candidates is None else candidates)
+    for c in cands:
+        if c not in CANDIDATE_EFFECTS:
+            raise ValueError(f"unknown effect {c!r}; candidates are {', '.join(CANDIDATE_EFFECTS)}")
+    return cands
+
+
+def _dt(rec: Recording) -> float:
+    """Sample time of ``rec`` [s] (:class:`Recording` always sets it)."""
+    assert rec.dt is not None
+    return rec.dt
+
+
+def _data_scales(rec: Recording, n_fit: int, saturation) -> DataScales:
+    """Scales of the fit part; with ``'auto'`` saturation the sensor range seen on the whole record."""
+    sc = DataScales.from_signals(rec.op[:n_fit], rec.pv[:n_fit], rec.dt, saturation=saturation)
+    if saturation == "auto":
+        full = DataScales.from_signals(rec.op, rec.pv, rec.dt, saturation="auto")
+        sc = DataScales(**{**sc.__dict__, "sat_hi": full.sat_hi, "sat_lo": full.sat_lo})
+    return sc
+
+
+class _FrictionStage(NamedTuple):
+    """Outcome of the friction stage of :func:`diagnose`."""
+
+    stiction: dict                  # the friction verdict (``DiagnosisResult.stiction``)
+    frictionless: FitResult | None  # best frictionless model of the verdict (None for a pump)
+    base: FitResult                 # base model, whole record (the nested optimum if it was the final one)
+    final: FitResult                # final model, whole record
+    mismatch: MismatchReport        # of ``base``
+    mismatch_final: MismatchReport  # of ``final``
+
+
+def _friction_stage(rec: Recording, plant: str, actuator: str, base: FitResult, final: FitResult,
+                    mm: MismatchReport, mm_final: MismatchReport, rule: SelectionRule, seed: int,
+                    effort: str, jobs: int, coarse: int) -> _FrictionStage:
+    """Friction verdict, Horch's test and the combined assessment; the final model it keeps."""
+    stiction, fr0, final_v, slip = _friction_verdict(final, rec, rule, seed, effort, mm,
+                                                     jobs=jobs, coarse=coarse)
+    if actuator == "valve":
+        stiction["horch"] = horch_ccf(rec.op, rec.pv, _dt(rec), plant)
+        _combine_verdict(stiction, rec, plant, slip)
+    if final_v is not final:
+        same = final is base
+        final = final_v
+        if same:
+            base = final
+            mm = _locate(rec, base)
+        mm_final = mm if final is base else _locate(rec, final)
+    return _FrictionStage(stiction, fr0, base, final, mm, mm_final)
+
+
+def _explanations(rec: Recording, sel: Selection, base: FitResult, final: FitResult,
+                  mm: MismatchReport) -> list[str]:
+    """One paragraph per effect added (in the order added), or why none was."""
+    expl: list[str] = []
+    sc_f = final.structure.scales
+    masks = condition_masks(rec.op, rec.pv, rec.sp, _dt(rec), mm.window, sc_f.sat_hi, sc_f.sat_lo)
+    fits_by_effect = {c.effect: c for c in sel.candidates if c.accepted}
+    chain = [base]
+    for e in sel.effects:
+        chain.append(fits_by_effect[e].fit)
+    for i, e in enumerate(sel.effects):
+        before_split, after_split = chain[i], chain[i + 1]
+        after = final if i == len(sel.effects) - 1 else after_split
+        before = base if i == 0 else before_split
+        mm_i = mm if i == 0 else _locate(rec, before_split)
+        expl.append(explain_effect(e, before, after, mm_i, masks=masks))
+    if not sel.effects:
+        best = min(sel.candidates, key=lambda c: c.delta_ic).effect if sel.candidates else None
+        expl.append(explain_none(base, mm, best))
+    return expl
 
 
 # --------------------------------------------------------------------------- many

@@ -66,15 +66,29 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from ..core import check_dt, initial_state, pack, run_packed
-from ..params import (Cascade, DeadTime, FirstOrderParams, IntegratingParams, Leak,
-                      ModelParams, OscillatingDisturbance, Overflow, ParameterError,
-                      SensorLag, SlipJump, TankParams, ValveCharacteristic, ValveParams)
+from ..params import (
+    Cascade,
+    DeadTime,
+    FirstOrderParams,
+    IntegratingParams,
+    Leak,
+    ModelParams,
+    OscillatingDisturbance,
+    Overflow,
+    ParameterError,
+    SensorLag,
+    SlipJump,
+    TankParams,
+    ValveCharacteristic,
+    ValveParams,
+)
 
 __all__ = ["PLANTS", "ACTUATORS", "CANDIDATE_EFFECTS", "FreeParam", "DataScales",
            "ModelStructure", "effect_applicability", "kernel_threads", "set_kernel_threads",
@@ -205,19 +219,21 @@ class DataScales:
     y_max: float
     y0: float
     y_q50: float
-    sat_hi: Optional[float] = None
-    sat_lo: Optional[float] = None
+    sat_hi: float | None = None
+    sat_lo: float | None = None
 
     @property
     def u_range(self) -> float:
+        """Span of the controller output, at least 1e-6 [0..1]."""
         return max(self.u_max - self.u_min, 1e-6)
 
     @property
     def y_range(self) -> float:
+        """Span of the PV, kept above zero [PV]."""
         return max(self.y_max - self.y_min, 1e-12 + 1e-9 * abs(self.y_mean))
 
     @staticmethod
-    def from_signals(u, y, dt, saturation="auto") -> "DataScales":
+    def from_signals(u, y, dt, saturation="auto") -> DataScales:
         """Scales of ``u`` (0..1) and ``y`` (PV units) sampled every ``dt`` s.
 
         ``saturation='auto'`` detects a sensor range end: at least 3
@@ -260,7 +276,7 @@ def _plateau(y, side):
     return float(ext) if best >= 3 else None
 
 
-def effect_applicability(effect: str, plant: str, actuator: str) -> Tuple[bool, str]:
+def effect_applicability(effect: str, plant: str, actuator: str) -> tuple[bool, str]:
     """Whether ``effect`` can be identified for ``plant``/``actuator``, and why not.
 
     Returns
@@ -316,8 +332,8 @@ class ModelStructure:
     """
 
     def __init__(self, plant: str, actuator: str, effects: Sequence[str], scales: DataScales,
-                 n_sub: int = 2, friction: bool = True, variants: Optional[dict] = None,
-                 period_hint: Optional[float] = None, output_offset: Optional[bool] = None):
+                 n_sub: int = 2, friction: bool = True, variants: dict | None = None,
+                 period_hint: float | None = None, output_offset: bool | None = None):
         if plant not in PLANTS:
             raise ValueError(f"unknown plant {plant!r}; choose one of {', '.join(PLANTS)}")
         if actuator not in ACTUATORS:
@@ -344,7 +360,7 @@ class ModelStructure:
             self.variants.setdefault("valve_characteristic", "equal_percentage")
         self.period_hint = period_hint
         self.output_offset = (plant == "cascade") if output_offset is None else bool(output_offset)
-        self.params: List[FreeParam] = self._free_params()
+        self.params: list[FreeParam] = self._free_params()
         self.names = [p.name for p in self.params]
         self._index = {p.name: i for i, p in enumerate(self.params)}
 
@@ -357,6 +373,7 @@ class ModelStructure:
 
     @property
     def dt_euler(self) -> float:
+        """Euler step of the simulation: sample time over ``n_sub`` [s]."""
         return self.scales.dt / self.n_sub
 
     @property
@@ -378,9 +395,9 @@ class ModelStructure:
         d.pop("_scratch", None)        # kernel scratch arrays: rebuilt on first use
         return d
 
-    def with_effects(self, effects: Sequence[str], **kw) -> "ModelStructure":
+    def with_effects(self, effects: Sequence[str], **kw) -> ModelStructure:
         """Same plant/actuator/scales with other effects (keyword overrides allowed)."""
-        args = dict(plant=self.plant, actuator=self.actuator, effects=tuple(effects),
+        args: dict[str, Any] = dict(plant=self.plant, actuator=self.actuator, effects=tuple(effects),
                     scales=self.scales, n_sub=self.n_sub, friction=self.friction,
                     variants=self.variants, period_hint=self.period_hint,
                     output_offset=self.output_offset)
@@ -392,13 +409,13 @@ class ModelStructure:
         return ModelStructure(**args)
 
     # ---------------------------------------------------------------- parameters
-    def _free_params(self) -> List[FreeParam]:
+    def _free_params(self) -> list[FreeParam]:
         sc = self.scales
         dt, D = sc.dt, sc.duration
         yr = sc.y_range
-        P: List[FreeParam] = []
+        P: list[FreeParam] = []
         # fastest time constant resolvable by the Euler step (and by the sampling)
-        tlo, thi = self.t_min, max(2.0 * D, dt)
+        tlo = self.t_min
         if self.plant == "first_order":
             P += [FreeParam("K", -6.0, 6.0, "lin", "PV/1",
                             "steady-state gain, asinh-scaled by std(PV)/std(OP)"),
@@ -450,7 +467,7 @@ class ModelStructure:
                                "initial stem position - first controller output"))
         return P
 
-    def _effect_params(self, e: str) -> List[FreeParam]:
+    def _effect_params(self, e: str) -> list[FreeParam]:
         sc = self.scales
         dt, D = sc.dt, sc.duration
         if e == "slip_jump":
@@ -489,12 +506,12 @@ class ModelStructure:
         raise ValueError(f"unknown effect {e!r}")  # pragma: no cover
 
     # ---------------------------------------------------------------- coordinates
-    def decode(self, W) -> Dict[str, np.ndarray]:
+    def decode(self, W) -> dict[str, np.ndarray]:
         """Internal parameter values ``{name: (n,)}`` of unit coordinates ``W`` (n, k)."""
         W = np.atleast_2d(np.asarray(W, float))
         return {p.name: p.value(W[:, i]) for i, p in enumerate(self.params)}
 
-    def encode(self, values: Dict[str, float]) -> np.ndarray:
+    def encode(self, values: dict[str, float]) -> np.ndarray:
         """Unit coordinates ``(k,)`` of internal values (missing names -> 0.5... or neutral)."""
         w = np.empty(len(self.params))
         for i, p in enumerate(self.params):
@@ -510,6 +527,7 @@ class ModelStructure:
         return float(neutral.get(p.name, 0.5))
 
     def index(self, name: str) -> int:
+        """Column of the free parameter ``name`` in the coordinate vectors."""
         return self._index[name]
 
     # ---------------------------------------------------------------- build
@@ -523,7 +541,7 @@ class ModelStructure:
             return np.maximum(v["R"] ** (u - 1.0), 1e-3)
         return np.maximum(np.sqrt(u), 1e-3)
 
-    def build(self, values: Dict[str, np.ndarray], n_sub: Optional[int] = None):
+    def build(self, values: dict[str, np.ndarray], n_sub: int | None = None):
         """Core parameters, initial state and measurement map for ``values``.
 
         Returns
@@ -537,12 +555,27 @@ class ModelStructure:
         v = {k: np.broadcast_to(np.asarray(a, float), (n,)).copy() for k, a in values.items()}
         ns = self.n_sub if n_sub is None else int(n_sub)
         dte = sc.dt / ns
+        pp = self._build_process(v, n)
+        blocks = self._build_blocks(v, dte, pp)
+        kind = "cascade" if self.plant == "cascade" else self.plant
+        mp = ModelParams(valve=self._build_valve(v, dte), process=pp.process, process_kind=kind, dt=dte,
+                         cascade=pp.cascade, actuator=None if self.actuator == "valve" else _pump(),
+                         **blocks)
+        h0 = np.clip(sc.u0 + (v["dh0"] if "dh0" in v else 0.0), 0.0, 1.0) * np.ones(n)
+        init = dict(level=pp.level, h=h0)
+        if pp.level2 is not None:
+            init["level2"] = pp.level2
+        return mp, init, pp.sign, pp.offset
+
+    def _build_process(self, v: dict[str, np.ndarray], n: int) -> _ProcessPart:
+        """Process block, initial levels and measurement map of the plant for values ``v`` (n,)."""
+        sc = self.scales
         fbar = self._fbar(v, n)
         sign = np.ones(n)
         offset = v["c"] if "c" in v else np.zeros(n)
         cas = None
         level2 = None
-        kw = {}
+        proc: FirstOrderParams | IntegratingParams | TankParams
         if self.plant == "first_order":
             # internal shift so that the core's output stays positive (overflow needs L_max > 0)
             offset = offset + (sc.y_min - sc.y_range)
@@ -579,15 +612,18 @@ class ModelStructure:
             level = v["x1_0"] * X1
             level2 = np.maximum(sc.y0 + v["y0"] - offset, 0.0)
             flow_scale = qs
-        # valve
-        if self.actuator == "valve":
-            if self.friction and "slip_jump" not in self.effects:
-                valve = ValveParams(tau=dte, v_max=np.inf, e_dead=v["e_dead"], z_max=v["z_max"])
-            else:
-                valve = ValveParams(tau=dte, v_max=np.inf, e_dead=0.0, z_max=0.0)
-        else:
-            valve = ValveParams(tau=dte, v_max=np.inf, e_dead=0.0, z_max=0.0)
-        blocks = {}
+        return _ProcessPart(proc, cas, level, level2, sign, offset, flow_scale)
+
+    def _build_valve(self, v: dict[str, np.ndarray], dte: float) -> ValveParams:
+        """Valve block: fitted friction, or an ideal valve (pump, frictionless, slip-jump)."""
+        if self.actuator == "valve" and self.friction and "slip_jump" not in self.effects:
+            return ValveParams(tau=dte, v_max=np.inf, e_dead=v["e_dead"], z_max=v["z_max"])
+        return ValveParams(tau=dte, v_max=np.inf, e_dead=0.0, z_max=0.0)
+
+    def _build_blocks(self, v: dict[str, np.ndarray], dte: float, pp: _ProcessPart) -> dict[str, Any]:
+        """Effect blocks ``{effect: block}`` for the structure's effects."""
+        sign, offset, flow_scale = pp.sign, pp.offset, pp.flow_scale
+        blocks: dict[str, Any] = {}
         for e in self.effects:
             if e == "slip_jump":
                 blocks[e] = SlipJump(S=v["S"], J=np.minimum(v["S"] * v["J_rel"], 1.0), tau_p=dte)
@@ -597,20 +633,7 @@ class ModelStructure:
             elif e == "dead_time":
                 blocks[e] = DeadTime(theta=v["theta"])
             elif e == "overflow":
-                if self.plant == "cascade":
-                    X1 = max(sc.y_mean, 1e-9)
-                    lo2 = sc.y_q50 - offset
-                    hi2 = sc.y_max + 0.3 * sc.y_range - offset
-                    L2 = np.maximum(lo2 + v["L2_frac"] * (hi2 - lo2), 1e-9)
-                    blocks[e] = Overflow(L_max=v["L_max"] * X1, L2_max=L2,
-                                         spill_to_lower=v["spill"])
-                else:
-                    # top in model units (level = sign * (PV - offset))
-                    ym = sign * (np.array([sc.y_q50, sc.y_max, sc.y_min])[:, None] - offset)
-                    lo = ym[0]
-                    hi = np.maximum(ym[1], ym[2]) + 0.3 * sc.y_range
-                    L = lo + v["L_frac"] * (hi - lo)
-                    blocks[e] = Overflow(L_max=np.maximum(L, 1e-9))
+                blocks[e] = self._build_overflow(v, sign, offset)
             elif e == "leak":
                 blocks[e] = Leak(q_leak=v["leak_frac"] * flow_scale)
             elif e == "sensor_lag":
@@ -619,14 +642,23 @@ class ModelStructure:
                 amp_scale = self._dist_scale(flow_scale)
                 blocks[e] = OscillatingDisturbance(amplitude=v["dist_amp"] * amp_scale,
                                                    period=v["period"], phase=v["phase"])
-        kind = "cascade" if self.plant == "cascade" else self.plant
-        mp = ModelParams(valve=valve, process=proc, process_kind=kind, dt=dte, cascade=cas,
-                         actuator=None if self.actuator == "valve" else _pump(), **blocks)
-        h0 = np.clip(sc.u0 + (v["dh0"] if "dh0" in v else 0.0), 0.0, 1.0) * np.ones(n)
-        init = dict(level=level, h=h0)
-        if level2 is not None:
-            init["level2"] = level2
-        return mp, init, sign, offset
+        return blocks
+
+    def _build_overflow(self, v: dict[str, np.ndarray], sign: np.ndarray, offset: np.ndarray) -> Overflow:
+        """Overflow block; its limits are placed within the range of the recorded PV."""
+        sc = self.scales
+        if self.plant == "cascade":
+            X1 = max(sc.y_mean, 1e-9)
+            lo2 = sc.y_q50 - offset
+            hi2 = sc.y_max + 0.3 * sc.y_range - offset
+            L2 = np.maximum(lo2 + v["L2_frac"] * (hi2 - lo2), 1e-9)
+            return Overflow(L_max=v["L_max"] * X1, L2_max=L2, spill_to_lower=v["spill"])
+        # top in model units (level = sign * (PV - offset))
+        ym = sign * (np.array([sc.y_q50, sc.y_max, sc.y_min])[:, None] - offset)
+        lo = ym[0]
+        hi = np.maximum(ym[1], ym[2]) + 0.3 * sc.y_range
+        L = lo + v["L_frac"] * (hi - lo)
+        return Overflow(L_max=np.maximum(L, 1e-9))
 
     def _dist_scale(self, flow_scale):
         sc = self.scales
@@ -637,7 +669,7 @@ class ModelStructure:
         return 0.5 * flow_scale
 
     # ---------------------------------------------------------------- simulate
-    def simulate(self, W, u, n_sub: Optional[int] = None, coords: bool = True) -> np.ndarray:
+    def simulate(self, W, u, n_sub: int | None = None, coords: bool = True) -> np.ndarray:
         """Simulated PV ``(T, n)`` for unit coordinates ``W`` (n, k) over input ``u`` (T,).
 
         ``coords=False`` takes internal values ``{name: (n,)}`` instead of ``W``.
@@ -680,7 +712,7 @@ class ModelStructure:
             self.__dict__["_scratch"] = w
         return w[0][:, :n], w[1][:, :n], w[2]
 
-    def stem(self, W, u, n_sub: Optional[int] = None) -> np.ndarray:
+    def stem(self, W, u, n_sub: int | None = None) -> np.ndarray:
         """Simulated stem position ``(T,)`` of the first row of ``W`` (0..1)."""
         values = self.decode(np.atleast_2d(W)[:1])
         mp, init, sign, offset = self.build(values, n_sub=n_sub)
@@ -698,7 +730,7 @@ class ModelStructure:
         return H[:, 0]
 
     # ---------------------------------------------------------------- reporting
-    def model_params(self, w, n_sub: Optional[int] = None) -> ModelParams:
+    def model_params(self, w, n_sub: int | None = None) -> ModelParams:
         """Scalar :class:`ModelParams` of one coordinate vector ``w`` (k,)."""
         values = {k: float(a[0]) for k, a in self.decode(np.atleast_2d(w)[:1]).items()}
         mp, init, sign, offset = self.build({k: np.array([a]) for k, a in values.items()},
@@ -711,7 +743,7 @@ class ModelStructure:
         _, init, sign, offset = self.build(values)
         return {k: float(np.asarray(a).reshape(-1)[0]) for k, a in init.items()}
 
-    def physical(self, w, n_sub: Optional[int] = None) -> Dict[str, float]:
+    def physical(self, w, n_sub: int | None = None) -> dict[str, float]:
         """Fitted parameters of one coordinate vector, named after the core's fields.
 
         Keys are ``block.field`` (e.g. ``process.K``, ``valve.z_max``,
@@ -726,21 +758,49 @@ class ModelStructure:
         values = self.decode(np.atleast_2d(w)[:1])
         mp, init, sign, offset = self.build(values, n_sub=n_sub)
         mp = _scalarise(mp)
-        out: Dict[str, float] = {}
+        out: dict[str, float | np.ndarray] = {}
+        out.update(self._physical_process(mp, offset))
+        out.update(self._physical_effects(mp, sign, offset))
+        for k, a in init.items():
+            if k == "h":
+                if "dh0" in self.names:
+                    out["init.stem"] = float(np.asarray(a).reshape(-1)[0])
+                continue
+            a0 = float(np.asarray(a).reshape(-1)[0])
+            if (k == "level" and self.plant in ("first_order", "integrating")) or k == "level2":
+                a0 = sign[0] * a0 + offset[0]          # as read on the PV
+            out[f"init.{k}"] = a0
+        out["measurement.sign"] = float(sign[0])
+        out["measurement.offset"] = float(offset[0])
+        return {k: float(np.asarray(a).reshape(-1)[0]) for k, a in out.items()}
+
+    def _physical_process(self, mp: ModelParams, offset: np.ndarray) -> dict[str, float | np.ndarray]:
+        """``process.*``, ``cascade.*`` and ``schoukens.*`` entries of :meth:`physical`."""
+        out: dict[str, float | np.ndarray] = {}
         pr = mp.process
         if self.plant == "first_order":
+            assert isinstance(pr, FirstOrderParams)
             # b in PV units: the core runs on y_core = PV - offset
             out.update({"process.K": pr.K, "process.T": pr.T, "process.b": pr.b + offset[0]})
         elif self.plant == "integrating":
+            assert isinstance(pr, IntegratingParams)
             out.update({"process.q_max": pr.q_max, "process.q_out": pr.q_out})
         else:
+            assert isinstance(pr, TankParams)
             out.update({"process.area": pr.area, "process.q_max": pr.q_max,
                         "process.k_out": pr.k_out})
         if mp.cascade is not None:
+            assert isinstance(pr, TankParams)
             out.update({"cascade.area2": mp.cascade.area2, "cascade.k_out2": mp.cascade.k_out2})
             a2 = mp.cascade.area2
             out.update({"schoukens.k1": pr.k_out, "schoukens.k2": pr.k_out / a2,
                         "schoukens.k3": mp.cascade.k_out2 / a2, "schoukens.k4": pr.q_max})
+        return out
+
+    def _physical_effects(self, mp: ModelParams, sign: np.ndarray,
+                          offset: np.ndarray) -> dict[str, float | np.ndarray]:
+        """Valve, friction and effect-block entries of :meth:`physical`."""
+        out: dict[str, float | np.ndarray] = {}
         if self.actuator == "valve":
             if mp.slip_jump is not None:
                 out.update({"slip_jump.S": mp.slip_jump.S, "slip_jump.J": mp.slip_jump.J})
@@ -770,20 +830,9 @@ class ModelStructure:
             out.update({"oscillating_disturbance.amplitude": d.amplitude,
                         "oscillating_disturbance.period": d.period,
                         "oscillating_disturbance.phase": float(np.mod(d.phase, 2 * np.pi))})
-        for k, a in init.items():
-            if k == "h":
-                if "dh0" in self.names:
-                    out["init.stem"] = float(np.asarray(a).reshape(-1)[0])
-                continue
-            a0 = float(np.asarray(a).reshape(-1)[0])
-            if (k == "level" and self.plant in ("first_order", "integrating")) or k == "level2":
-                a0 = sign[0] * a0 + offset[0]          # as read on the PV
-            out[f"init.{k}"] = a0
-        out["measurement.sign"] = float(sign[0])
-        out["measurement.offset"] = float(offset[0])
-        return {k: float(np.asarray(a).reshape(-1)[0]) for k, a in out.items()}
+        return out
 
-    def units(self) -> Dict[str, str]:
+    def units(self) -> dict[str, str]:
         """Units of the keys of :meth:`physical` (PV = units of the recording's PV)."""
         flow = {"first_order": "PV", "integrating": "PV/s", "tank": "PV/s", "cascade": "PV/s"}
         u = {"process.K": "PV per unit OP (0..1)", "process.T": "s", "process.b": "PV",
@@ -808,7 +857,7 @@ class ModelStructure:
             u["init.level"] = "upper-tank level units (scaled to PV)"
         return u
 
-    def stable_n_sub(self, w, start: Optional[int] = None, cap: int = 400) -> int:
+    def stable_n_sub(self, w, start: int | None = None, cap: int = 400) -> int:
         """Smallest ``n_sub >= start`` for which :func:`check_dt` accepts ``w``'s model."""
         ns = self.n_sub if start is None else int(start)
         while ns <= cap:
@@ -820,6 +869,18 @@ class ModelStructure:
         return cap
 
 
+class _ProcessPart(NamedTuple):
+    """Process side of a built model, per row (n,): what :meth:`ModelStructure.build` assembles."""
+
+    process: FirstOrderParams | IntegratingParams | TankParams
+    cascade: Cascade | None
+    level: np.ndarray            # initial level of the core's (upper) vessel [core units]
+    level2: np.ndarray | None    # initial level of the cascade's lower tank [core units]
+    sign: np.ndarray             # measurement map PV = sign * y_core + offset [-]
+    offset: np.ndarray           # [PV]
+    flow_scale: np.ndarray       # typical inflow, scales leak and disturbance [core units]
+
+
 def _pump():
     from ..params import Actuator
     return Actuator(kind="pump")
@@ -829,8 +890,8 @@ def _scalarise(mp: ModelParams) -> ModelParams:
     """Copy of a batch-of-one ModelParams with plain floats."""
     from dataclasses import fields, is_dataclass, replace
 
-    def sc(obj):
-        if obj is None or not is_dataclass(obj):
+    def sc(obj: Any) -> Any:
+        if obj is None or not is_dataclass(obj) or isinstance(obj, type):
             return obj
         kw = {}
         for f in fields(obj):
