@@ -122,8 +122,6 @@ def explain_effect(effect: str, before: FitResult, after: FitResult, mm: Mismatc
         (:func:`~valve_gym.diagnosis.locate.condition_masks`); the condition
         where the residual fell most is named
     """
-    p = after.physical
-    dt = after.structure.scales.dt
     imp = _improvement(before, after) + "." + _where_gained(before, after, masks).rstrip(".")
     regions = mm.regions
     where = ""
@@ -131,85 +129,136 @@ def explain_effect(effect: str, before: FitResult, after: FitResult, mm: Mismatc
         top = regions[0]
         where = (f" The largest mismatch region is {top.t_start:g}-{top.t_end:g} s "
                  f"({_pct(top.share_sse)} of the squared error).")
-    if effect == "slip_jump":
-        S, J = p.get("slip_jump.S", float("nan")), p.get("slip_jump.J", float("nan"))
-        if J > 1.1 * S:
-            kind = "J > S: the stem overshoots the controller output after it breaks free"
-        elif J < 0.9 * S:
-            kind = "J < S: the stem stops short of the controller output (undershoot)"
-        else:
-            kind = "J ~ S: the stem jumps to the controller output"
-        ev = _cond(mm, "near_op_reversal")
-        return (f"Slip-jump valve friction. Evidence: {ev or 'the base model misses after reversals'}; "
-                f"the stem sticks when the controller output reverses and then jumps, which the "
-                f"paper's integral friction model cannot reproduce. Fitted stick band S = "
-                f"{_pct(S)} and slip jump J = {_pct(J)} of the stroke ({kind}). {imp}.{where}")
-    if effect == "overflow":
-        ev = _cond(mm, "pv_high")
-        if after.structure.plant == "cascade":
-            L1 = p.get("overflow.L_max", float("nan"))
-            L2 = p.get("overflow.L2_max_pv", float("nan"))
-            sp = p.get("overflow.spill_to_lower", float("nan"))
-            ev2 = _cond(mm, "pv_at_upper_range")
-            return (f"Overflow. Evidence: {_plateau_evidence(before, mm)}; {ev}"
-                    + (f"; {ev2}" if ev2 else "") +
-                    f". The mismatch sits at the high-level episodes: the upper tank spills, so "
-                    f"the lower tank gets less water than the model predicts and its level falls "
-                    f"back sooner. Fitted upper-tank top at {_num(L1)} (upper-level units, the "
-                    f"mean-input level is {_num(after.structure.scales.y_mean)}), "
-                    f"{_pct(sp)} of the spill reaches the lower tank, lower-tank top at "
-                    f"{_num(L2, pv_unit)}. {imp}.{where}")
-        L = p.get("overflow.L_max_pv", float("nan"))
-        return (f"Overflow. Evidence: {_plateau_evidence(before, mm)}; {ev}. The vessel "
-                f"overflows at L_max = {_num(L, pv_unit)}. {imp}.{where}")
-    if effect == "dead_time":
-        th = p.get("dead_time.theta", float("nan"))
-        t = mm.tests
-        return (f"Dead time. Evidence: {_rate_evidence(before, ': the model responds too early')} "
-                f"and correlates with the "
-                f"controller output up to lag {t.ccf_peak_lag} (peak {t.ccf_peak:+.2f}, 95 % band "
-                f"+-{t.ccf_bound:.2f}). A transport delay theta = {_num(th, 's')} "
-                f"({th / dt:.1f} samples) between the valve and the process fits. {imp}.{where}")
-    if effect == "sensor_lag":
-        ts = p.get("sensor_lag.tau_s", float("nan"))
-        return (f"Sensor lag. Evidence: {_rate_evidence(before)}: the measurement lags behind the "
-                f"process, smoothly "
-                f"rather than by a fixed delay. A first-order measurement lag tau_s = "
-                f"{_num(ts, 's')} fits. {imp}.{where}")
-    if effect == "oscillating_disturbance":
-        a = p.get("oscillating_disturbance.amplitude", float("nan"))
-        per = p.get("oscillating_disturbance.period", float("nan"))
-        t = mm.tests
-        pr = f"{t.period:.3g} s" if t.period else "n/a"
-        return (f"Oscillating disturbance. Evidence: the base residual oscillates (dominant "
-                f"period {pr}, Ljung-Box p = {t.ljung_box_p:.2g}) in a way the controller output "
-                f"does not explain: a periodic load enters the process. Fitted amplitude "
-                f"{_num(a)} ({after.units.get('oscillating_disturbance.amplitude', '')}), period "
-                f"{_num(per, 's')}. {imp}.{where}")
-    if effect == "leak":
-        q = p.get("leak.q_leak", float("nan"))
-        lo, hi = mm.condition("pv_low"), mm.condition("pv_high")
-        ev = ""
-        if lo is not None and hi is not None:
-            ev = (f"mean residual {_num(lo.mean_in)} at low PV and {_num(hi.mean_in)} at high PV: "
-                  f"the base model's outflow has the wrong dependence on the level")
-        return (f"Leak. Evidence: {ev or 'level-dependent residual'}; part of the outflow does not "
-                f"depend on the level. A constant extra outflow q_leak = {_num(q)} "
-                f"({after.units.get('leak.q_leak', '')}) fits. {imp}.{where}")
-    if effect == "valve_characteristic":
-        kind = after.structure.variants.get("valve_characteristic", "equal_percentage")
-        R = p.get("valve_characteristic.R")
-        lo, hi = mm.condition("op_low"), mm.condition("op_high")
-        ev = ""
-        if lo is not None and hi is not None:
-            ev = (f"mean residual {_num(lo.mean_in)} with the valve in its lowest third and "
-                  f"{_num(hi.mean_in)} in its highest third: the process gain changes with the "
-                  f"opening")
-        desc = (f"an equal-percentage installed characteristic with rangeability R = {_num(R)}"
-                if kind == "equal_percentage" else "a quick-opening (square-root) characteristic")
-        return (f"Valve characteristic. Evidence: {ev or 'opening-dependent residual'}. The flow is "
-                f"not proportional to the opening: {desc} fits. {imp}.{where}")
+    explain = _EXPLAIN.get(effect)
+    if explain is not None:
+        return explain(before, after, mm, pv_unit, imp, where)
     return f"{effect}: {imp}."
+
+
+def _explain_slip_jump(before: FitResult, after: FitResult, mm: MismatchReport, pv_unit: str,
+                       imp: str, where: str) -> str:
+    """Paragraph of :func:`explain_effect` for ``slip_jump``."""
+    p = after.physical
+    S, J = p.get("slip_jump.S", float("nan")), p.get("slip_jump.J", float("nan"))
+    if J > 1.1 * S:
+        kind = "J > S: the stem overshoots the controller output after it breaks free"
+    elif J < 0.9 * S:
+        kind = "J < S: the stem stops short of the controller output (undershoot)"
+    else:
+        kind = "J ~ S: the stem jumps to the controller output"
+    ev = _cond(mm, "near_op_reversal")
+    return (f"Slip-jump valve friction. Evidence: {ev or 'the base model misses after reversals'}; "
+            f"the stem sticks when the controller output reverses and then jumps, which the "
+            f"paper's integral friction model cannot reproduce. Fitted stick band S = "
+            f"{_pct(S)} and slip jump J = {_pct(J)} of the stroke ({kind}). {imp}.{where}")
+
+
+def _explain_overflow(before: FitResult, after: FitResult, mm: MismatchReport, pv_unit: str,
+                      imp: str, where: str) -> str:
+    """Paragraph of :func:`explain_effect` for ``overflow``."""
+    p = after.physical
+    ev = _cond(mm, "pv_high")
+    if after.structure.plant == "cascade":
+        L1 = p.get("overflow.L_max", float("nan"))
+        L2 = p.get("overflow.L2_max_pv", float("nan"))
+        sp = p.get("overflow.spill_to_lower", float("nan"))
+        ev2 = _cond(mm, "pv_at_upper_range")
+        return (f"Overflow. Evidence: {_plateau_evidence(before, mm)}; {ev}"
+                + (f"; {ev2}" if ev2 else "") +
+                f". The mismatch sits at the high-level episodes: the upper tank spills, so "
+                f"the lower tank gets less water than the model predicts and its level falls "
+                f"back sooner. Fitted upper-tank top at {_num(L1)} (upper-level units, the "
+                f"mean-input level is {_num(after.structure.scales.y_mean)}), "
+                f"{_pct(sp)} of the spill reaches the lower tank, lower-tank top at "
+                f"{_num(L2, pv_unit)}. {imp}.{where}")
+    L = p.get("overflow.L_max_pv", float("nan"))
+    return (f"Overflow. Evidence: {_plateau_evidence(before, mm)}; {ev}. The vessel "
+            f"overflows at L_max = {_num(L, pv_unit)}. {imp}.{where}")
+
+
+def _explain_dead_time(before: FitResult, after: FitResult, mm: MismatchReport, pv_unit: str,
+                       imp: str, where: str) -> str:
+    """Paragraph of :func:`explain_effect` for ``dead_time``."""
+    p = after.physical
+    dt = after.structure.scales.dt
+    th = p.get("dead_time.theta", float("nan"))
+    t = mm.tests
+    return (f"Dead time. Evidence: {_rate_evidence(before, ': the model responds too early')} "
+            f"and correlates with the "
+            f"controller output up to lag {t.ccf_peak_lag} (peak {t.ccf_peak:+.2f}, 95 % band "
+            f"+-{t.ccf_bound:.2f}). A transport delay theta = {_num(th, 's')} "
+            f"({th / dt:.1f} samples) between the valve and the process fits. {imp}.{where}")
+
+
+def _explain_sensor_lag(before: FitResult, after: FitResult, mm: MismatchReport, pv_unit: str,
+                        imp: str, where: str) -> str:
+    """Paragraph of :func:`explain_effect` for ``sensor_lag``."""
+    p = after.physical
+    ts = p.get("sensor_lag.tau_s", float("nan"))
+    return (f"Sensor lag. Evidence: {_rate_evidence(before)}: the measurement lags behind the "
+            f"process, smoothly "
+            f"rather than by a fixed delay. A first-order measurement lag tau_s = "
+            f"{_num(ts, 's')} fits. {imp}.{where}")
+
+
+def _explain_oscillating_disturbance(before: FitResult, after: FitResult, mm: MismatchReport, pv_unit: str,
+                                     imp: str, where: str) -> str:
+    """Paragraph of :func:`explain_effect` for ``oscillating_disturbance``."""
+    p = after.physical
+    a = p.get("oscillating_disturbance.amplitude", float("nan"))
+    per = p.get("oscillating_disturbance.period", float("nan"))
+    t = mm.tests
+    pr = f"{t.period:.3g} s" if t.period else "n/a"
+    return (f"Oscillating disturbance. Evidence: the base residual oscillates (dominant "
+            f"period {pr}, Ljung-Box p = {t.ljung_box_p:.2g}) in a way the controller output "
+            f"does not explain: a periodic load enters the process. Fitted amplitude "
+            f"{_num(a)} ({after.units.get('oscillating_disturbance.amplitude', '')}), period "
+            f"{_num(per, 's')}. {imp}.{where}")
+
+
+def _explain_leak(before: FitResult, after: FitResult, mm: MismatchReport, pv_unit: str,
+                  imp: str, where: str) -> str:
+    """Paragraph of :func:`explain_effect` for ``leak``."""
+    p = after.physical
+    q = p.get("leak.q_leak", float("nan"))
+    lo, hi = mm.condition("pv_low"), mm.condition("pv_high")
+    ev = ""
+    if lo is not None and hi is not None:
+        ev = (f"mean residual {_num(lo.mean_in)} at low PV and {_num(hi.mean_in)} at high PV: "
+              f"the base model's outflow has the wrong dependence on the level")
+    return (f"Leak. Evidence: {ev or 'level-dependent residual'}; part of the outflow does not "
+            f"depend on the level. A constant extra outflow q_leak = {_num(q)} "
+            f"({after.units.get('leak.q_leak', '')}) fits. {imp}.{where}")
+
+
+def _explain_valve_characteristic(before: FitResult, after: FitResult, mm: MismatchReport, pv_unit: str,
+                                  imp: str, where: str) -> str:
+    """Paragraph of :func:`explain_effect` for ``valve_characteristic``."""
+    p = after.physical
+    kind = after.structure.variants.get("valve_characteristic", "equal_percentage")
+    R = p.get("valve_characteristic.R")
+    lo, hi = mm.condition("op_low"), mm.condition("op_high")
+    ev = ""
+    if lo is not None and hi is not None:
+        ev = (f"mean residual {_num(lo.mean_in)} with the valve in its lowest third and "
+              f"{_num(hi.mean_in)} in its highest third: the process gain changes with the "
+              f"opening")
+    desc = (f"an equal-percentage installed characteristic with rangeability R = {_num(R)}"
+            if kind == "equal_percentage" else "a quick-opening (square-root) characteristic")
+    return (f"Valve characteristic. Evidence: {ev or 'opening-dependent residual'}. The flow is "
+            f"not proportional to the opening: {desc} fits. {imp}.{where}")
+
+
+#: Paragraph writer per effect, for :func:`explain_effect`.
+_EXPLAIN = {
+    "slip_jump": _explain_slip_jump,
+    "overflow": _explain_overflow,
+    "dead_time": _explain_dead_time,
+    "sensor_lag": _explain_sensor_lag,
+    "oscillating_disturbance": _explain_oscillating_disturbance,
+    "leak": _explain_leak,
+    "valve_characteristic": _explain_valve_characteristic,
+}
 
 
 def explain_none(base: FitResult, mm: MismatchReport, best_candidate: str | None = None) -> str:
@@ -229,9 +278,9 @@ def explain_none(base: FitResult, mm: MismatchReport, best_candidate: str | None
 
 
 def explain_stiction(present: bool, with_fr: FitResult, without: FitResult, d_ic: float,
-                     h_change: float, mm: MismatchReport, significant: bool = None,
-                     band: float = None, min_band: float = None, lag_alt=(),
-                     op_range: float = None, abs_band: float = 0.01, rel_band: float = 0.5,
+                     h_change: float, mm: MismatchReport, significant: bool | None = None,
+                     band: float | None = None, min_band: float | None = None, lag_alt=(),
+                     op_range: float | None = None, abs_band: float = 0.01, rel_band: float = 0.5,
                      floor: float = 0.001) -> str:
     """One paragraph on the friction verdict (``min_band``: the band needed, see ``SelectionRule``)."""
     p = with_fr.physical

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import os
+from typing import Any
 
 import numpy as np
 
@@ -197,8 +198,20 @@ def _g(x, nd=4):
 def render_markdown(res, figures: dict | None = None) -> str:
     """Short markdown report of a :class:`DiagnosisResult`."""
     d = res.to_dict()
-    rec = d["recording"]
     L: list[str] = []
+    L += _md_summary(res, d)
+    L += _md_fit(d)
+    L += _md_parameters(d)
+    L += _md_mismatch(d)
+    L += _md_candidates(d)
+    L += _md_end(d, figures)
+    return "\n".join(L) + "\n"
+
+
+def _md_summary(res, d: dict) -> list[str]:
+    """Title, record, named effects, friction verdict and the explanations."""
+    L: list[str] = []
+    rec = d["recording"]
     L.append(f"# Diagnosis of `{rec['name']}`")
     L.append("")
     L.append(f"{rec['n']} samples, dt = {_g(rec['dt'])} s, plant `{res.plant}`, actuator "
@@ -221,6 +234,12 @@ def render_markdown(res, figures: dict | None = None) -> str:
         L.append(f"- Second opinion, without a model (Horch's cross-correlation test, not part of "
                  f"the verdict): {h['verdict']}{pi}: {h['reason']}.")
     L.append("")
+    return L
+
+
+def _md_fit(d: dict) -> list[str]:
+    """Fit of the base and final models, whole record, held-out end and validation."""
+    L: list[str] = []
     L.append("## Fit before and after")
     L.append("")
     L.append("| model | RMSE (whole record) | fit % | held-out RMSE | held-out fit % | parameters |")
@@ -241,6 +260,12 @@ def render_markdown(res, figures: dict | None = None) -> str:
                  f"start at the same point): RMSE base {_g(v['base_rmse_same_state'])}, final "
                  f"{_g(v['final_rmse_same_state'])}.")
     L.append("")
+    return L
+
+
+def _md_parameters(d: dict) -> list[str]:
+    """Table of the fitted parameters of the base and final models, with units."""
+    L: list[str] = []
     L.append("## Fitted parameters")
     L.append("")
     L.append("| parameter | base | final | unit |")
@@ -251,6 +276,12 @@ def render_markdown(res, figures: dict | None = None) -> str:
         L.append(f"| `{k}` | {_g(d['base']['params'].get(k))} | {_g(d['final']['params'].get(k))} "
                  f"| {units.get(k, '')} |")
     L.append("")
+    return L
+
+
+def _md_mismatch(d: dict) -> list[str]:
+    """Regions and conditions where the base model misses; residual tests."""
+    L: list[str] = []
     L.append("## Where the base model misses")
     L.append("")
     if d["mismatch"]:
@@ -278,6 +309,12 @@ def render_markdown(res, figures: dict | None = None) -> str:
              f"{_g(100 * rt['final']['acf_outside'], 3)} %; input cross-correlations outside "
              f"{_g(100 * rt['base']['ccf_outside'], 3)} % -> {_g(100 * rt['final']['ccf_outside'], 3)} %.")
     L.append("")
+    return L
+
+
+def _md_candidates(d: dict) -> list[str]:
+    """Table of the candidate effects tried and skipped."""
+    L: list[str] = []
     L.append("## Candidates tried")
     L.append("")
     L.append("| round | effect | criterion change | held-out change | verdict |")
@@ -289,6 +326,12 @@ def render_markdown(res, figures: dict | None = None) -> str:
                  f"{'**added**' if c['accepted'] else ('pays' if c['pays'] else 'no')} |")
     for e, why in d["skipped"].items():
         L.append(f"| – | {e} | – | – | skipped: {why} |")
+    return L
+
+
+def _md_end(d: dict, figures: dict | None) -> list[str]:
+    """Figures (file names) and the computing time."""
+    L: list[str] = []
     if figures:
         L.append("")
         L.append("## Figures")
@@ -299,7 +342,7 @@ def render_markdown(res, figures: dict | None = None) -> str:
     L.append("")
     t = d["timing"]
     L.append(f"Computed in {_g(t.get('total'), 3)} s ({t.get('candidate_fits')} candidate fits).")
-    return "\n".join(L) + "\n"
+    return L
 
 
 def write_report(res, folder) -> list[str]:
@@ -308,7 +351,7 @@ def write_report(res, folder) -> list[str]:
     Returns the written paths.
     """
     os.makedirs(folder, exist_ok=True)
-    figs = {"overlay": plot_overlay(res, os.path.join(folder, "overlay.png")),
+    figs: dict[str, Any] = {"overlay": plot_overlay(res, os.path.join(folder, "overlay.png")),
             "residuals": plot_residuals(res, os.path.join(folder, "residuals.png")),
             "acf": plot_acf(res, os.path.join(folder, "acf.png"))}
     if getattr(res, "_validation_series", None) is not None:

@@ -186,10 +186,30 @@ def make_case(effect: str = "none", seed: int = 0, n: int = 1800, dt: float = 1.
     tank = TankParams(area=area, q_max=q_max, k_out=k_out, level0=1.0)
     valve = ValveParams(tau=tau_v, v_max=rng.uniform(0.2, 1.0), e_dead=e_dead, z_max=z_max)
     p = ModelParams(valve=valve, process=tank, process_kind="tank", dt=dte)
-    lo, hi = 0.5, 1.5
+    lo = 0.5
     mag = float(magnitude)
     truth = {"process.area": area, "process.q_max": q_max, "process.k_out": k_out,
              "valve.e_dead": e_dead, "valve.z_max": z_max, "valve.tau": tau_v}
+    p, hi = _conceal(effect, p, tank, truth, rng, mag, dt, q_max, k_out, tau_v)
+    pi = _pi_tuning(rng, area, q_max, k_out, dt)
+    sp = _sp_profile(rng, n, dt, lo, hi)
+    d = _load_disturbance(rng, n, dt, load_disturbance, k_out)
+    op, pv, lev, stem = simulate_closed_loop(p, sp, pi, noise, rng, n_sub, level0=float(sp[0]), d=d)
+    t = np.arange(n) * dt
+    rec = Recording(t=t, op=np.clip(op, 0, 1), pv=pv, sp=sp, dt=dt,
+                    name=f"{effect}_{seed}", op_range=(0.0, 1.0),
+                    columns={"t": "t", "op": "op", "pv": "pv", "sp": "sp"})
+    return SyntheticCase(name=f"{effect}_{seed}", effect=effect, recording=rec, truth=truth,
+                         params=p)
+
+
+def _conceal(effect: str, p: ModelParams, tank: TankParams, truth: dict[str, float], rng, mag: float,
+             dt: float, q_max: float, k_out: float, tau_v: float) -> tuple[ModelParams, float]:
+    """Add ``effect`` to the model ``p`` of ``tank`` (its true parameters go into ``truth``).
+
+    Returns the model and the highest set point [m].
+    """
+    hi = 1.5
     if effect == "slip_jump":
         S = rng.uniform(0.01, 0.025) * mag
         J = S * rng.uniform(0.6, 1.6)
@@ -203,12 +223,14 @@ def make_case(effect: str = "none", seed: int = 0, n: int = 1800, dt: float = 1.
             p = replace(p, valve_characteristic=ValveCharacteristic("equal_percentage", R=R))
             truth["valve_characteristic.R"] = R
             # same flow at 60 % opening as the linear valve
-            p = replace(p, process=replace(tank, q_max=q_max * 0.6 / R ** (0.6 - 1.0)))
+            q_new = q_max * 0.6 / R ** (0.6 - 1.0)
+            p = replace(p, process=replace(tank, q_max=q_new))
         else:
             p = replace(p, valve_characteristic=ValveCharacteristic("quick_opening"))
             truth["valve_characteristic.quick_opening"] = 1.0
-            p = replace(p, process=replace(tank, q_max=q_max * 0.6 / np.sqrt(0.6)))
-        truth["process.q_max"] = p.process.q_max
+            q_new = q_max * 0.6 / float(np.sqrt(0.6))
+            p = replace(p, process=replace(tank, q_max=q_new))
+        truth["process.q_max"] = q_new
     elif effect == "dead_time":
         theta = rng.uniform(3.0, 8.0) * mag * dt
         p = replace(p, dead_time=DeadTime(theta=theta))
@@ -235,13 +257,20 @@ def make_case(effect: str = "none", seed: int = 0, n: int = 1800, dt: float = 1.
         truth.update({"oscillating_disturbance.amplitude": amp,
                       "oscillating_disturbance.period": period,
                       "oscillating_disturbance.phase": phase})
-    # PI tuning: lambda tuning on the linearised tank at 1 m (+-30 %)
+    return p, hi
+
+
+def _pi_tuning(rng, area: float, q_max: float, k_out: float, dt: float) -> PIParams:
+    """PI tuning of the case: lambda tuning on the linearised tank at 1 m (+-30 %)."""
     tau_p = 2 * area * 1.0 / k_out
     gain = q_max * 2 * 1.0 / k_out          # dL/df at 1 m
     lam = tau_p * rng.uniform(0.4, 0.9)
-    pi = PIParams(Kc=float(tau_p / (gain * lam) * rng.uniform(0.7, 1.3)),
-                  Ti=float(tau_p * rng.uniform(0.6, 1.2)), Ts=dt)
-    sp = _sp_profile(rng, n, dt, lo, hi)
+    return PIParams(Kc=float(tau_p / (gain * lam) * rng.uniform(0.7, 1.3)),
+                    Ti=float(tau_p * rng.uniform(0.6, 1.2)), Ts=dt)
+
+
+def _load_disturbance(rng, n: int, dt: float, load_disturbance: float, k_out: float) -> np.ndarray | None:
+    """Slowly varying unmeasured inflow (n,) [m^3/s] (first order, 100 s), or None."""
     d = None
     if load_disturbance > 0:
         w = rng.normal(size=n)
@@ -250,13 +279,7 @@ def make_case(effect: str = "none", seed: int = 0, n: int = 1800, dt: float = 1.
         for k in range(1, n):
             x[k] = a * x[k - 1] + np.sqrt(1 - a * a) * w[k]
         d = load_disturbance * k_out * x
-    op, pv, lev, stem = simulate_closed_loop(p, sp, pi, noise, rng, n_sub, level0=float(sp[0]), d=d)
-    t = np.arange(n) * dt
-    rec = Recording(t=t, op=np.clip(op, 0, 1), pv=pv, sp=sp, dt=dt,
-                    name=f"{effect}_{seed}", op_range=(0.0, 1.0),
-                    columns={"t": "t", "op": "op", "pv": "pv", "sp": "sp"})
-    return SyntheticCase(name=f"{effect}_{seed}", effect=effect, recording=rec, truth=truth,
-                         params=p)
+    return d
 
 
 def make_recording(effect: str = "none", seed: int = 0, n: int = 1800, **kw) -> Recording:
