@@ -64,6 +64,30 @@ def run_case(args):
 
 
 def main(argv=None):
+    a = _parse_args(argv)
+    tasks = []
+    i = 0
+    for e in ("none",) + SUITE_EFFECTS:
+        for _ in range(a.none if e == "none" else a.per_effect):
+            tasks.append((e, a.seed * 1000 + i, a.samples, a.effort))
+            i += 1
+    t0 = time.perf_counter()
+    out = _run_all(tasks, a.jobs)
+    elapsed = time.perf_counter() - t0
+    out.sort(key=lambda r: (r["effect"], r["seed"]))
+    _print_confusion(out, a)
+    _print_fit_table(out)
+    secs = [r["seconds"] for r in out]
+    print(f"\n{len(out)} diagnoses in {elapsed:.0f} s with {a.jobs} workers "
+          f"(median {np.median(secs):.1f} s per recording, kernel threads shared out between the workers).\n")
+    if a.json:
+        from valve_gym.diagnosis.report import write_json
+        write_json({"cases": out, "settings": vars(a)}, a.json)
+    return 0
+
+
+def _parse_args(argv):
+    """Command-line options (``--quick`` sets the case counts and the record length)."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true",
                     help="3 cases per effect, 6 none cases, 900 samples")
@@ -77,15 +101,13 @@ def main(argv=None):
     a = ap.parse_args(argv)
     if a.quick:
         a.per_effect, a.none, a.samples = 3, 6, 900
-    tasks = []
-    i = 0
-    for e in ("none",) + SUITE_EFFECTS:
-        for _ in range(a.none if e == "none" else a.per_effect):
-            tasks.append((e, a.seed * 1000 + i, a.samples, a.effort))
-            i += 1
-    t0 = time.perf_counter()
+    return a
+
+
+def _run_all(tasks, jobs: int) -> list[dict]:
+    """Outcomes of :func:`run_case` for ``tasks`` in ``jobs`` worker processes (order of completion)."""
     out = []
-    with process_pool(a.jobs) as ex:
+    with process_pool(jobs) as ex:
         futs = [ex.submit(run_case, t) for t in tasks]
         for k, fu in enumerate(as_completed(futs), 1):
             r = fu.result()
@@ -93,8 +115,11 @@ def main(argv=None):
             print(f"[{k}/{len(tasks)}] {r['effect']} seed {r['seed']}: named "
                   f"{','.join(r['named']) or 'none'} ({r['seconds']:.1f} s)", file=sys.stderr,
                   flush=True)
-    elapsed = time.perf_counter() - t0
-    out.sort(key=lambda r: (r["effect"], r["seed"]))
+    return out
+
+
+def _print_confusion(out: list[dict], a) -> None:
+    """Confusion matrix (truth vs first effect named) and the accuracy."""
     labels = ("none",) + SUITE_EFFECTS
     cols = labels + ("other",)
     conf = defaultdict(Counter)
@@ -126,6 +151,11 @@ def main(argv=None):
           f"{100 * none_ok / max(n_none, 1):.0f} % of the 'none' cases.  All cases right "
           f"(first named, or none for none): {right + none_ok}/{len(out)} = "
           f"{100 * (right + none_ok) / len(out):.0f} %.\n")
+
+
+def _print_fit_table(out: list[dict]) -> None:
+    """Median fit before and after, and the error of the fitted effect parameter, per effect."""
+    labels = ("none",) + SUITE_EFFECTS
     print("| effect | median RMSE base | median RMSE final | median held-out RMSE base -> final | "
           "median fit % base -> final | true vs fitted parameter (median abs. rel. error) |")
     print("|---|---|---|---|---|---|")
@@ -141,13 +171,6 @@ def main(argv=None):
         print(f"| {lab} | {med('base_rmse'):.4f} | {med('final_rmse'):.4f} | "
               f"{med('hold_base'):.4f} -> {med('hold_final'):.4f} | "
               f"{med('base_fit'):.1f} -> {med('final_fit'):.1f} | {ptxt} |")
-    secs = [r["seconds"] for r in out]
-    print(f"\n{len(out)} diagnoses in {elapsed:.0f} s with {a.jobs} workers "
-          f"(median {np.median(secs):.1f} s per recording, kernel threads shared out between the workers).\n")
-    if a.json:
-        from valve_gym.diagnosis.report import write_json
-        write_json({"cases": out, "settings": vars(a)}, a.json)
-    return 0
 
 
 if __name__ == "__main__":

@@ -34,6 +34,7 @@ import os
 import sys
 import time
 from collections import Counter, defaultdict
+from typing import NamedTuple
 
 import numpy as np
 
@@ -86,29 +87,8 @@ def _plant_for(path):
     return "integrating" if "LIC" in os.path.basename(path).upper() else "first_order"
 
 
-def plant_loops(effort="auto", jobs=2, limit=None):
-    folder = data_path("stictiongpt_plant_loops")
-    rows = list(csv.DictReader(open(os.path.join(folder, "index.csv"), encoding="utf-8")))
-    if limit:
-        rows = rows[:: max(1, len(rows) // limit)][:limit]
-    paths = [os.path.join(folder, r["csv_file"]) for r in rows]
-    t0 = time.perf_counter()
-    out = diagnose_many(paths, jobs=jobs, load_kw={"op_range": (0, 100)},
-                        diag_kw=lambda p: {"plant": _plant_for(p), "actuator": "valve",
-                                           "effort": effort},
-                        progress=lambda s: print(s, file=sys.stderr, flush=True))
-    elapsed = time.perf_counter() - t0
-    per_tag = defaultdict(list)
-    table = []
-    for r, o in zip(rows, out):
-        label = r["expert_label"] == "stiction"
-        if not o["ok"]:
-            table.append((r["csv_file"], r["tag"], label, None, o["error"]))
-            continue
-        s = o["result"]["stiction"]
-        verdict = bool(s["present"])
-        per_tag[r["tag"]].append((label, verdict))
-        table.append((os.path.basename(r["csv_file"]), r["tag"], label, verdict, s))
+def _print_records(table):
+    """Table of the verdict per record (rows ``(file, tag, label, verdict, stiction dict or error)``)."""
     print("## Industrial loops (StictionGPT plant data): friction verdict vs expert label\n")
     print("| record | tag | plant | label | verdict | criterion change | model params | Horch test | "
           "combined p (in-sample) |")
@@ -126,7 +106,21 @@ def plant_loops(effort="auto", jobs=2, limit=None):
         print(f"| {name[:48]} | {tag} | {_plant_for(name)} | {'stiction' if label else 'no'} | "
               f"{'stiction' if verdict else 'no'} | {s.get('delta_ic', float('nan')):.1f} | "
               f"{par} | {hx} | {_p(s.get('probability'))} |")
-    # group-aware scores
+
+
+class _TagScores(NamedTuple):
+    """Group-aware scores of the verdict: one vote per tag."""
+
+    npos: int         # tags labelled stiction
+    nneg: int         # tags labelled no stiction
+    tpr: float        # majority vote, true-positive rate
+    tnr: float        # majority vote, true-negative rate
+    bal: float        # majority vote, balanced accuracy
+    bal_mean: float   # per-tag mean accuracy, balanced
+
+
+def _tag_scores(per_tag) -> _TagScores:
+    """Print the per-tag table of ``{tag: [(label, verdict), ...]}`` and score it."""
     tp = tn = npos = nneg = 0
     acc_pos, acc_neg = [], []
     print("\n| tag | label | records | judged stiction | tag verdict (majority) |")
@@ -150,6 +144,48 @@ def plant_loops(effort="auto", jobs=2, limit=None):
     tnr = tn / max(nneg, 1)
     bal = 0.5 * (tpr + tnr)
     bal_mean = 0.5 * (np.mean(acc_pos) + np.mean(acc_neg)) if acc_pos and acc_neg else float("nan")
+    return _TagScores(npos, nneg, tpr, tnr, bal, bal_mean)
+
+
+def _print_horch(ref) -> None:
+    """Paragraph on the reference method (Horch's test) against the verdict, same tags."""
+    print(f"Reference method on the self-regulating tags (Horch's cross-correlation test, model-free; "
+          f"level loops are outside its scope): {ref['n_pos']} stiction and {ref['n_neg']} "
+          f"no-stiction tags. Horch: TPR {ref['horch_tpr']:.2f}, TNR {ref['horch_tnr']:.2f}, "
+          f"balanced accuracy **{ref['horch_balanced']:.2f}** (a tag is called sticking when its "
+          f"records judged 'stiction' are at least those judged 'no stiction'; 'undetermined' "
+          f"records abstain, and a tag with no other verdict raises no alarm: "
+          f"{len(ref['silent_tags'])} tags, "
+          f"{', '.join(t + (' (stiction)' if lab else ' (no stiction)') for t, lab in ref['silent_tags']) or '-'}). "
+          f"valve_gym's verdict on the same tags: TPR {ref['ours_tpr']:.2f}, "
+          f"TNR {ref['ours_tnr']:.2f}, balanced accuracy **{ref['ours_balanced']:.2f}**.\n")
+
+
+def plant_loops(effort="auto", jobs=2, limit=None):
+    folder = data_path("stictiongpt_plant_loops")
+    rows = list(csv.DictReader(open(os.path.join(folder, "index.csv"), encoding="utf-8")))
+    if limit:
+        rows = rows[:: max(1, len(rows) // limit)][:limit]
+    paths = [os.path.join(folder, r["csv_file"]) for r in rows]
+    t0 = time.perf_counter()
+    out = diagnose_many(paths, jobs=jobs, load_kw={"op_range": (0, 100)},
+                        diag_kw=lambda p: {"plant": _plant_for(p), "actuator": "valve",
+                                           "effort": effort},
+                        progress=lambda s: print(s, file=sys.stderr, flush=True))
+    elapsed = time.perf_counter() - t0
+    per_tag = defaultdict(list)
+    table = []
+    for r, o in zip(rows, out):
+        label = r["expert_label"] == "stiction"
+        if not o["ok"]:
+            table.append((r["csv_file"], r["tag"], label, None, o["error"]))
+            continue
+        s = o["result"]["stiction"]
+        verdict = bool(s["present"])
+        per_tag[r["tag"]].append((label, verdict))
+        table.append((os.path.basename(r["csv_file"]), r["tag"], label, verdict, s))
+    _print_records(table)
+    npos, nneg, tpr, tnr, bal, bal_mean = _tag_scores(per_tag)
     files_right = sum(vv == lab for v in per_tag.values() for lab, vv in v)
     n_files = sum(len(v) for v in per_tag.values())
     loto = leave_one_tag_out([(t[1], t[2], t[4]) for t in table if t[3] is not None])
@@ -163,16 +199,7 @@ def plant_loops(effort="auto", jobs=2, limit=None):
           f"**{loto['balanced']:.2f}** (TPR {loto['tpr']:.2f}, TNR {loto['tnr']:.2f}); "
           f"thresholds chosen: {loto['chosen']}.\n")
     ref = horch_reference([(t[1], t[2], t[3], t[4]) for t in table if t[3] is not None])
-    print(f"Reference method on the self-regulating tags (Horch's cross-correlation test, model-free; "
-          f"level loops are outside its scope): {ref['n_pos']} stiction and {ref['n_neg']} "
-          f"no-stiction tags. Horch: TPR {ref['horch_tpr']:.2f}, TNR {ref['horch_tnr']:.2f}, "
-          f"balanced accuracy **{ref['horch_balanced']:.2f}** (a tag is called sticking when its "
-          f"records judged 'stiction' are at least those judged 'no stiction'; 'undetermined' "
-          f"records abstain, and a tag with no other verdict raises no alarm: "
-          f"{len(ref['silent_tags'])} tags, "
-          f"{', '.join(t + (' (stiction)' if lab else ' (no stiction)') for t, lab in ref['silent_tags']) or '-'}). "
-          f"valve_gym's verdict on the same tags: TPR {ref['ours_tpr']:.2f}, "
-          f"TNR {ref['ours_tnr']:.2f}, balanced accuracy **{ref['ours_balanced']:.2f}**.\n")
+    _print_horch(ref)
     return {"balanced_accuracy_majority": bal, "balanced_accuracy_tag_mean": bal_mean,
             "balanced_accuracy_loto": loto["balanced"], "horch_reference": ref, "tpr": tpr,
             "tnr": tnr, "records": [{"file": t[0], "tag": t[1], "label": t[2], "verdict": t[3],

@@ -204,6 +204,30 @@ class ValveTankVectorEnv(VectorEnv):
                  preset: str = "default", max_episode_steps: int | None = None,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
                  render_mode: str | None = None, threads: int = 1):
+        N, cfg, autoreset_mode, max_episode_steps = self._check_args(
+            num_envs, config, preset, max_episode_steps, autoreset_mode, render_mode, threads)
+        self.threads = int(threads)
+        self.num_envs = N
+        self.config = cfg
+        self.max_episode_steps = int(max_episode_steps)
+        self.autoreset_mode = autoreset_mode
+        self.metadata = {**type(self).metadata, "autoreset_mode": autoreset_mode}
+        self.render_mode = render_mode
+        self._plan = _Plan(cfg)
+        self.substeps = cfg.substeps
+        self.episode_steps = cfg.episode_steps
+        self.model = cfg.model
+        self.residual = cfg.action_mode == "residual"
+        self.single_action_space = gym.spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
+        self.action_space = batch_space(self.single_action_space, N)
+        self.single_observation_space = _observation_space(cfg)
+        self.observation_space = batch_space(self.single_observation_space, N)
+        self._nobs = self.single_observation_space.shape[0]
+        self._init_state(cfg, N)
+
+    def _check_args(self, num_envs, config, preset, max_episode_steps, autoreset_mode, render_mode,
+                    threads) -> tuple[int, EnvConfig, AutoresetMode, int]:
+        """Check the arguments of ``__init__``: number of envs, config, autoreset mode, episode length."""
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
         N = int(num_envs)
@@ -225,23 +249,10 @@ class ValveTankVectorEnv(VectorEnv):
         if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
             raise ValueError(f"threads must be a positive integer (kernel threads per step; 1 = none), "
                              f"got {threads!r}")
-        self.threads = int(threads)
-        self.num_envs = N
-        self.config = cfg
-        self.max_episode_steps = int(max_episode_steps)
-        self.autoreset_mode = autoreset_mode
-        self.metadata = {**type(self).metadata, "autoreset_mode": autoreset_mode}
-        self.render_mode = render_mode
-        self._plan = _Plan(cfg)
-        self.substeps = cfg.substeps
-        self.episode_steps = cfg.episode_steps
-        self.model = cfg.model
-        self.residual = cfg.action_mode == "residual"
-        self.single_action_space = gym.spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
-        self.action_space = batch_space(self.single_action_space, N)
-        self.single_observation_space = _observation_space(cfg)
-        self.observation_space = batch_space(self.single_observation_space, N)
-        self._nobs = self.single_observation_space.shape[0]
+        return N, cfg, autoreset_mode, int(max_episode_steps)
+
+    def _init_state(self, cfg: EnvConfig, N: int) -> None:
+        """Initial state, rewards' weights, schedules and per-env buffers of ``N`` sub-environments."""
         st = core.initial_state(cfg.model, 1)
         self._S0 = core.state_to_array(st)[:, 0]
         self._buf0 = np.asarray(st.delay_buf, dtype=np.float64)[0]
