@@ -332,7 +332,8 @@ def _refine(obj: _Objective, x0, max_nfev=40, step=2e-3):
 
     z0 = np.clip(x0[cont], 0.0, 1.0)
     try:
-        res = least_squares(fun, z0, jac=jac, bounds=(0.0, 1.0), method="trf",
+        res = least_squares(fun, z0, jac=jac,  # pyright: ignore[reportArgumentType]  # a callable jac is valid
+                            bounds=(0.0, 1.0), method="trf",
                             max_nfev=max_nfev, x_scale=1.0, xtol=1e-8, ftol=1e-10)
         x = expand(np.clip(res.x, 0.0, 1.0))
     except (ValueError, np.linalg.LinAlgError):  # pragma: no cover - defensive
@@ -574,7 +575,9 @@ def fit_with_friction(structure: ModelStructure, u, y, n_fit=None, *, seeds=None
 
 
 class _Pseudo:
-    def __init__(self, structure, w):
+    """Coordinates ``w`` (k,) of ``structure`` without a fit: enough for :func:`transfer`."""
+
+    def __init__(self, structure: ModelStructure, w):
         self.structure = structure
         self.w = np.asarray(w, float)
 
@@ -803,7 +806,7 @@ class ModelFitter:
         return fit_percent(recording.pv, self.predict(recording))
 
 
-def transfer(prev: FitResult, st: ModelStructure):
+def transfer(prev: FitResult | _Pseudo, st: ModelStructure):
     """Warm start for ``st`` from a fit of a related structure.
 
     Shared internal parameters keep their fitted values, new effect

@@ -158,7 +158,7 @@ class MismatchReport:
     threshold: float
     window: int
     rms: float
-    moving_rms: np.ndarray = field(repr=False, default=None)
+    moving_rms: np.ndarray | None = field(repr=False, default=None)
 
     def condition(self, name: str) -> ConditionStat | None:
         """The :class:`ConditionStat` called ``name`` (None if not computed)."""

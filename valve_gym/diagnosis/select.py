@@ -110,6 +110,7 @@ class CandidateFit:
     confirmed: bool = False
 
     def summary(self) -> dict:
+        """JSON-ready summary: the criterion and held-out changes, the fit and the verdict."""
         return {"round": self.round, "effect": self.effect, "variant": self.variant,
                 "delta_ic": self.delta_ic, "holdout_change": _f(self.holdout_change),
                 "rmse_fit_part": self.fit.rmse, "holdout_rmse": _f(self.fit.holdout_rmse),
@@ -267,13 +268,7 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
             screened = _run(tasks, jobs, ex)
             scores = [compare(current, r, rule, n_eff)[0] for r in screened]
             # 2) confirmation: the most promising with the full budget
-            order = np.argsort(scores)
-            short = []
-            for i in order:
-                if meta[i][0] not in [meta[j][0] for j in short]:
-                    short.append(i)
-                if len(short) >= n_confirm:
-                    break
+            short = _shortlist(meta, scores, n_confirm)
             if progress:
                 progress(f"round {rnd}: confirming {', '.join(meta[i][0] for i in short)}")
             tasks = [(current, meta[i][0], meta[i][1], u, y, n_fit, seed + 104729 * rnd + i,
@@ -283,16 +278,7 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
             for i, r in zip(short, confirmed):
                 if r.cost <= screened[i].cost:
                     results[i] = r
-            by_effect: dict[str, CandidateFit] = {}
-            for i, ((e, v), res) in enumerate(zip(meta, results)):
-                d_ic, h, pays = compare(current, res, rule, n_eff)
-                cf = CandidateFit(round=rnd, effect=e, variant=v, fit=res, delta_ic=d_ic,
-                                  holdout_change=h, pays=pays, confirmed=i in short)
-                if e not in by_effect or res.cost < by_effect[e].fit.cost:
-                    by_effect[e] = cf
-            round_fits = list(by_effect.values())
-            for cf in round_fits:
-                cf.reason = _reason(cf, rule)
+            round_fits = _round_fits(current, meta, results, short, rnd, rule, n_eff)
             tried.extend(round_fits)
             paying = [cf for cf in round_fits if cf.pays]
             if not paying:
@@ -308,6 +294,34 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
             ex.shutdown()
     return Selection(base=base, final=current, effects=effects, candidates=tried, skipped=skipped,
                      n_eff=n_eff0, seconds=time.perf_counter() - t0)
+
+
+def _shortlist(meta: list[tuple[str, str | None]], scores: list[float], n_confirm: int) -> list[int]:
+    """Indices into ``meta`` of the best-scoring candidates, one variant per effect, at most ``n_confirm``."""
+    order = np.argsort(scores)
+    short = []
+    for i in order:
+        if meta[i][0] not in [meta[j][0] for j in short]:
+            short.append(i)
+        if len(short) >= n_confirm:
+            break
+    return short
+
+
+def _round_fits(current: FitResult, meta: list[tuple[str, str | None]], results: list[FitResult],
+                short: list[int], rnd: int, rule: SelectionRule, n_eff: float) -> list[CandidateFit]:
+    """The candidates of one round, judged against ``current``: the best variant of each effect."""
+    by_effect: dict[str, CandidateFit] = {}
+    for i, ((e, v), res) in enumerate(zip(meta, results)):
+        d_ic, h, pays = compare(current, res, rule, n_eff)
+        cf = CandidateFit(round=rnd, effect=e, variant=v, fit=res, delta_ic=d_ic,
+                          holdout_change=h, pays=pays, confirmed=i in short)
+        if e not in by_effect or res.cost < by_effect[e].fit.cost:
+            by_effect[e] = cf
+    round_fits = list(by_effect.values())
+    for cf in round_fits:
+        cf.reason = _reason(cf, rule)
+    return round_fits
 
 
 def _coords_in(res: FitResult):
