@@ -15,6 +15,7 @@ Fitness of a network on a batch of loops (higher is better)::
 
     f = -mean_b l_b - travel_penalty * mean_b travel_b / hours
         - reversal_weight * mean_b r_b - lc_weight * mean_b (lc_b - lc_PI,b)
+        - lc_amp_weight * mean_b (A_b - A_PI,b) / 0.01 m
     l_b = log(IAE_b / IAE_PI,b)             (max(., 0) on healthy valves)
     r_b = log((rev_b + 1) / (rev_PI,b + 1))  (0 on healthy valves)
 
@@ -24,7 +25,8 @@ The log ratios weigh a healthy valve as much as a severe one; on healthy valves 
 against the PI counts (the block is not rewarded for out-tuning the PI where there is no
 stiction), and on sticky valves fewer stem reversals than the PI's (fewer stick-slip cycles)
 are rewarded beside a lower IAE; with ``lc_weight > 0`` so are fewer detections of the benchmark's
-limit-cycle detector (``lc_b`` = 1 where it fires on the measured error, sticky valves only).
+limit-cycle detector (``lc_b`` = 1 where it fires on the measured error, sticky valves only), and with
+``lc_amp_weight > 0`` smaller cycles (``A_b`` its amplitude [m], 0 where it does not fire).
 
 References
 ----------
@@ -44,7 +46,7 @@ from typing import NamedTuple
 import numpy as np
 
 from valve_gym.config import ConfigError, config_to_dict, load_config
-from valve_gym.envs.regulation import N_ACT, N_OBS, RegulationConfig, pi_action
+from valve_gym.envs.regulation import N_ACT, RegulationConfig, obs_names, pi_action
 
 from .learned import MLPSpec, mlp_forward, normalise, save_learned, unflatten
 from .lifecycle import STOP, stop_on_signals
@@ -82,6 +84,9 @@ class ESHyper:
     lc_weight : float
         Fitness weight of the limit-cycle detections on sticky valves (the benchmark's ACF detector
         on the measured error) against the PI's; 0 = not run.
+    lc_amp_weight : float
+        Fitness weight of the detected limit cycle's amplitude against the PI's, per cm, on sticky
+        valves (0 where none is detected); the detector runs when this or ``lc_weight`` is > 0.
     healthy_symmetric : bool
         On healthy valves count any departure from the PI's IAE (``|log ratio|``), not only a loss:
         the block must then behave as the PI where there is no stiction.
@@ -100,6 +105,7 @@ class ESHyper:
     reversal_weight: float = 0.25
     healthy_symmetric: bool = False
     lc_weight: float = 0.0
+    lc_amp_weight: float = 0.0
     episode_s: float = 1200.0
 
     def __post_init__(self):
@@ -110,8 +116,9 @@ class ESHyper:
         for nm in ("sigma", "learning_rate", "episode_s"):
             if not getattr(self, nm) > 0:
                 raise ConfigError(f"es.{nm} must be > 0, got {getattr(self, nm)!r}")
-        if min(self.weight_decay, self.travel_penalty, self.reversal_weight, self.lc_weight) < 0:
-            raise ConfigError("es.weight_decay, es.travel_penalty, es.reversal_weight and es.lc_weight must be >= 0")
+        if min(self.weight_decay, self.travel_penalty, self.reversal_weight, self.lc_weight, self.lc_amp_weight) < 0:
+            raise ConfigError("es.weight_decay, es.travel_penalty, es.reversal_weight, es.lc_weight and "
+                              "es.lc_amp_weight must be >= 0")
         if not self.hidden or any((not isinstance(h, int)) or h < 1 for h in self.hidden):
             raise ConfigError(f"es.hidden must be a list of positive layer sizes, got {self.hidden!r}")
 
@@ -185,8 +192,9 @@ class RolloutScores(NamedTuple):
     travel : (P, B) stem travel [strokes]
     reversals : (P, B) stem reversals (moves back by more than :data:`REVERSAL_DEADBAND`)
     lc : (P, B) 1 where the limit-cycle detector fired (0 everywhere unless asked for)
-    obs : (N_OBS,) mean and (N_OBS,) std of the observations (of the last policy)
+    obs : (n_obs,) mean and (n_obs,) std of the observations (of the last policy)
     S : (B,) stick band of each loop [fraction of stroke]
+    lc_amp : (P, B) amplitude of the detected limit cycle [m] (0 where none), or None
     """
 
     iae: np.ndarray
@@ -196,6 +204,7 @@ class RolloutScores(NamedTuple):
     obs_mean: np.ndarray
     obs_std: np.ndarray
     S: np.ndarray
+    lc_amp: np.ndarray | None = None
 
 
 #: Stem moves smaller than this (fraction of stroke) do not count as reversals.
@@ -244,25 +253,26 @@ def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None, lc: b
     from valve_gym.envs.regulation_env import ValveTankRegulationVectorEnv
 
     P, B = len(policies), len(seeds)
+    n_obs = len(obs_names(task.block))
     env = ValveTankRegulationVectorEnv(P * B, task)
     obs, info = env.reset(seed=[int(s) for p in range(P) for s in seeds])
     nets = [i for i, w in enumerate(policies) if w is not None]
     stacked = None
     if nets:
         stacked = {k: np.stack([policies[i][k] for i in nets]) for k in policies[nets[0]]}
-    mean, std = (np.zeros(N_OBS), np.ones(N_OBS)) if obs_norm is None else obs_norm
+    mean, std = (np.zeros(n_obs), np.ones(n_obs)) if obs_norm is None else obs_norm
     act = np.tile(pi_action(1), (P * B, 1)).reshape(P, B, N_ACT)
     iae = np.zeros(P * B)
     trav = np.zeros(P * B)
     rev = _Reversals(P * B, REVERSAL_DEADBAND)
     stem = None
-    s1 = np.zeros(N_OBS)
-    s2 = np.zeros(N_OBS)
+    s1 = np.zeros(n_obs)
+    s2 = np.zeros(n_obs)
     err = np.empty((task.steps, P * B)) if lc else None
     for k in range(task.steps):
         if STOP["flag"]:
             raise Interrupted()
-        o = obs.reshape(P, B, N_OBS).astype(np.float64)
+        o = obs.reshape(P, B, n_obs).astype(np.float64)
         s1 += o[-1].sum(0)
         s2 += (o[-1] ** 2).sum(0)
         if stacked is not None:
@@ -282,16 +292,21 @@ def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None, lc: b
     m = s1 / (B * task.steps)
     sd = np.sqrt(np.maximum(s2 / (B * task.steps) - m * m, 0.0))
     lc_present = np.zeros(P * B)
+    lc_amp = np.zeros(P * B)
     if err is not None:
         from valve_gym.metrics import acf_oscillation
 
-        lc_present = np.array([float(acf_oscillation(err[:, i], task.block.scan_s).present) for i in range(P * B)])
+        res = [acf_oscillation(err[:, i], task.block.scan_s) for i in range(P * B)]
+        lc_present = np.array([float(r.present) for r in res])
+        lc_amp = np.array([float(r.amplitude) if r.present else 0.0 for r in res])
     return RolloutScores(iae=iae.reshape(P, B), travel=trav.reshape(P, B), reversals=rev.count.reshape(P, B),
-                         lc=lc_present.reshape(P, B), obs_mean=m, obs_std=sd, S=np.asarray(info["S"]).reshape(P, B)[0])
+                         lc=lc_present.reshape(P, B), obs_mean=m, obs_std=sd, S=np.asarray(info["S"]).reshape(P, B)[0],
+                         lc_amp=lc_amp.reshape(P, B))
 
 
 def fitness(sc: RolloutScores, ref_iae: np.ndarray, ref_rev: np.ndarray, hyper: ESHyper, hours: float,
-            healthy_max: float = 0.005, ref_lc: np.ndarray | None = None) -> np.ndarray:  # noqa: D417
+            healthy_max: float = 0.005, ref_lc: np.ndarray | None = None,
+            ref_lc_amp: np.ndarray | None = None) -> np.ndarray:  # noqa: D417
     """Fitness (P,) of scored policies against the PI's IAE ``ref_iae`` (B,) (see the module docstring).
 
     On healthy valves (``S <= healthy_max``) only a loss against the PI counts (``max(log ratio, 0)``),
@@ -304,6 +319,8 @@ def fitness(sc: RolloutScores, ref_iae: np.ndarray, ref_rev: np.ndarray, hyper: 
     f = -lr.mean(1) - hyper.travel_penalty * sc.travel.mean(1) / hours - hyper.reversal_weight * rr.mean(1)
     if hyper.lc_weight > 0 and ref_lc is not None:
         f = f - hyper.lc_weight * np.where(healthy, 0.0, sc.lc - ref_lc[None, :]).mean(1)
+    if hyper.lc_amp_weight > 0 and ref_lc_amp is not None and sc.lc_amp is not None:
+        f = f - hyper.lc_amp_weight * np.where(healthy, 0.0, sc.lc_amp - ref_lc_amp[None, :]).mean(1) / 0.01
     return f
 
 
@@ -359,7 +376,7 @@ class ESState:
 
 def init_state(cfg: LearnedTrainConfig, seed: int) -> ESState:
     """A fresh run: Xavier-initialised hidden layers, output layer 0 with gate bias 3 (the plain PI)."""
-    spec = MLPSpec(cfg.es.hidden)
+    spec = MLPSpec(cfg.es.hidden, len(obs_names(cfg.task.block)))
     rng = np.random.default_rng([seed, 1])
     theta = np.zeros(spec.n_params)
     w = unflatten(spec, theta)
@@ -387,7 +404,7 @@ def _train_task(cfg: LearnedTrainConfig) -> RegulationConfig:
 def es_generation(st: ESState, cfg: LearnedTrainConfig) -> dict:
     """One update of ``st`` in place; returns the curve row of the training batch."""
     h = cfg.es
-    spec = MLPSpec(h.hidden)
+    spec = MLPSpec(h.hidden, len(obs_names(cfg.task.block)))
     rng = np.random.default_rng()
     rng.bit_generator.state = st.rng_state
     eps = rng.standard_normal((h.pairs, spec.n_params))
@@ -395,9 +412,10 @@ def es_generation(st: ESState, cfg: LearnedTrainConfig) -> dict:
     pop = np.concatenate([st.theta + h.sigma * eps, st.theta - h.sigma * eps, st.theta[None]])
     task = _train_task(cfg)
     pols = [unflatten(spec, p) for p in pop] + [None]
-    sc = rollout_scores(pols, task, seeds, (st.obs_mean, st.obs_std), lc=h.lc_weight > 0)
+    sc = rollout_scores(pols, task, seeds, (st.obs_mean, st.obs_std), lc=h.lc_weight > 0 or h.lc_amp_weight > 0)
     hours = task.episode_s / 3600.0
-    f = fitness(sc, sc.iae[-1], sc.reversals[-1], h, hours, cfg.task.S_bands[1], sc.lc[-1])
+    f = fitness(sc, sc.iae[-1], sc.reversals[-1], h, hours, cfg.task.S_bands[1], sc.lc[-1],
+                None if sc.lc_amp is None else sc.lc_amp[-1])
     r = centered_ranks(f[:2 * h.pairs])
     grad = ((r[:h.pairs] - r[h.pairs:]) @ eps) / (2 * h.pairs * h.sigma)
     g = -grad + h.weight_decay * st.theta          # minimise -f
@@ -416,14 +434,15 @@ def es_generation(st: ESState, cfg: LearnedTrainConfig) -> dict:
 
 def validate(st: ESState, cfg: LearnedTrainConfig, theta: np.ndarray, ref: RolloutScores | None):
     """Score ``theta`` against the PI on the validation loops; returns ``(row, ref)``."""
-    spec = MLPSpec(cfg.es.hidden)
+    spec = MLPSpec(cfg.es.hidden, len(obs_names(cfg.task.block)))
     seeds = [cfg.eval.seed + i for i in range(cfg.eval.n_loops)]
-    lc = cfg.es.lc_weight > 0
+    lc = cfg.es.lc_weight > 0 or cfg.es.lc_amp_weight > 0
     if ref is None:
         ref = rollout_scores([None], cfg.task, seeds, lc=lc)
     sc = rollout_scores([unflatten(spec, theta)], cfg.task, seeds, (st.obs_mean, st.obs_std), lc=lc)
     hours = cfg.task.episode_s / 3600.0
-    f = float(fitness(sc, ref.iae[0], ref.reversals[0], cfg.es, hours, cfg.task.S_bands[1], ref.lc[0])[0])
+    f = float(fitness(sc, ref.iae[0], ref.reversals[0], cfg.es, hours, cfg.task.S_bands[1], ref.lc[0],
+                        None if ref.lc_amp is None else ref.lc_amp[0])[0])
     ratio = sc.iae[0] / ref.iae[0]
     stick = ref.S > 0.005
     row = {"val_fitness": f, "val_iae_ratio_sticky_severe": float(np.median(ratio[stick])) if stick.any() else None,
@@ -450,7 +469,7 @@ def _block_meta(cfg: LearnedTrainConfig, st: ESState, command: str, seed: int, w
 
 
 def _write_outputs(out: Path, cfg: LearnedTrainConfig, st: ESState, command: str, seed: int) -> None:
-    spec = MLPSpec(cfg.es.hidden)
+    spec = MLPSpec(cfg.es.hidden, len(obs_names(cfg.task.block)))
     bs = cfg.task.block
     save_learned(out / "final", st.theta, spec, st.obs_mean, st.obs_std, bs,
                  _block_meta(cfg, st, command, seed, "final"))

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from valve_gym.envs.regulation import N_ACT, N_OBS, BlockLaw, BlockSettings
+from valve_gym.envs.regulation import N_ACT, N_OBS, BlockLaw, BlockSettings, obs_names
 
 from .safe_files import load_model_file, save_model_file
 
@@ -33,13 +33,17 @@ FORMAT = "valve_gym.learned_block/1"
 
 
 class MLPSpec:
-    """Layer sizes of the tanh network ``N_OBS -> hidden... -> N_ACT`` (tanh on every layer)."""
+    """Layer sizes of the tanh network ``n_obs -> hidden... -> N_ACT`` (tanh on every layer).
 
-    def __init__(self, hidden: Sequence[int] = (32, 32)):
+    ``n_obs`` is the block's observation length (``len(obs_names(settings))``; ``N_OBS`` by default).
+    """
+
+    def __init__(self, hidden: Sequence[int] = (32, 32), n_obs: int = N_OBS):
         self.hidden = tuple(int(h) for h in hidden)
         if not self.hidden or any(h < 1 for h in self.hidden):
             raise ValueError(f"hidden layer sizes must be positive integers, got {list(hidden)!r}")
-        self.sizes = (N_OBS,) + self.hidden + (N_ACT,)
+        self.n_obs = int(n_obs)
+        self.sizes = (self.n_obs,) + self.hidden + (N_ACT,)
 
     @property
     def n_params(self) -> int:
@@ -101,7 +105,7 @@ class LearnedBlock:
     ----------
     weights : dict
         Network weights (see :func:`mlp_forward`).
-    obs_mean, obs_std : (N_OBS,) arrays
+    obs_mean, obs_std : (n_obs,) arrays
         Normaliser of the observation: the network sees ``(obs - mean) / std``.
     settings : BlockSettings
     name : str
@@ -172,7 +176,7 @@ def save_learned(path, theta: np.ndarray, spec: MLPSpec, obs_mean, obs_std, sett
     w = {k: np.asarray(v, dtype=np.float64).copy() for k, v in unflatten(spec, np.asarray(theta, float)).items()}
     w["obs_mean"] = np.asarray(obs_mean, float)
     w["obs_std"] = np.asarray(obs_std, float)
-    m = {"format": FORMAT, "hidden": list(spec.hidden), "activation": "tanh", "n_obs": N_OBS, "n_act": N_ACT,
+    m = {"format": FORMAT, "hidden": list(spec.hidden), "activation": "tanh", "n_obs": spec.n_obs, "n_act": N_ACT,
          "block": asdict(settings), **meta}
     return save_model_file(path, w, m)
 
@@ -227,7 +231,8 @@ def load_learned(path=None, **settings) -> LearnedBlock:
         bs = replace(BlockSettings(**meta["block"]), **settings)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"bad settings for the learned compensator: {exc}") from None
-    spec = MLPSpec(meta["hidden"])
+    n_obs = len(obs_names(bs))
+    spec = MLPSpec(meta["hidden"], n_obs)
     w = {}
     for nm, shape in mlp_shapes(spec):
         a = mf.tensors.get(nm)
@@ -235,6 +240,6 @@ def load_learned(path=None, **settings) -> LearnedBlock:
             raise ValueError(f"{p}: weight {nm} missing or of the wrong shape (expected {shape})")
         w[nm] = a.astype(np.float64)
     mean, std = mf.tensors.get("obs_mean"), mf.tensors.get("obs_std")
-    if mean is None or std is None or mean.shape != (N_OBS,) or std.shape != (N_OBS,) or np.any(std <= 0):
-        raise ValueError(f"{p}: observation normaliser (obs_mean, obs_std of shape ({N_OBS},), std > 0) missing")
+    if mean is None or std is None or mean.shape != (n_obs,) or std.shape != (n_obs,) or np.any(std <= 0):
+        raise ValueError(f"{p}: observation normaliser (obs_mean, obs_std of shape ({n_obs},), std > 0) missing")
     return LearnedBlock(w, mean, std, bs, name=name, meta={**meta, "policy_path": str(p)})

@@ -134,3 +134,53 @@ def test_network_shapes():
     pop = {k: np.stack([v, v]) for k, v in w.items()}
     np.testing.assert_allclose(mlp_forward(pop, np.stack([x, x]))[1], y)
     assert y.shape == (3, N_ACT)
+
+
+def test_stick_features_layout_and_roundtrip(tmp_path):
+    from valve_gym.envs.regulation import STICK_OBS_NAMES, BlockLaw, obs_names
+
+    bs = BlockSettings(stick_features=True)
+    n_obs = len(obs_names(bs))
+    assert n_obs == N_OBS + len(STICK_OBS_NAMES) and len(obs_names(BlockSettings())) == N_OBS
+    law = BlockLaw(bs, 1)
+    law.reset(1.0, 1.0, 0.5)
+    # error stays positive: the output ramps (integral action) and the filtered error never changes sign,
+    # so the output's move since the last sign change grows with it, and so does the time
+    for _ in range(30):
+        law.observe(1.0, 0.99)
+        law.act(pi_action(1))
+    o = law.observe(1.0, 0.99)[0]
+    assert o[N_OBS] == pytest.approx((law.u[0] - 0.5) / bs.u_ref, rel=1e-9) and o[N_OBS] > 0
+    # the filtered error turns negative: both are reset at the sign change
+    for _ in range(60):
+        law.act(pi_action(1))
+        o = law.observe(1.0, 1.01)[0]
+    assert o[N_OBS + 1] < 0.6 and abs(o[N_OBS]) < abs(law.u[0] - 0.5) / bs.u_ref
+    spec = MLPSpec((8,), n_obs)
+    theta = np.random.default_rng(0).standard_normal(spec.n_params) * 0.5
+    save_learned(tmp_path / "stk", theta, spec, np.zeros(n_obs), np.ones(n_obs), bs, {"seed": 0})
+    blk = load_learned(tmp_path / "stk.json")
+    blk.reset(1.0, 1.0, 0.5)
+    assert 0.0 <= blk.step(1.0, 1.003) <= 1.0
+    env = ValveTankRegulationVectorEnv(2, RegulationConfig(episode_s=10.0, block=bs))
+    obs, _ = env.reset(seed=[1, 2])
+    assert obs.shape == (2, n_obs) and env.single_observation_space.shape == (n_obs,)
+
+
+def test_fitness_counts_limit_cycle_amplitude_on_sticky_valves_only():
+    from agents.es import ESHyper, RolloutScores, fitness
+
+    S = np.array([0.001, 0.03])                                # one healthy, one sticky loop
+    ref_iae, ref_rev = np.array([1.0, 2.0]), np.array([10.0, 10.0])
+    ref_lc, ref_amp = np.array([0.0, 1.0]), np.array([0.0, 0.02])
+
+    def sc(amp):
+        return RolloutScores(np.array([[1.0, 2.0]]), np.zeros((1, 2)), np.array([[10.0, 10.0]]),
+                             np.array([[0.0, 1.0]]), np.zeros(N_OBS), np.ones(N_OBS), S, np.array([amp]))
+
+    h = ESHyper(travel_penalty=0.0, reversal_weight=0.0, lc_weight=0.0, lc_amp_weight=1.0)
+    f_same = fitness(sc([0.0, 0.02]), ref_iae, ref_rev, h, 1.0, ref_lc=ref_lc, ref_lc_amp=ref_amp)[0]
+    f_half = fitness(sc([0.0, 0.01]), ref_iae, ref_rev, h, 1.0, ref_lc=ref_lc, ref_lc_amp=ref_amp)[0]
+    f_healthy = fitness(sc([0.05, 0.02]), ref_iae, ref_rev, h, 1.0, ref_lc=ref_lc, ref_lc_amp=ref_amp)[0]
+    assert f_same == pytest.approx(0.0) and f_healthy == pytest.approx(0.0)
+    assert f_half == pytest.approx(0.5 * 1.0)                  # 1 cm less on one of two loops, weight 1 per cm

@@ -45,7 +45,7 @@ from ..params import ModelParams, SlipJump, ValveParams
 __all__ = ["RegulationConfig", "BlockSettings", "RegulationDraw", "draw_scenarios", "friction_params",
            "LoopPlants", "BlockLaw", "pi_action", "step_reward", "parse_options", "available_friction_models",
            "FRICTION_MODELS_FALLBACK", "N_OBS", "N_ACT",
-           "OBS_NAMES"]
+           "OBS_NAMES", "STICK_OBS_NAMES", "obs_names"]
 
 #: Friction models available without :mod:`valve_gym.friction` (the core's two models).
 FRICTION_MODELS_FALLBACK = ("riihilahti", "choudhury")
@@ -82,6 +82,9 @@ class BlockSettings:
         Error scale of the observation (about the measurement noise).
     u_ref : float, fraction of stroke
         Output scale of the observation.
+    stick_features : bool
+        Add the stickiness features :data:`STICK_OBS_NAMES` to the observation (from SP, PV and
+        the block's own output only); ``False`` keeps the :data:`OBS_NAMES` layout.
     """
 
     Kc: float = 1.89
@@ -93,6 +96,7 @@ class BlockSettings:
     op_hi: float = 1.0
     e_ref: float = 0.005
     u_ref: float = 0.02
+    stick_features: bool = False
 
     def __post_init__(self):
         for name in ("Kc", "Ti", "scan_s", "e_ref", "u_ref"):
@@ -350,7 +354,17 @@ class LoopPlants:
 OBS_NAMES = ("e", "e_ema4", "e_ema16", "e_ema64", "e_ema256", "de_abs_ema64", "u_minus_ema64",
              "u_minus_ema256", "du_ema16", "c_prev", "g_prev")
 N_OBS = len(OBS_NAMES)
+#: Stickiness features appended when ``BlockSettings.stick_features`` is set: the output's move since
+#: the filtered error last changed sign (did the loop respond to what the block did?), the time since
+#: then, and the filtered error over the noise estimate (inside or outside the noise band).
+STICK_OBS_NAMES = ("u_since_e_flip", "t_since_e_flip", "e_ema16_over_noise")
 N_ACT = 2
+
+
+def obs_names(settings: BlockSettings) -> tuple[str, ...]:
+    """Names of the observation entries of a block with ``settings`` (its length is the network's input)."""
+    return OBS_NAMES + (STICK_OBS_NAMES if settings.stick_features else ())
+
 _E_TAUS = (4.0, 16.0, 64.0, 256.0)
 
 
@@ -371,7 +385,10 @@ class BlockLaw:
     ``|e_k - e_k-1|`` (64 scans), over ``e_ref`` (a noise estimate); the last output minus its
     moving averages (64, 256 scans), over ``u_ref``; the moving average of the output change
     (16 scans), over ``u_ref / 10``; the last correction over ``c_max`` and the last gate
-    mapped to [-1, 1]. All clipped to [-10, 10]. The action law is in the module Notes.
+    mapped to [-1, 1]. With ``stick_features``: ``(u - u_f) / u_ref`` with ``u_f`` the output
+    when the 16-scan average of ``e`` last changed sign, the scans since then over 100, and that
+    average over ``max(de_abs, 1e-4)``. All clipped to [-10, 10]. The action law is in the module
+    Notes.
     """
 
     def __init__(self, settings: BlockSettings, n: int):
@@ -382,6 +399,7 @@ class BlockLaw:
         self._a64 = 1.0 - math.exp(-settings.scan_s / 64.0)
         self._a256 = 1.0 - math.exp(-settings.scan_s / 256.0)
         self._a16 = 1.0 - math.exp(-settings.scan_s / 16.0)
+        self.n_obs = len(obs_names(settings))
 
     def reset(self, sp, pv, op) -> None:
         """Bumpless start: the output stays at ``op`` on the first scan if ``pv`` does not move.
@@ -403,6 +421,8 @@ class BlockLaw:
         self.c = np.zeros(self.n)
         self.g = np.ones(self.n)
         self.I = op - self.s.Kc * e
+        self.u_flip = op.copy()
+        self.t_flip = np.zeros(self.n)
         self._first = True
 
     def observe(self, sp, pv) -> np.ndarray:
@@ -412,9 +432,10 @@ class BlockLaw:
         e = np.broadcast_to(e, (self.n,))
         self.e_prev = self.e
         self.e = e
+        e16_prev = self.ema_e[:, 1].copy()
         self.ema_e += self._alpha_e * (e[:, None] - self.ema_e)
         self.de_abs += self._a64 * (np.abs(e - self.e_prev) - self.de_abs)
-        obs = np.empty((self.n, N_OBS))
+        obs = np.empty((self.n, self.n_obs))
         obs[:, 0] = e / s.e_ref
         obs[:, 1:5] = self.ema_e / s.e_ref
         obs[:, 5] = self.de_abs / s.e_ref
@@ -423,6 +444,13 @@ class BlockLaw:
         obs[:, 8] = self.du_ema / (0.1 * s.u_ref)
         obs[:, 9] = self.c / s.c_max if s.c_max > 0 else 0.0
         obs[:, 10] = 2.0 * (self.g - s.g_min) / (1.0 - s.g_min) - 1.0 if s.g_min < 1 else 1.0
+        if s.stick_features:
+            flip = np.sign(self.ema_e[:, 1]) != np.sign(e16_prev)
+            self.u_flip = np.where(flip, self.u, self.u_flip)
+            self.t_flip = np.where(flip, 0.0, self.t_flip + s.scan_s)
+            obs[:, N_OBS] = (self.u - self.u_flip) / s.u_ref
+            obs[:, N_OBS + 1] = self.t_flip / 100.0
+            obs[:, N_OBS + 2] = self.ema_e[:, 1] / np.maximum(self.de_abs, 1e-4)
         np.clip(obs, -10.0, 10.0, out=obs)
         return obs
 
@@ -455,7 +483,8 @@ class BlockLaw:
     def state_arrays(self) -> dict:
         """Copies of the state arrays (for tests and checkpoints)."""
         return {k: np.array(getattr(self, k)) for k in ("e", "e_prev", "ema_e", "de_abs", "u", "u_ema64",
-                                                         "u_ema256", "du_ema", "c", "g", "I")}
+                                                         "u_ema256", "du_ema", "c", "g", "I", "u_flip",
+                                                         "t_flip")}
 
 
 def pi_action(n: int) -> np.ndarray:

@@ -18,12 +18,12 @@ from gymnasium.vector.utils import batch_space
 from ..config import load_config
 from .regulation import (
     N_ACT,
-    N_OBS,
     BlockLaw,
     LoopPlants,
     RegulationConfig,
     RegulationDraw,
     draw_scenarios,
+    obs_names,
     parse_options,
     step_reward,
 )
@@ -65,7 +65,7 @@ class RegulationLoops:
         self.draw: RegulationDraw | None = None
 
     def reset(self, rngs: Sequence[np.random.Generator], pins: dict | None = None) -> np.ndarray:
-        """Start all loops at steady state; returns the observation (n, N_OBS) float32."""
+        """Start all loops at steady state; returns the observation (n, n_obs) float32."""
         d = _apply_pins(draw_scenarios(rngs, self.cfg), pins or {})
         self.draw = d
         self.plants = LoopPlants(self.cfg, d)
@@ -76,7 +76,7 @@ class RegulationLoops:
         return self.law.observe(d.sp, pv).astype(np.float32)
 
     def step(self, actions: np.ndarray):
-        """One scan; returns ``(obs (n, N_OBS) float32, reward (n,), truncated (bool), info dict of (n,))``."""
+        """One scan; returns ``(obs (n, n_obs) float32, reward (n,), truncated (bool), info dict of (n,))``."""
         d = self.draw
         if d is None:
             raise RuntimeError("call reset() before step()")
@@ -111,8 +111,8 @@ class RegulationLoops:
                 "S": d.S.copy(), "J": d.J.copy(), "setpoint": d.sp.copy()}
 
 
-def _spaces():
-    obs = spaces.Box(-10.0, 10.0, shape=(N_OBS,), dtype=np.float32)
+def _spaces(cfg: RegulationConfig):
+    obs = spaces.Box(-10.0, 10.0, shape=(len(obs_names(cfg.block)),), dtype=np.float32)
     act = spaces.Box(-1.0, 1.0, shape=(N_ACT,), dtype=np.float32)
     return obs, act
 
@@ -136,7 +136,8 @@ class ValveTankRegulationEnv(gym.Env):
 
     ## Observation Space
 
-    ``Box(-10, 10, (11,), float32)``: the block's own signals (:data:`~valve_gym.envs.regulation.OBS_NAMES`)
+    ``Box(-10, 10, (11,), float32)``: the block's own signals (:data:`~valve_gym.envs.regulation.OBS_NAMES`;
+    14 with ``block.stick_features``, :data:`~valve_gym.envs.regulation.STICK_OBS_NAMES` appended)
     computed from SP, PV and its past output only; never the stem or the friction.
 
     ## Rewards
@@ -168,7 +169,7 @@ class ValveTankRegulationEnv(gym.Env):
 
     def __init__(self, config: RegulationConfig | Mapping | str | None = None):
         self.config = make_regulation_config(config)
-        self.observation_space, self.action_space = _spaces()
+        self.observation_space, self.action_space = _spaces(self.config)
         self._loops = RegulationLoops(self.config, 1)
         self.episode_steps = self.config.steps
 
@@ -207,7 +208,7 @@ class ValveTankRegulationVectorEnv(VectorEnv):
             raise ValueError(f"max_episode_steps = {max_episode_steps} differs from the task's episode "
                              f"({self.config.steps} scans); set the config's episode_s instead")
         self.num_envs = int(num_envs)
-        self.single_observation_space, self.single_action_space = _spaces()
+        self.single_observation_space, self.single_action_space = _spaces(self.config)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self._loops = RegulationLoops(self.config, self.num_envs)
