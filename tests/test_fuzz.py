@@ -562,8 +562,6 @@ def test_finding_controller_none_setting(name, setting):
         load_controller(name, **{setting: None})
 
 
-@pytest.mark.xfail(reason="valve_gym/envs/valve_tank.py: reset(options=<not a dict>) raises TypeError; the "
-                          "regulation env raises ValueError for the same input", strict=False)
 @pytest.mark.parametrize("env_id", ["valve_gym/ValveTank-v0", "valve_gym/ValveTankFixed-v0"])
 def test_finding_env_options_not_a_dict(env_id):
     env = _env(env_id)

@@ -209,7 +209,7 @@ def _parse_pins(options, n: int | None, allow_nan: bool):
     if options is None:
         return None
     if not isinstance(options, Mapping):
-        raise TypeError(f"options must be a dict, got {type(options).__name__}")
+        raise ValueError(f"options must be a dict (e.g. reset(options={{'z_max': 0.2}})), got {type(options).__name__}")
     pins = {}
     for key, val in options.items():
         if key not in VALVE_KEYS:
