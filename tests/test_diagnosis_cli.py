@@ -149,3 +149,24 @@ def test_fleet_bad_usage(tmp_path, capsys, argv_extra, message):
     argv = [str(tmp_path)] + [str(tmp_path / a) if a == "OUT" else a for a in argv_extra] + ["--quiet"]
     rc, out, err = run(argv, capsys)
     assert rc == 2 and message in err
+
+
+def test_report_states_the_repairs_of_the_data(small_csv, tmp_path, capsys):
+    """A short gap of non-finite values is repaired, and the report says so (not only the JSON)."""
+    rows = list(csv.reader(open(small_csv)))
+    header, body = rows[0], rows[1:]
+    col = header.index("pv") if "pv" in header else 2
+    for r in body[100:102]:
+        r[col] = "inf"
+    p = tmp_path / "gap.csv"
+    with open(p, "w", newline="") as f:
+        csv.writer(f).writerows([header] + body)
+    rep = tmp_path / "rep"
+    rc, out, err = run([str(p), "--op-range", "0,100", "--plant", "tank", "--effects", "none",
+                        "--effort", "fast", "--jobs", "1", "--report", str(rep), "--quiet"], capsys)
+    assert rc == 0, err
+    d = json.loads((rep / "diagnosis.json").read_text())
+    assert d["recording"]["repairs"], "the inf values must be repaired and recorded"
+    md = (rep / "report.md").read_text()
+    assert "What was done to the data before fitting" in md
+    assert d["recording"]["repairs"][0] in md

@@ -218,6 +218,11 @@ def _md_summary(res, d: dict) -> list[str]:
              f"`{res.actuator}`; held-out end: {_g(100 * d['holdout']['fraction'], 3)} % of the "
              f"record.")
     L.append("")
+    if rec.get("repairs"):
+        L.append("**What was done to the data before fitting** (repairs, resampling, decimation):")
+        L.append("")
+        L.extend(f"- {r}" for r in rec["repairs"])
+        L.append("")
     eff = ", ".join(f"`{e}`" for e in d["effects"]) or "none"
     L.append(f"**Missing physics:** {eff}.  **Valve friction:** "
              + ("present" if d["stiction"].get("present") else
