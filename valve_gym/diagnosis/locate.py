@@ -35,6 +35,8 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from ..signals import acf
+
 __all__ = ["Region", "ConditionStat", "ResidualTests", "MismatchReport", "locate_mismatch",
            "condition_masks", "op_reversals", "dominant_period", "apparent_band", "noise_level"]
 
@@ -183,14 +185,6 @@ def _moving_mean(x, w):
     lo = np.clip(np.arange(n) - w // 2, 0, n)
     hi = np.clip(np.arange(n) + (w - w // 2), 0, n)
     return (c[hi] - c[lo]) / np.maximum(hi - lo, 1)
-
-
-def _acf(x, L):
-    x = np.asarray(x, float) - np.mean(x)
-    n = len(x)
-    f = np.fft.rfft(x, 2 * n)
-    a = np.fft.irfft(f * np.conj(f))[: L + 1]
-    return a / a[0] if a[0] > 0 else np.zeros(L + 1)
 
 
 def _ccf(r, u, L):
@@ -432,7 +426,7 @@ def locate_mismatch(t, op, pv, y_sim, sp=None, dt: float | None = None, window: 
                                    z=z, significant=bool(z > 3.0 and ratio > 1.25)))
     # residual tests
     L = int(max_lag or max(1, min(40, T // 5)))
-    a = _acf(r, L)
+    a = acf(r, L)
     bound = 1.96 / np.sqrt(T)
     k = np.arange(1, L + 1)
     Q = float(T * (T + 2) * np.sum(a[1:] ** 2 / (T - k)))

@@ -47,6 +47,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..diagnosis.recording import Recording
+from ..signals import detrend
 
 __all__ = ["Oscillation", "HorchEvidence", "Screen", "oscillation_index", "screen_recording",
            "R_MIN", "ACF_MIN"]
@@ -117,11 +118,6 @@ def _autocov(x: np.ndarray) -> np.ndarray:
     return np.fft.irfft(f * np.conj(f), 2 * n)[:n] / n
 
 
-def _detrend(x: np.ndarray) -> np.ndarray:
-    t = np.arange(len(x), dtype=float)
-    return x - np.polyval(np.polyfit(t, x, 1), t)
-
-
 def _crossings(acf: np.ndarray) -> np.ndarray:
     s = np.sign(acf)
     i = np.flatnonzero(s[1:] != s[:-1])[:_MAX_CROSSINGS]
@@ -140,7 +136,7 @@ def oscillation_index(e, dt: float = 1.0) -> Oscillation:
     -------
     Oscillation
     """
-    x = _detrend(np.asarray(e, dtype=float))
+    x = detrend(e)
     nan = float("nan")
     c = _autocov(x)
     if len(x) < 20 or c[0] <= 0:
@@ -188,7 +184,7 @@ def screen_recording(rec: Recording, plant: str = "tank") -> Screen:
     osc = oscillation_index(e, dt)
     amp_op = 0.0
     if osc.oscillating:
-        c = _autocov(_detrend(np.asarray(rec.op)))
+        c = _autocov(detrend(rec.op))
         lag = int(round(osc.period_s / dt))
         amp_op = math.sqrt(2 * max(float(c[lag]), 0.0)) if lag < len(c) else 0.0
     h = horch_ccf(rec.op, rec.pv, dt, plant)

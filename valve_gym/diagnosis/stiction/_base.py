@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ...signals import acf, detrend
+
 __all__ = ["Evidence", "Oscillation", "oscillation", "bandpass", "check_signals", "not_applicable"]
 
 
@@ -102,19 +104,6 @@ class Oscillation:
     n_cycles: float
 
 
-def _detrend(x):
-    t = np.arange(len(x))
-    return x - np.polyval(np.polyfit(t, x, 1), t)
-
-
-def _acf(x, max_lag):
-    x = x - x.mean()
-    n = len(x)
-    f = np.fft.rfft(x, 2 * n)
-    a = np.fft.irfft(f * np.conj(f))[:max_lag + 1]
-    return a / a[0] if a[0] > 0 else np.zeros(max_lag + 1)
-
-
 def oscillation(x, min_period: float = 4.0) -> Oscillation:
     """Period and regularity of the oscillation in ``x`` (T,) [any units].
 
@@ -125,11 +114,11 @@ def oscillation(x, min_period: float = 4.0) -> Oscillation:
     ``r = mean(Tp) / (3 std(Tp))`` (Thornhill et al. 2003).  Needs at least
     three crossings; ``std`` is floored at one sample.
     """
-    x = _detrend(np.asarray(x, float))
+    x = detrend(x)
     n = len(x)
     if np.std(x) <= 1e-12 * max(np.abs(x).max(), 1e-300):
         return Oscillation(False, float("nan"), 0.0, 0.0)
-    a = _acf(x, n // 2)
+    a = acf(x, n // 2)
     s = np.sign(a)
     idx = np.nonzero(s[1:] * s[:-1] < 0)[0]
     if len(idx) < 3:
@@ -164,7 +153,7 @@ def bandpass(x, period: float, width: float = 0.6) -> np.ndarray:
     off with a raised cosine over 20 % outside.  Zero phase: PV and OP keep
     their relative phase, which the ellipse needs.
     """
-    x = _detrend(np.asarray(x, float))
+    x = detrend(x)
     n = len(x)
     f = np.fft.rfftfreq(n)
     f0 = 1.0 / period

@@ -27,7 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._base import Evidence, _detrend, check_signals, not_applicable, oscillation, reliability
+from ...signals import detrend
+from ._base import Evidence, check_signals, not_applicable, oscillation, reliability
 
 __all__ = ["stiction_shape_index", "waveform_evidence"]
 
@@ -59,7 +60,7 @@ def stiction_shape_index(x, period: float):
     si : float, 0..1 (nan when fewer than 2 half-cycles could be fitted)
     n_half : int, half-cycles fitted
     """
-    x = _detrend(np.asarray(x, float))
+    x = detrend(x)
     w = max(1, int(round(period / 10)))
     xs = np.convolve(x, np.ones(w) / w, mode="same") if w > 1 else x
     s = np.sign(xs)
