@@ -109,3 +109,17 @@ def test_functions_are_short():
                 if n > MAX_LINES:
                     long.append(f"{p.relative_to(ROOT)}:{node.lineno} {node.name} ({n} lines)")
     assert long == []
+
+
+def test_one_name_per_quantity_in_each_layer():
+    from valve_gym.quantities import QUANTITIES, name_of
+    for layer in ("physics", "control"):
+        names = [getattr(q, layer) for q in QUANTITIES]
+        assert len(names) == len(set(names)), f"a {layer} name is used for two quantities"
+    # a name used by both layers means the same quantity in both
+    both = {q.physics for q in QUANTITIES} & {q.control for q in QUANTITIES}
+    for n in both:
+        assert [q for q in QUANTITIES if q.physics == n] == [q for q in QUANTITIES if q.control == n]
+    assert "(physics: u, control: op)" in name_of("u")
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert "valve_gym/quantities.py" in readme

@@ -29,6 +29,7 @@ import os
 import sys
 import time
 
+from ..effects import candidate_effects
 from .model import ACTUATORS, CANDIDATE_EFFECTS, PLANTS
 from .recording import RecordingError, load_recording, parse_columns, parse_range
 from .report import _g
@@ -93,16 +94,16 @@ def build_parser() -> argparse.ArgumentParser:
 def _parse_effects(text: str) -> tuple:
     t = text.strip().lower()
     if t in ("all", ""):
-        return tuple(CANDIDATE_EFFECTS)
+        return candidate_effects()
     if t == "none":
         return ()
     out = []
     for e in (s.strip() for s in t.split(",")):
         if not e:
             continue
-        if e not in CANDIDATE_EFFECTS:
+        if e not in candidate_effects():
             raise _UsageError(f"--effects: unknown effect {e!r}; known effects: "
-                              f"{', '.join(CANDIDATE_EFFECTS)} (or 'all', 'none')")
+                              f"{', '.join(candidate_effects())} (or 'all', 'none')")
         if e not in out:
             out.append(e)
     return tuple(out)

@@ -18,6 +18,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from ..effects import candidate_effects, effect_spec
 from .explain import explain_combined, explain_effect, explain_none, explain_stiction
 from .fit import (
     AUTO_THOROUGH_SAMPLES,
@@ -31,7 +32,7 @@ from .fit import (
 )
 from .indices import horch_ccf
 from .locate import MismatchReport, condition_masks, locate_mismatch
-from .model import ACTUATORS, CANDIDATE_EFFECTS, PLANTS, DataScales, ModelStructure, process_pool
+from .model import ACTUATORS, PLANTS, DataScales, ModelStructure, process_pool
 from .recording import Recording, RecordingError
 from .select import Selection, SelectionRule, select_effects
 from .stiction import assess_stiction
@@ -333,8 +334,8 @@ def _verdict_tasks(final: FitResult,
     tasks = []          # (structure, seeds): all seeded from the final model, independent
     seeds0, _ = transfer(final, st0)
     tasks.append((st0, seeds0))
-    for lag in ("dead_time", "sensor_lag"):
-        if lag in base_eff or lag not in CANDIDATE_EFFECTS:
+    for lag in (e for e in candidate_effects() if effect_spec(e).rivals_friction):
+        if lag in base_eff:
             continue
         stl = st0.with_effects(base_eff + (lag,))
         tasks.append((stl, transfer(final, stl)[0]))
@@ -591,10 +592,11 @@ def _check_arguments(recording: Recording, plant: str, actuator: str, holdout: f
         raise ValueError(f"unknown actuator {actuator!r}; choose 'valve' or 'pump'")
     if not 0.0 <= float(holdout) <= 0.6:
         raise ValueError(f"holdout must be a fraction between 0 and 0.6, got {holdout!r}")
-    cands = tuple(CANDIDATE_EFFECTS if candidates is None else candidates)
+    known = candidate_effects()
+    cands = tuple(known if candidates is None else candidates)
     for c in cands:
-        if c not in CANDIDATE_EFFECTS:
-            raise ValueError(f"unknown effect {c!r}; candidates are {', '.join(CANDIDATE_EFFECTS)}")
+        if c not in known:
+            raise ValueError(f"unknown effect {c!r}; candidates are {', '.join(known)}")
     return cands
 
 

@@ -73,22 +73,17 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..core import check_dt, initial_state, pack, run_packed
+from ..effects import CANDIDATE_EFFECTS, candidate_effects, effect_spec
 from ..params import (
     Cascade,
-    DeadTime,
     FirstOrderParams,
     IntegratingParams,
-    Leak,
     ModelParams,
-    OscillatingDisturbance,
-    Overflow,
     ParameterError,
-    SensorLag,
-    SlipJump,
     TankParams,
-    ValveCharacteristic,
     ValveParams,
 )
+from ..paramspec import FreeParam
 
 __all__ = ["PLANTS", "ACTUATORS", "CANDIDATE_EFFECTS", "FreeParam", "DataScales",
            "ModelStructure", "effect_applicability", "kernel_threads", "set_kernel_threads",
@@ -131,66 +126,12 @@ def process_pool(jobs: int):
 PLANTS = ("tank", "integrating", "first_order", "cascade")
 #: Actuators the fitter knows.
 ACTUATORS = ("valve", "pump")
-#: Candidate effects, in the order they are tried.
-CANDIDATE_EFFECTS = ("slip_jump", "valve_characteristic", "dead_time", "overflow", "leak",
-                     "sensor_lag", "oscillating_disturbance")
+# CANDIDATE_EFFECTS (the built-in effects, in the order they are tried) comes from valve_gym.effects
 
 _BIG = 1e300
 
 
 # --------------------------------------------------------------------------- params
-@dataclass(frozen=True)
-class FreeParam:
-    """One free coordinate of the search.
-
-    Parameters
-    ----------
-    name : str
-        Internal name (e.g. ``"tau1"``, ``"z_max"``).
-    lo, hi : float
-        Bounds in the parameter's own units.
-    scale : {'lin', 'log', 'sq'}
-        Map from the unit coordinate ``w`` in 0..1: ``lo + (hi-lo) w``,
-        ``lo (hi/lo)**w`` or ``lo + (hi-lo) w**2`` (fine resolution near
-        ``lo``, e.g. friction near zero).
-    unit : str
-        Unit, for reports.
-    doc : str
-        One-line meaning.
-    discrete : bool
-        Held fixed by gradient-based refinement (e.g. a sign).
-    """
-
-    name: str
-    lo: float
-    hi: float
-    scale: str = "lin"
-    unit: str = ""
-    doc: str = ""
-    discrete: bool = False
-
-    def value(self, w):
-        """Parameter value(s) for unit coordinate(s) ``w``."""
-        w = np.clip(np.asarray(w, float), 0.0, 1.0)
-        if self.scale == "log":
-            return self.lo * (self.hi / self.lo) ** w
-        if self.scale == "sq":
-            return self.lo + (self.hi - self.lo) * w * w
-        return self.lo + (self.hi - self.lo) * w
-
-    def coord(self, v):
-        """Unit coordinate(s) of value(s) ``v`` (clipped to the bounds)."""
-        v = np.clip(np.asarray(v, float), min(self.lo, self.hi), max(self.lo, self.hi))
-        span = self.hi - self.lo
-        if span == 0:
-            return np.zeros_like(v)
-        if self.scale == "log":
-            return np.log(v / self.lo) / np.log(self.hi / self.lo)
-        if self.scale == "sq":
-            return np.sqrt(np.clip((v - self.lo) / span, 0, 1))
-        return (v - self.lo) / span
-
-
 @dataclass(frozen=True)
 class DataScales:
     """Scales of a recording that set the search ranges (never fitted values).
@@ -279,22 +220,16 @@ def _plateau(y, side):
 def effect_applicability(effect: str, plant: str, actuator: str) -> tuple[bool, str]:
     """Whether ``effect`` can be identified for ``plant``/``actuator``, and why not.
 
+    The rule is the effect's own (:class:`valve_gym.effects.EffectSpec`).
+
     Returns
     -------
     (bool, str)
         ``True, ""`` when it is a candidate; else ``False`` and the reason.
     """
-    if effect in ("slip_jump", "valve_characteristic") and actuator != "valve":
-        return False, f"{effect} acts on a valve; the actuator is a {actuator}"
-    if effect == "leak" and plant == "integrating":
-        return False, ("a constant leak cannot be told apart from the integrating plant's "
-                       "constant outflow q_out (same equation); it is already in the base model")
-    if effect == "leak" and plant == "first_order":
-        return False, ("a constant leak cannot be told apart from the first-order plant's bias b "
-                       "(same equation); it is already in the base model")
-    if effect not in CANDIDATE_EFFECTS:
+    if effect not in candidate_effects():
         return False, f"unknown effect {effect!r}"
-    return True, ""
+    return effect_spec(effect).applicable(plant, actuator)
 
 
 # --------------------------------------------------------------------------- structure
@@ -356,8 +291,10 @@ class ModelStructure:
         self.n_sub = int(n_sub)
         self.friction = bool(friction) and actuator == "valve"
         self.variants = dict(variants or {})
-        if "valve_characteristic" in effects:
-            self.variants.setdefault("valve_characteristic", "equal_percentage")
+        for e in effects:
+            first = effect_spec(e).variants[0]
+            if first is not None:
+                self.variants.setdefault(e, first)
         self.period_hint = period_hint
         self.output_offset = (plant == "cascade") if output_offset is None else bool(output_offset)
         self.params: list[FreeParam] = self._free_params()
@@ -367,8 +304,8 @@ class ModelStructure:
     # ---------------------------------------------------------------- description
     @property
     def k(self) -> int:
-        """Number of free parameters (the valve characteristic's kind counts as one)."""
-        extra = 1 if self.variants.get("valve_characteristic") == "quick_opening" else 0
+        """Number of free parameters (a choice of form, e.g. the valve characteristic's, may count as one)."""
+        extra = sum(effect_spec(e).variant_k.get(self.variants.get(e) or "", 0) for e in self.effects)
         return len(self.params) + extra
 
     @property
@@ -402,10 +339,7 @@ class ModelStructure:
                     variants=self.variants, period_hint=self.period_hint,
                     output_offset=self.output_offset)
         args.update(kw)
-        variants = dict(args["variants"] or {})
-        if "valve_characteristic" not in args["effects"]:
-            variants.pop("valve_characteristic", None)
-        args["variants"] = variants
+        args["variants"] = {e: v for e, v in dict(args["variants"] or {}).items() if e in args["effects"]}
         return ModelStructure(**args)
 
     # ---------------------------------------------------------------- parameters
@@ -468,42 +402,8 @@ class ModelStructure:
         return P
 
     def _effect_params(self, e: str) -> list[FreeParam]:
-        sc = self.scales
-        dt, D = sc.dt, sc.duration
-        if e == "slip_jump":
-            s_hi = float(np.clip(sc.u_range, 0.008, 0.3))
-            return [FreeParam("S", 0.0, s_hi, "sq", "-", "stick band + dead band, fraction of stroke"),
-                    FreeParam("J_rel", 0.0, 2.0, "lin", "-", "slip jump relative to S, J/S")]
-        if e == "valve_characteristic":
-            if self.variants.get("valve_characteristic", "equal_percentage") == "equal_percentage":
-                return [FreeParam("R", 1.5, 100.0, "log", "-", "rangeability (equal percentage)")]
-            return []
-        if e == "dead_time":
-            return [FreeParam("theta", 0.0, float(min(30 * dt, D / 5)), "lin", "s", "dead time")]
-        if e == "overflow":
-            if self.plant == "cascade":
-                return [FreeParam("L_max", 0.3, 6.0, "log", "-",
-                                  "upper-tank top / upper level at the mean input"),
-                        FreeParam("spill", 0.0, 1.0, "lin", "-",
-                                  "fraction of the upper tank's spill that falls into the lower tank"),
-                        FreeParam("L2_frac", 0.0, 1.0, "lin", "-",
-                                  "lower-tank top between median and max PV (+30 % of range)")]
-            return [FreeParam("L_frac", 0.0, 1.0, "lin", "-",
-                              "top between median and max PV (+30 % of range)")]
-        if e == "leak":
-            return [FreeParam("leak_frac", 0.0, 0.8, "sq", "-", "leak / mean inflow")]
-        if e == "sensor_lag":
-            return [FreeParam("tau_s", self.t_min, 30 * dt, "log", "s", "sensor time constant")]
-        if e == "oscillating_disturbance":
-            if self.period_hint:
-                plo, phi = self.period_hint / 1.5, self.period_hint * 1.5
-            else:
-                plo, phi = 4 * dt, D / 2
-            plo, phi = max(plo, 3 * dt), max(min(phi, D), 3.1 * dt)
-            return [FreeParam("dist_amp", 0.0, 1.0, "sq", "-", "amplitude / flow scale"),
-                    FreeParam("period", plo, phi, "log", "s", "period"),
-                    FreeParam("phase", 0.0, 2 * np.pi, "lin", "rad", "phase at t = 0")]
-        raise ValueError(f"unknown effect {e!r}")  # pragma: no cover
+        """Free coordinates of effect ``e``: its spec's rule, ranges scaled from the data."""
+        return list(effect_spec(e).free(self))
 
     # ---------------------------------------------------------------- coordinates
     def decode(self, W) -> dict[str, np.ndarray]:
@@ -521,10 +421,11 @@ class ModelStructure:
 
     def neutral_coord(self, p: FreeParam) -> float:
         """Unit coordinate at which an effect parameter leaves the base model unchanged."""
-        neutral = {"theta": 0.0, "L_frac": 1.0, "L_max": 1.0, "spill": 0.5, "L2_frac": 1.0,
-                   "leak_frac": 0.0, "tau_s": 0.0, "dist_amp": 0.0, "period": 0.5,
-                   "phase": 0.0, "R": 0.5, "S": 0.3, "J_rel": 0.5, "c": 0.5}
-        return float(neutral.get(p.name, 0.5))
+        for e in self.effects:
+            neutral = effect_spec(e).neutral
+            if p.name in neutral:
+                return float(neutral[p.name])
+        return 0.5
 
     def index(self, name: str) -> int:
         """Column of the free parameter ``name`` in the coordinate vectors."""
@@ -533,13 +434,13 @@ class ModelStructure:
     # ---------------------------------------------------------------- build
     def _fbar(self, v, n):
         """Flow fraction at the mean controller output, per row."""
-        u = np.full(n, self.scales.u_mean)
-        kind = self.variants.get("valve_characteristic")
-        if kind is None or self.actuator == "pump":
-            return np.maximum(u, 1e-3)
-        if kind == "equal_percentage":
-            return np.maximum(v["R"] ** (u - 1.0), 1e-3)
-        return np.maximum(np.sqrt(u), 1e-3)
+        f = np.full(n, self.scales.u_mean)
+        if self.actuator == "valve":
+            for e in self.effects:
+                rule = effect_spec(e).flow_fraction
+                if rule is not None:
+                    f = rule(self, v, f)
+        return np.maximum(f, 1e-3)
 
     def build(self, values: dict[str, np.ndarray], n_sub: int | None = None):
         """Core parameters, initial state and measurement map for ``values``.
@@ -621,52 +522,23 @@ class ModelStructure:
         return ValveParams(tau=dte, v_max=np.inf, e_dead=0.0, z_max=0.0)
 
     def _build_blocks(self, v: dict[str, np.ndarray], dte: float, pp: _ProcessPart) -> dict[str, Any]:
-        """Effect blocks ``{effect: block}`` for the structure's effects."""
-        sign, offset, flow_scale = pp.sign, pp.offset, pp.flow_scale
+        """Kernel blocks ``{effect: block}`` of the structure's effects (each spec's ``build``)."""
         blocks: dict[str, Any] = {}
         for e in self.effects:
-            if e == "slip_jump":
-                blocks[e] = SlipJump(S=v["S"], J=np.minimum(v["S"] * v["J_rel"], 1.0), tau_p=dte)
-            elif e == "valve_characteristic":
-                kind = self.variants.get("valve_characteristic", "equal_percentage")
-                blocks[e] = ValveCharacteristic(kind=kind, R=v["R"] if "R" in v else 30.0, h0=0.0)
-            elif e == "dead_time":
-                blocks[e] = DeadTime(theta=v["theta"])
-            elif e == "overflow":
-                blocks[e] = self._build_overflow(v, sign, offset)
-            elif e == "leak":
-                blocks[e] = Leak(q_leak=v["leak_frac"] * flow_scale)
-            elif e == "sensor_lag":
-                blocks[e] = SensorLag(tau_s=v["tau_s"])
-            elif e == "oscillating_disturbance":
-                amp_scale = self._dist_scale(flow_scale)
-                blocks[e] = OscillatingDisturbance(amplitude=v["dist_amp"] * amp_scale,
-                                                   period=v["period"], phase=v["phase"])
+            build = effect_spec(e).build
+            if build is not None:
+                blocks[e] = build(self, v, dte, pp)
         return blocks
 
-    def _build_overflow(self, v: dict[str, np.ndarray], sign: np.ndarray, offset: np.ndarray) -> Overflow:
-        """Overflow block; its limits are placed within the range of the recorded PV."""
-        sc = self.scales
-        if self.plant == "cascade":
-            X1 = max(sc.y_mean, 1e-9)
-            lo2 = sc.y_q50 - offset
-            hi2 = sc.y_max + 0.3 * sc.y_range - offset
-            L2 = np.maximum(lo2 + v["L2_frac"] * (hi2 - lo2), 1e-9)
-            return Overflow(L_max=v["L_max"] * X1, L2_max=L2, spill_to_lower=v["spill"])
-        # top in model units (level = sign * (PV - offset))
-        ym = sign * (np.array([sc.y_q50, sc.y_max, sc.y_min])[:, None] - offset)
-        lo = ym[0]
-        hi = np.maximum(ym[1], ym[2]) + 0.3 * sc.y_range
-        L = lo + v["L_frac"] * (hi - lo)
-        return Overflow(L_max=np.maximum(L, 1e-9))
-
-    def _dist_scale(self, flow_scale):
-        sc = self.scales
-        if self.plant == "first_order":
-            return np.full_like(flow_scale, 2.0 * sc.y_range)
-        if self.plant == "integrating":
-            return flow_scale * 3.0 * sc.u_std
-        return 0.5 * flow_scale
+    def _measure(self, values: dict[str, np.ndarray], Y: np.ndarray) -> np.ndarray:
+        """Apply the measurement effects (those outside the core) to the simulated PV ``Y`` (T, n)."""
+        for e in self.effects:
+            measure = effect_spec(e).measure
+            if measure is not None:
+                n = Y.shape[1]
+                v = {k: np.broadcast_to(np.asarray(a, float), (n,)) for k, a in values.items()}
+                Y = measure(self, v, self.scales.dt * np.arange(Y.shape[0]), Y)
+        return Y
 
     # ---------------------------------------------------------------- simulate
     def simulate(self, W, u, n_sub: int | None = None, coords: bool = True) -> np.ndarray:
@@ -694,6 +566,7 @@ class ModelStructure:
             Y *= sign[None, :]
         if np.any(offset != 0.0):
             Y += offset[None, :]
+        Y = self._measure(values, Y)
         sc = self.scales
         if sc.sat_hi is not None:
             np.minimum(Y, sc.sat_hi, out=Y)
@@ -760,7 +633,7 @@ class ModelStructure:
         mp = _scalarise(mp)
         out: dict[str, float | np.ndarray] = {}
         out.update(self._physical_process(mp, offset))
-        out.update(self._physical_effects(mp, sign, offset))
+        out.update(self._physical_effects(mp, sign, offset, values))
         for k, a in init.items():
             if k == "h":
                 if "dh0" in self.names:
@@ -797,63 +670,31 @@ class ModelStructure:
                         "schoukens.k3": mp.cascade.k_out2 / a2, "schoukens.k4": pr.q_max})
         return out
 
-    def _physical_effects(self, mp: ModelParams, sign: np.ndarray,
-                          offset: np.ndarray) -> dict[str, float | np.ndarray]:
-        """Valve, friction and effect-block entries of :meth:`physical`."""
+    def _physical_effects(self, mp: ModelParams, sign: np.ndarray, offset: np.ndarray,
+                          values: dict[str, np.ndarray]) -> dict[str, float | np.ndarray]:
+        """Valve friction and effect entries of :meth:`physical` (each effect's spec names its own)."""
         out: dict[str, float | np.ndarray] = {}
-        if self.actuator == "valve":
-            if mp.slip_jump is not None:
-                out.update({"slip_jump.S": mp.slip_jump.S, "slip_jump.J": mp.slip_jump.J})
-            else:
-                out.update({"valve.e_dead": mp.valve.e_dead, "valve.z_max": mp.valve.z_max})
-        if mp.valve_characteristic is not None:
-            vc = mp.valve_characteristic
-            if vc.kind == "equal_percentage":
-                out["valve_characteristic.R"] = vc.R
-        if mp.dead_time is not None:
-            out["dead_time.theta"] = mp.dead_time.theta
-        if mp.overflow is not None:
-            o = mp.overflow
-            out["overflow.L_max"] = o.L_max
-            if self.plant == "cascade":
-                out["overflow.L2_max"] = o.L2_max
-                out["overflow.spill_to_lower"] = o.spill_to_lower
-                out["overflow.L2_max_pv"] = o.L2_max + offset[0]
-            else:
-                out["overflow.L_max_pv"] = sign[0] * o.L_max + offset[0]
-        if mp.leak is not None:
-            out["leak.q_leak"] = mp.leak.q_leak
-        if mp.sensor_lag is not None:
-            out["sensor_lag.tau_s"] = mp.sensor_lag.tau_s
-        if mp.oscillating_disturbance is not None:
-            d = mp.oscillating_disturbance
-            out.update({"oscillating_disturbance.amplitude": d.amplitude,
-                        "oscillating_disturbance.period": d.period,
-                        "oscillating_disturbance.phase": float(np.mod(d.phase, 2 * np.pi))})
+        if self.actuator == "valve" and mp.slip_jump is None:
+            out.update({"valve.e_dead": mp.valve.e_dead, "valve.z_max": mp.valve.z_max})
+        v = {k: np.asarray(a, float).reshape(-1)[:1] for k, a in values.items()}
+        for e in self.effects:
+            out.update(effect_spec(e).physical(self, v, mp, sign, offset))
         return out
 
     def units(self) -> dict[str, str]:
         """Units of the keys of :meth:`physical` (PV = units of the recording's PV)."""
-        flow = {"first_order": "PV", "integrating": "PV/s", "tank": "PV/s", "cascade": "PV/s"}
         u = {"process.K": "PV per unit OP (0..1)", "process.T": "s", "process.b": "PV",
              "process.q_max": "PV/s", "process.q_out": "PV/s", "process.area": "-",
              "process.k_out": "PV^0.5/s", "cascade.area2": "-", "cascade.k_out2": "PV^0.5/s",
              "schoukens.k1": "PV^0.5/s", "schoukens.k2": "PV^0.5/s", "schoukens.k3": "PV^0.5/s",
              "schoukens.k4": "PV/s per unit input",
-             "slip_jump.S": "fraction of stroke", "slip_jump.J": "fraction of stroke",
              "valve.e_dead": "fraction of stroke", "valve.z_max": "s (integrated error)",
-             "valve_characteristic.R": "-", "dead_time.theta": "s", "overflow.L_max": "PV",
-             "overflow.L2_max": "PV", "overflow.spill_to_lower": "-",
-             "overflow.L_max_pv": "PV (limit as read on the PV)",
-             "overflow.L2_max_pv": "PV (limit as read on the PV)",
-             "leak.q_leak": flow[self.plant],
-             "sensor_lag.tau_s": "s", "oscillating_disturbance.amplitude": flow[self.plant],
-             "oscillating_disturbance.period": "s", "oscillating_disturbance.phase": "rad",
              "init.level": "PV", "init.level2": "PV", "init.stem": "fraction of stroke",
              "measurement.sign": "-",
              "measurement.offset": "PV"}
+        for e in candidate_effects():
+            u.update(effect_spec(e).units(self.plant))
         if self.plant == "cascade":
-            u["overflow.L_max"] = "upper-tank level units (scaled to PV)"
             u["init.level"] = "upper-tank level units (scaled to PV)"
         return u
 

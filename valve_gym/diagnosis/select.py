@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..effects import effect_spec
 from .fit import FitResult, effective_n, fit_structure, information_criterion, transfer
 from .locate import dominant_period
 from .model import CANDIDATE_EFFECTS, effect_applicability, process_pool
@@ -170,10 +171,8 @@ def compare(old: FitResult, new: FitResult, rule: SelectionRule,
 
 
 def candidate_variants(effect: str, actuator: str) -> list[str | None]:
-    """Variants tried for a candidate effect (None = the only one)."""
-    if effect == "valve_characteristic":
-        return ["equal_percentage", "quick_opening"]
-    return [None]
+    """Variants tried for a candidate effect (None = the only one), from the effect's spec."""
+    return list(effect_spec(effect).variants)
 
 
 def _candidate_structure(current: FitResult, effect, variant, period_hint):
@@ -188,17 +187,12 @@ def _fit_candidate(args):
     (current, effect, variant, u, y, n_fit, seed, effort, period_hint, extra, coarse) = args
     st = _candidate_structure(current, effect, variant, period_hint)
     seeds, spread = transfer(current, st)
-    if effect == "slip_jump":
-        # start the stick band where the dead band of the paper's valve was
-        vals = current.structure.decode(current.w[None, :])
-        if "e_dead" in vals:
-            S0 = 2.0 * float(vals["e_dead"][0])
-            i = st.index("S")
-            seeds = seeds.copy()
-            seeds[0, i] = float(st.params[i].coord(S0))
+    seed_rule = effect_spec(effect).seed
+    if seed_rule is not None:
+        seeds = seed_rule(current.structure.decode(current.w[None, :]), st, seeds)
     if extra is not None:
         seeds = np.vstack([seeds, np.atleast_2d(extra)])
-    return fit_structure(st, u, y, n_fit, seeds=seeds, spread=None, rng=seed, effort=effort, coarse=coarse)
+    return fit_structure(st, u, y, n_fit, seeds=seeds, spread=spread, rng=seed, effort=effort, coarse=coarse)
 
 
 def _run(tasks, jobs, executor=None):

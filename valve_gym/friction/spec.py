@@ -16,6 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..params import ModelParams, ParameterError, SlipJump, register_sample_law
+from ..paramspec import ParamSpec
 
 __all__ = ["ParamSpec", "FrictionSpec", "register", "friction_spec", "registered", "as_band", "frictionless",
            "SampleLaw", "MEM_ROWS"]
@@ -25,46 +26,6 @@ Band = float | np.ndarray
 SampleLaw = Callable[[np.ndarray, np.ndarray, SlipJump], np.ndarray]
 #: Rows of the per-loop memory a sample law gets.
 MEM_ROWS = 4
-
-
-@dataclass(frozen=True)
-class ParamSpec:
-    """One parameter of a friction model.
-
-    Attributes
-    ----------
-    name : str
-        Field name in the model's parameter block.
-    unit : str
-        Unit (``"-"`` for fractions of the stroke).
-    lo, hi : float
-        Physical range accepted by the model.
-    default : float
-        Value used when the model is built without it.
-    prior : str
-        Prior for fitting: ``"lin"`` uniform on [lo, hi], ``"log"`` uniform in
-        log, ``"sq"`` uniform in the square root (dense near ``lo``), or
-        ``"fixed"`` (not fitted; set by the S/J mapping or left at the default).
-    doc : str
-        One line: what the parameter is.
-    """
-
-    name: str
-    unit: str
-    lo: float
-    hi: float
-    default: float
-    prior: str
-    doc: str
-
-    def __post_init__(self):
-        if self.prior not in ("lin", "log", "sq", "fixed"):
-            raise ValueError(f"ParamSpec {self.name!r}: prior must be 'lin', 'log', 'sq' or 'fixed', "
-                             f"got {self.prior!r}")
-        if self.prior == "log" and not self.lo > 0:
-            raise ValueError(f"ParamSpec {self.name!r}: a log prior needs lo > 0, got {self.lo}")
-        if not self.lo <= self.default <= self.hi:
-            raise ValueError(f"ParamSpec {self.name!r}: default {self.default} outside [{self.lo}, {self.hi}]")
 
 
 @dataclass(frozen=True)

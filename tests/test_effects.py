@@ -1,0 +1,101 @@
+"""The effect registry: every effect is one spec, and a new one is one file (docs/examples/sensor_drift.py)."""
+from __future__ import annotations
+
+import importlib.util
+import pathlib
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from valve_gym.diagnosis import diagnose
+from valve_gym.diagnosis.model import DataScales, ModelStructure, effect_applicability
+from valve_gym.diagnosis.synthetic import make_case
+from valve_gym.effects import CANDIDATE_EFFECTS, candidate_effects, effect_spec
+from valve_gym.effects.spec import EffectSpec, register_effect, unregister_effect
+from valve_gym.params import EFFECTS
+
+ROOT = pathlib.Path(__file__).resolve().parents[1]
+
+
+def test_builtin_effects_are_the_core_blocks_in_the_order_tried():
+    assert CANDIDATE_EFFECTS == ("slip_jump", "valve_characteristic", "dead_time", "overflow", "leak",
+                                 "sensor_lag", "oscillating_disturbance")
+    assert set(EFFECTS) - set(CANDIDATE_EFFECTS) == {"cascade", "actuator"}   # plant structure, not effects
+    for e in CANDIDATE_EFFECTS:
+        spec = effect_spec(e)
+        assert spec.build is not None and spec.measure is None
+        assert spec.params and spec.kernel and spec.signature
+        # each spec's module is one file named after the effect
+        assert (ROOT / "valve_gym" / "effects" / f"{e}.py").is_file()
+
+
+def test_specs_declare_free_parameters_their_blocks_use():
+    u = np.linspace(0.3, 0.6, 400)
+    y = 1.0 + 0.5 * np.sin(np.linspace(0, 12, 400))
+    sc = DataScales.from_signals(u, y, 1.0)
+    for e in CANDIDATE_EFFECTS:
+        ms = ModelStructure("tank", "valve", (e,), sc, n_sub=2)
+        free = [p.name for p in effect_spec(e).free(ms)]
+        assert set(free) <= set(ms.names)
+        for name in free:                           # a neutral start inside the unit interval
+            assert 0.0 <= ms.neutral_coord(ms.params[ms.index(name)]) <= 1.0
+        W = np.full((2, len(ms.params)), 0.4)
+        Y = ms.simulate(W, u)
+        assert Y.shape == (400, 2) and np.isfinite(Y).all()
+        phys = ms.physical(W[0])
+        units = ms.units()
+        for key in phys:
+            assert key in units, f"{e}: {key} has no unit"
+
+
+def test_applicability_is_the_effects_own_rule():
+    ok, why = effect_applicability("leak", "integrating", "valve")
+    assert not ok and "q_out" in why
+    ok, why = effect_applicability("slip_jump", "tank", "pump")
+    assert not ok and "valve" in why
+    assert effect_applicability("dead_time", "first_order", "pump") == (True, "")
+    ok, why = effect_applicability("no_such_effect", "tank", "valve")
+    assert not ok and "unknown" in why
+
+
+def test_a_spec_must_say_how_it_enters():
+    with pytest.raises(ValueError, match="exactly one of build"):
+        EffectSpec(name="x", title="x", params=(), kernel="", signature="", explain=lambda *a: "")
+    with pytest.raises(ValueError, match="identifier"):
+        EffectSpec(name="a b", title="x", params=(), kernel="", signature="", explain=lambda *a: "",
+                   measure=lambda ctx, v, t, Y: Y)
+    spec = EffectSpec(name="not_a_block", title="x", params=(), kernel="", signature="",
+                      explain=lambda *a: "", build=lambda *a: None)
+    with pytest.raises(ValueError, match="no block"):
+        register_effect(spec)
+    with pytest.raises(ValueError, match="unknown effect"):
+        effect_spec("not_registered")
+
+
+@pytest.fixture
+def sensor_drift():
+    """The one-file toy effect of docs/extending.md, registered for the test only."""
+    path = ROOT / "docs" / "examples" / "sensor_drift.py"
+    spec = importlib.util.spec_from_file_location("sensor_drift_example", path)
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    yield mod
+    unregister_effect("sensor_drift")
+
+
+def test_one_file_effect_is_found_fitted_and_explained(sensor_drift):
+    assert "sensor_drift" in candidate_effects() and "sensor_drift" not in CANDIDATE_EFFECTS
+    rec = make_case("none", seed=1, n=1200).recording
+    t = np.arange(len(rec.pv)) * rec.dt
+    rate = 0.15 / t[-1]                                  # 0.15 m over the record
+    drifting = replace(rec, pv=rec.pv + rate * t)
+    cands = ("sensor_drift", "leak", "overflow")
+    res = diagnose(drifting, plant="tank", candidates=cands, effort="fast")
+    assert res.effects == ["sensor_drift"]
+    assert res.final.physical["sensor_drift.rate"] == pytest.approx(rate, rel=0.1)
+    assert any(p.startswith("Sensor drift.") for p in res.explanation)
+    assert res.to_dict()["effects"] == ["sensor_drift"]
+    clean = diagnose(rec, plant="tank", candidates=cands, effort="fast")
+    assert "sensor_drift" not in clean.effects
