@@ -2,15 +2,17 @@
 
 :class:`ParamSpec` declares a physical parameter of a block (name, unit, range,
 default, prior for fitting); :class:`FreeParam` is one coordinate of the
-fitter's search, mapped from the unit interval to a range scaled from the data.
+fitter's search, mapped from the unit interval to a range scaled from the data;
+:class:`Registry` keeps named specs of one kind.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
-__all__ = ["ParamSpec", "FreeParam"]
+__all__ = ["ParamSpec", "FreeParam", "Registry"]
 
 
 @dataclass(frozen=True)
@@ -106,3 +108,45 @@ class FreeParam:
         return (v - self.lo) / span
 
 
+
+
+class Registry:
+    """Named specs of one kind (friction models, effects), in registration order.
+
+    Parameters
+    ----------
+    kind : str
+        What the specs are, for messages (``"friction model"``, ``"effect"``).
+    spec_type : type
+        The class every registered spec must be.
+    """
+
+    def __init__(self, kind: str, spec_type: type):
+        self.kind = kind
+        self.spec_type = spec_type
+        self._specs: dict[str, Any] = {}
+
+    def add(self, spec):
+        """Add ``spec`` (a name can be registered once); returns it."""
+        if not isinstance(spec, self.spec_type):
+            raise TypeError(f"registering a {self.kind} takes a {self.spec_type.__name__}, got {type(spec).__name__}")
+        if spec.name in self._specs and self._specs[spec.name] is not spec:
+            raise ValueError(f"a {self.kind} called {spec.name!r} is already registered")
+        self._specs[spec.name] = spec
+        return spec
+
+    def get(self, name: str):
+        """The spec called ``name``; ``ValueError`` listing the known names otherwise."""
+        try:
+            return self._specs[name]
+        except (KeyError, TypeError):
+            raise ValueError(f"unknown {self.kind} {name!r}; known {self.kind.split()[-1]}s: "
+                             f"{', '.join(self._specs)}") from None
+
+    def remove(self, name: str) -> None:
+        """Forget ``name`` (no error when it is not registered)."""
+        self._specs.pop(name, None)
+
+    def names(self) -> tuple[str, ...]:
+        """Registered names, in registration order."""
+        return tuple(self._specs)

@@ -29,7 +29,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from ..paramspec import FreeParam, ParamSpec
+from ..paramspec import FreeParam, ParamSpec, Registry
 
 __all__ = ["EffectSpec", "FitContext", "register_effect", "effect_spec", "registered_effects",
            "unregister_effect", "always_applies"]
@@ -182,7 +182,7 @@ class EffectSpec:
         return (not why), why
 
 
-_REGISTRY: dict[str, EffectSpec] = {}
+_REGISTRY = Registry("effect", EffectSpec)
 
 
 def register_effect(spec: EffectSpec) -> EffectSpec:
@@ -190,27 +190,22 @@ def register_effect(spec: EffectSpec) -> EffectSpec:
 
     A kernel effect's name must be a block of :class:`valve_gym.params.ModelParams`.
     """
-    if not isinstance(spec, EffectSpec):
-        raise TypeError(f"register_effect() takes an EffectSpec, got {type(spec).__name__}")
-    if spec.name in _REGISTRY and _REGISTRY[spec.name] is not spec:
-        raise ValueError(f"an effect called {spec.name!r} is already registered")
     if spec.build is not None:
         from ..params import EFFECTS
         if spec.name not in EFFECTS:
             raise ValueError(f"kernel effect {spec.name!r} has no block in valve_gym.params.EFFECTS "
                              f"({', '.join(EFFECTS)}); an effect outside the core must use measure=")
-    _REGISTRY[spec.name] = spec
-    return spec
+    return _REGISTRY.add(spec)
 
 
 def unregister_effect(name: str) -> None:
     """Remove a registered effect (for tests and plug-ins that replace one)."""
-    _REGISTRY.pop(name, None)
+    _REGISTRY.remove(name)
 
 
 def registered_effects() -> tuple[str, ...]:
-    """Names of the registered effects, in registration order (the order candidates are tried)."""
-    return tuple(_REGISTRY)
+    """Names of the registered effects, in registration order."""
+    return _REGISTRY.names()
 
 
 def effect_spec(name: str) -> EffectSpec:
@@ -221,7 +216,4 @@ def effect_spec(name: str) -> EffectSpec:
     ValueError
         For an unknown name; the message lists the known effects.
     """
-    try:
-        return _REGISTRY[name]
-    except (KeyError, TypeError):
-        raise ValueError(f"unknown effect {name!r}; known effects: {', '.join(_REGISTRY)}") from None
+    return _REGISTRY.get(name)

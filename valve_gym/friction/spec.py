@@ -16,7 +16,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..params import ModelParams, ParameterError, SlipJump, register_sample_law
-from ..paramspec import ParamSpec
+from ..paramspec import ParamSpec, Registry
 
 __all__ = ["ParamSpec", "FrictionSpec", "register", "friction_spec", "registered", "as_band", "frictionless",
            "SampleLaw", "MEM_ROWS"]
@@ -89,24 +89,20 @@ class FrictionSpec:
         raise KeyError(f"{self.name} has no parameter {name!r}; it has {[p.name for p in self.params]}")
 
 
-_REGISTRY: dict[str, FrictionSpec] = {}
+_REGISTRY = Registry("friction model", FrictionSpec)
 
 
 def register(spec: FrictionSpec) -> FrictionSpec:
     """Add ``spec`` to the registry (a name can be registered once); returns it."""
-    if not isinstance(spec, FrictionSpec):
-        raise TypeError(f"register() takes a FrictionSpec, got {type(spec).__name__}")
-    if spec.name in _REGISTRY and _REGISTRY[spec.name] is not spec:
-        raise ValueError(f"a friction model called {spec.name!r} is already registered")
+    _REGISTRY.add(spec)
     if spec.sample_law is not None:
         register_sample_law(spec.name)
-    _REGISTRY[spec.name] = spec
     return spec
 
 
 def registered() -> tuple[str, ...]:
     """Names of the registered friction models, in registration order."""
-    return tuple(_REGISTRY)
+    return _REGISTRY.names()
 
 
 def friction_spec(name: str) -> FrictionSpec:
@@ -117,10 +113,7 @@ def friction_spec(name: str) -> FrictionSpec:
     ValueError
         For an unknown name; the message lists the known models.
     """
-    try:
-        return _REGISTRY[name]
-    except (KeyError, TypeError):
-        raise ValueError(f"unknown friction model {name!r}; known models: {', '.join(_REGISTRY)}") from None
+    return _REGISTRY.get(name)
 
 
 def as_band(S, J) -> tuple[Band, Band]:
