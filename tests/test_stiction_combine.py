@@ -60,3 +60,43 @@ def test_integrating_loop_limit_cycle_matches_textbook_amplitudes():
     half = rec.op[len(rec.op) // 2:]
     assert np.ptp(half) == pytest.approx(0.04, rel=0.15)
     assert 0.5 * np.ptp(rec.pv[len(rec.pv) // 2:]) == pytest.approx(0.04 / (2 * 2.0), rel=0.15)
+
+
+def test_logistic_feature_subset_ignores_the_rest():
+    rng = np.random.default_rng(1)
+    n = 300
+    y = (rng.random(n) < 0.5).astype(float)
+    X = rng.normal(size=(n, len(FEATURES)))
+    X[:, 1] += 3.0 * y                                     # informative, but not in the subset
+    X[:, 0] += 1.0 * y
+    m = fit_logistic(X, y, use=(FEATURES[0],))
+    assert m.coef[0] > 0 and all(c == 0.0 for c in m.coef[1:])
+    assert (m.mean[1], m.scale[1]) == (0.0, 1.0)
+    X2 = X.copy()
+    X2[:, 1:] = 99.0                                       # the ignored features do not move p
+    np.testing.assert_allclose(m.probability(X2), m.probability(X))
+    with pytest.raises(ValueError, match="unknown stiction features"):
+        fit_logistic(X, y, use=("nope",))
+
+
+def _tank(shape, sp_step=0.3, sp_moves=0.0):
+    return LoopSpec(process="tank", valve="linear", S=0.0, J=0.0, area=1.0, q_max=0.02, c_out=0.01, Kc=2.0,
+                    Ti=200.0, Ts=2.0, theta=0.0, noise=0.0, tau_v=0.2, n=600, sp_step=sp_step,
+                    sp_moves=sp_moves, shape=shape)
+
+
+def test_tank_shapes_change_the_dynamics_not_the_steady_state():
+    from valve_gym.diagnosis.stiction.loops import TANK_SHAPES, _area
+    y0 = 1.0
+    assert _area(_tank("cone"), 0.5, y0) == pytest.approx(0.25)        # A ~ y^2
+    assert _area(_tank("sphere"), 0.5, y0) == pytest.approx(0.75)      # A ~ y (2 y0 - y)
+    assert _area(_tank("horizontal_cylinder"), 0.5, y0) == pytest.approx(0.75 ** 0.5)
+    assert _area(_tank("cylinder"), 0.5, y0) == 1.0
+    for s in TANK_SHAPES:                                   # every tank settles at the new set point
+        r = simulate_loop(_tank(s), seed=0)
+        assert r.sp is not None and abs(r.pv[-1] - r.sp[-1]) < 0.02 * r.sp[-1]
+    # set-point moves of +-0.3 around y0 = 1: a cone (area ~ y^2) responds differently from a cylinder
+    moves = {s: simulate_loop(_tank(s, 0.0, 0.3), seed=0).pv for s in ("cone", "cylinder")}
+    assert np.max(np.abs(moves["cone"] - moves["cylinder"])) > 0.02
+    with pytest.raises(ValueError, match="tank shape"):
+        simulate_loop(_tank("pyramid"))

@@ -105,3 +105,25 @@ def test_stick_episodes_vs_regulation():
     load = np.cumsum(rng.normal(size=n)) * 0.002
     ok = episodes_evidence(0.5 + load, 10.0 + 0.02 * rng.normal(size=n), sp=np.full(n, 10.0))
     assert not ok.applicable or ok.value < 0.3
+
+
+def test_regime_oscillating_loop_silences_the_episode_feature():
+    from valve_gym.diagnosis.stiction import FEATURES, model_free_evidence
+    from valve_gym.diagnosis.stiction.combine import features
+    rng = np.random.default_rng(5)
+    n = 1200
+    t = np.arange(n, dtype=float)
+    # a regular limit cycle: triangular OP, square-ish PV a quarter period later
+    op = 0.5 + 0.03 * _tri(t, 60.0) + 0.001 * rng.normal(size=n)
+    pv = 10.0 + np.sign(np.sin(2 * np.pi * (t - 15) / 60.0)) + 0.02 * rng.normal(size=n)
+    ev = model_free_evidence(op, pv, 1.0, "first_order", np.full(n, 10.0))
+    ep = next(e for e in ev if e.method == "episodes")
+    assert ep.details["regular_oscillation"] == 1.0
+    f = dict(zip(FEATURES, features(ev, "first_order")))
+    assert f["oscillating"] == 1.0 and f["episodes"] == 0.0      # the cycle is read by the shape methods
+    # no oscillation: a stuck valve's ramp episodes are read, the regime flag is 0
+    op2 = np.concatenate([0.4 + 0.0005 * np.arange(400), np.full(200, 0.6), 0.6 - 0.0005 * np.arange(600)])
+    pv2 = np.concatenate([np.full(400, 9.0), np.full(200, 10.0), np.full(600, 11.0)]) + 0.02 * rng.normal(size=n)
+    ev2 = model_free_evidence(op2, pv2, 1.0, "first_order", np.full(n, 10.0))
+    f2 = dict(zip(FEATURES, features(ev2, "first_order")))
+    assert f2["oscillating"] == 0.0 and f2["episodes"] > 0.3

@@ -404,13 +404,15 @@ def _combine_verdict(stiction: dict, rec: Recording, plant: str, slip: FitResult
     Adds ``probability`` and ``verdict`` (``'stiction'``, ``'no stiction'``,
     ``'undecided'``) of the logistic combination, ``S``, ``J``, ``S_interval``,
     ``J_interval`` (fractions of stroke, 90 %), ``sizes_agree``, ``sizes``,
-    ``evidence``, ``features`` and ``contributions``.  ``present`` stays the
-    model-based verdict (also under ``model_based_present``): held out, the
-    combination does not yet beat it (``docs/diagnosis.md``, section 4).
+    ``evidence``, ``features`` and ``contributions``.  ``present`` becomes True
+    when the combination says ``'stiction'`` or the model-based verdict (kept under
+    ``model_based_present``) finds friction; ``'undecided'`` alone is False.  Held out,
+    this beats the model-based verdict alone (``docs/diagnosis.md``, section 4).
     """
     a = assess_stiction(rec.op, rec.pv, float(rec.dt or 1.0), plant, sp=rec.sp, verdict=stiction, slip_fit=slip)
     d = a.to_dict()
     stiction["model_based_present"] = bool(stiction["present"])
+    stiction["present"] = bool(a.verdict == "stiction" or stiction["present"])
     for k in ("probability", "verdict", "S", "J", "S_interval", "J_interval", "sizes_agree", "sizes",
               "evidence", "features", "contributions"):
         stiction[k] = d[k]

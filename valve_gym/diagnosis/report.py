@@ -208,6 +208,14 @@ def render_markdown(res, figures: dict | None = None) -> str:
     return "\n".join(L) + "\n"
 
 
+def _verdict_basis(s: dict) -> str:
+    """What the stiction verdict rests on: the methods combined and the model-based test."""
+    if s.get("probability") is None:
+        return ""
+    return (f" (methods combined: {s.get('verdict')}, probability of stiction {s['probability']:.2f}; "
+            f"model-based test: {'friction' if s.get('model_based_present') else 'no friction'})")
+
+
 def _md_summary(res, d: dict) -> list[str]:
     """Title, record, named effects, friction verdict and the explanations."""
     L: list[str] = []
@@ -226,8 +234,8 @@ def _md_summary(res, d: dict) -> list[str]:
     eff = ", ".join(f"`{e}`" for e in d["effects"]) or "none"
     L.append(f"**Missing physics:** {eff}.  **Valve friction:** "
              + ("present" if d["stiction"].get("present") else
-                ("not significant" if d["stiction"].get("tested") else "not tested (no valve)"))
-             + ".")
+                ("not found" if d["stiction"].get("tested") else "not tested (no valve)"))
+             + _verdict_basis(d["stiction"]) + ".")
     L.append("")
     for p in d["explanation"]:
         L.append(f"- {p}")

@@ -7,11 +7,12 @@ applicability and reliability on the record):
 * :mod:`.bicoherence` - non-Gaussianity and nonlinearity indices (Choudhury, Shah & Thornhill 2004);
 * :mod:`.ellipse` - ellipse on the filtered PV-OP plot, apparent stiction (Choudhury et al. 2006);
 * :mod:`.waveform` - triangle vs sine curve fitting (He et al. 2007);
+* :mod:`.episodes` - stick episodes: the OP ramps, the process does not answer (after Kano et al. 2004);
 * :mod:`.hammerstein` - the package's friction block fitted inside the process model, S and J
   with profile intervals.
 
-:mod:`.combine` turns them into a calibrated probability (logistic model) and
-one S, J estimate; :func:`assess_stiction` does it all for one record.
+:mod:`.combine` turns them into a calibrated probability (logistic model over
+two regimes: regular oscillation or not) and one S, J estimate; :func:`assess_stiction` does it all for one record.
 :mod:`.loops` simulates textbook closed loops with Choudhury, Kano or
 force-balance friction, independent of :mod:`valve_gym.core`, for validation.
 """

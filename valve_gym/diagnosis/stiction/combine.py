@@ -35,13 +35,20 @@ __all__ = ["FEATURES", "features", "LogisticModel", "fit_logistic", "StictionAss
 
 #: Names of the features, in the order of :func:`features`.
 FEATURES = ("horch_ccf", "horch_int", "bicoherence", "ellipse", "waveform", "episodes", "hammerstein",
-            "hammerstein_band")
+            "hammerstein_band", "oscillating")
 #: Half-width of the undecided band around p = 0.5.
 MARGIN = 0.1
 
 
 def features(evidence: Sequence[Evidence], plant: str) -> np.ndarray:
-    """Feature vector ``(len(FEATURES),)`` of one record's evidence (neutral value 0)."""
+    """Feature vector ``(len(FEATURES),)`` of one record's evidence (neutral value 0).
+
+    Two regimes: in a loop that oscillates regularly (``oscillating`` = 1) the shape methods
+    read the cycle; in one that does not, the stick-episode index reads the stick episodes
+    (it is 0 in the oscillating regime, where a limit cycle's turning points are not stick
+    episodes).  ``oscillating`` gives each regime its own intercept; the model-based pair
+    applies in both.
+    """
     ev = {e.method: e for e in evidence}
     f = dict.fromkeys(FEATURES, 0.0)
 
@@ -64,8 +71,10 @@ def features(evidence: Sequence[Evidence], plant: str) -> np.ndarray:
     if m is not None:
         f["hammerstein"] = float(np.clip(m.value, -3.0, 5.0))
         f["hammerstein_band"] = float(np.clip(m.details.get("log_band_ratio", 0.0), -2.0, 1.0))
+    osc = ev["episodes"].details.get("regular_oscillation", 0.0) if "episodes" in ev else 0.0
+    f["oscillating"] = float(osc)
     ep = use("episodes")
-    if ep is not None:
+    if ep is not None and not osc:
         f["episodes"] = ep.value - 0.3
     return np.array([f[k] for k in FEATURES])
 
@@ -118,7 +127,8 @@ class LogisticModel:
                              float(d["intercept"]), float(d.get("l2", 1.0)), int(d.get("n_train", 0)))
 
 
-def fit_logistic(X, y, l2: float = 1.0, iters: int = 50, weights=None) -> LogisticModel:
+def fit_logistic(X, y, l2: float = 1.0, iters: int = 50, weights=None,
+                 use: Sequence[str] | None = None) -> LogisticModel:
     """Class-balanced, L2-penalised logistic regression by Newton's method (see module notes).
 
     Parameters
@@ -128,19 +138,25 @@ def fit_logistic(X, y, l2: float = 1.0, iters: int = 50, weights=None) -> Logist
     l2 : float, penalty on the standardised weights (not on the intercept)
     iters : int, Newton steps at most
     weights : (n,) array, optional, weight of each record (e.g. 1/records per loop tag)
+    use : sequence of feature names, optional (default all): the others get weight 0
+        (mean 0, scale 1), i.e. the model ignores them
     """
     X = np.asarray(X, float)
     y = np.asarray(y, float)
     if X.ndim != 2 or X.shape[1] != len(FEATURES) or len(y) != len(X):
         raise ValueError(f"X must be (n, {len(FEATURES)}) and y (n,), got {X.shape} and {y.shape}")
+    unknown = set(use or ()) - set(FEATURES)
+    if unknown:
+        raise ValueError(f"unknown stiction features {sorted(unknown)}; use names from {list(FEATURES)}")
+    on = np.array([use is None or k in use for k in FEATURES])
     sw = np.ones(len(y)) if weights is None else np.asarray(weights, float)
     n1, n0 = np.sum(sw * y), np.sum(sw * (1 - y))
     if n1 == 0 or n0 == 0:
         raise ValueError("fit_logistic needs records of both classes (stiction and not)")
-    mu = np.average(X, axis=0, weights=sw)
+    mu = np.where(on, np.average(X, axis=0, weights=sw), 0.0)
     sd = np.sqrt(np.average((X - mu) ** 2, axis=0, weights=sw))
-    sd = np.where(sd > 1e-9, sd, 1.0)
-    Z = np.column_stack([(X - mu) / sd, np.ones(len(X))])
+    sd = np.where((sd > 1e-9) & on, sd, 1.0)
+    Z = np.column_stack([((X - mu) / sd)[:, on], np.ones(len(X))])
     c = sw * np.where(y == 1, 0.5 * sw.sum() / n1, 0.5 * sw.sum() / n0)
     beta = np.zeros(Z.shape[1])
     pen = np.full(Z.shape[1], l2)
@@ -153,8 +169,10 @@ def fit_logistic(X, y, l2: float = 1.0, iters: int = 50, weights=None) -> Logist
         beta -= step
         if np.max(np.abs(step)) < 1e-8:
             break
+    coef = np.zeros(len(FEATURES))
+    coef[on] = beta[:-1]
     return LogisticModel(FEATURES, tuple(map(float, mu)), tuple(map(float, sd)),
-                         tuple(map(float, beta[:-1])), float(beta[-1]), float(l2), int(len(y)))
+                         tuple(map(float, coef)), float(beta[-1]), float(l2), int(len(y)))
 
 
 def verdict_of(p: float, margin: float = MARGIN) -> str:

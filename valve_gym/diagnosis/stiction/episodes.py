@@ -105,27 +105,36 @@ def episodes_evidence(op, pv, dt: float = 1.0, plant: str = "first_order", sp=No
 
     Returns
     -------
-    Evidence, ``value`` = stuck share (0..1); ``details``: ``share_short``, ``share_long``, ``window``
+    Evidence, ``value`` = stuck share (0..1); ``details``: ``share_short``, ``share_long``, ``window``,
+    ``regular_oscillation`` (1 when the PV or the OP oscillates regularly, else 0; also when not
+    applicable: the combination reads its regime from it)
     """
     op, pv = check_signals(op, pv, dt)
     n = len(op)
     w = max(6, n // 60)
     osc = oscillation(pv)
+    regular = float(osc.present or oscillation(op).present)
     long_ok = n >= 12 * w
     if osc.present and 3 * w > osc.period / 4:      # slopes need windows within a quarter cycle
         long_ok = False
         w = max(4, min(w, int(osc.period / 4)))
     if n < 4 * w:
-        return not_applicable("episodes", CITE, f"too short (< {4 * w} samples)", DOC)
+        return _silent(f"too short (< {4 * w} samples)", regular)
     e = (np.asarray(sp, float) if sp is not None else np.full(n, pv.mean())) - pv
     integ = plant == "integrating"
     a = stuck_share(op, pv, e, w, integ)
     b = stuck_share(op, pv, e, 3 * w, integ) if long_ok else float("nan")
     vals = [v for v in (a, b) if np.isfinite(v)]
     if not vals:
-        return not_applicable("episodes", CITE, "the controller output never ramps", DOC)
+        return _silent("the controller output never ramps", regular)
     v = max(vals)
     verdict = "stiction" if v > 0.5 else ("no stiction" if v < 0.2 else "undetermined")
     return Evidence("episodes", CITE, True, v, 1.0, verdict,
                     f"{100 * v:.0f} % of the OP's ramping travel met no process response", DOC,
-                    {"share_short": a, "share_long": b, "window": float(w)})
+                    {"share_short": a, "share_long": b, "window": float(w), "regular_oscillation": regular})
+
+
+def _silent(reason: str, regular: float) -> Evidence:
+    e = not_applicable("episodes", CITE, reason, DOC)
+    return Evidence(e.method, e.citation, False, e.value, 0.0, e.verdict, reason, DOC,
+                    {"regular_oscillation": regular})

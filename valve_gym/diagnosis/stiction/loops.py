@@ -24,7 +24,10 @@ Processes (``x`` valve position, ``y`` PV):
 
 * ``'foptd'``: ``tau y' = -y + K x(t - theta)``;
 * ``'integrating'``: ``y' = k_i (x(t - theta) - x_0)``;
-* ``'tank'``: ``A y' = q_max x(t - theta) - c sqrt(y)`` (Torricelli outflow).
+* ``'tank'``: ``A(y) y' = q_max x(t - theta) - c sqrt(y)`` (Torricelli outflow), with the
+  cross-section ``A(y)`` of a vertical cylinder (constant), an upright cone (apex down,
+  ``A ~ y^2``), a sphere or a horizontal cylinder (``A`` largest half full), scaled so that
+  ``A = area`` at the initial level.
 
 References
 ----------
@@ -38,16 +41,17 @@ References
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..recording import Recording
 
-__all__ = ["LoopSpec", "simulate_loop", "random_spec", "VALVES", "PROCESSES"]
+__all__ = ["LoopSpec", "simulate_loop", "random_spec", "VALVES", "PROCESSES", "TANK_SHAPES"]
 
 VALVES = ("choudhury", "kano", "force_balance", "linear")
 PROCESSES = ("foptd", "integrating", "tank")
+TANK_SHAPES = ("cylinder", "cone", "sphere", "horizontal_cylinder")
 
 
 @dataclass(frozen=True)
@@ -73,6 +77,7 @@ class LoopSpec:
     sp_step : float, set-point offset from the initial steady state [PV] (excites a noise-free loop)
     sp_moves : float, set-point steps of this size [PV] (random sign) every n/6 samples (0: none)
     leak : float, extra constant outflow of the tank [m^3/s] (``'tank'`` only)
+    shape : str, tank cross-section, one of :data:`TANK_SHAPES` (``'tank'`` only)
 
     The measurement noise of :func:`random_spec` is drawn in controller-output
     terms (0.03-0.3 % of stroke after the PI gain), so that it matters as much
@@ -103,6 +108,7 @@ class LoopSpec:
     sp_step: float = 0.0
     sp_moves: float = 0.0
     leak: float = 0.0
+    shape: str = "cylinder"
 
     @property
     def sticky(self) -> bool:
@@ -184,12 +190,31 @@ def _noise(rng, n, std, pole):
     return std * out
 
 
-def _process_rate(spec: LoopSpec, y, x):
+def _area(spec: LoopSpec, y: float, y0: float) -> float:
+    """Cross-section of the tank at level ``y`` [m^2]; ``spec.area`` at the initial level ``y0``.
+
+    Cone (apex down): ``A ~ y^2``; sphere of diameter ``2 y0``: ``A ~ y (2 y0 - y)``; horizontal
+    cylinder of diameter ``2 y0``: ``A ~ sqrt(y (2 y0 - y))``.  Floored at 5 % of ``spec.area``
+    (the bottom of a cone or sphere, the top of a sphere).
+    """
+    r = y / y0
+    if spec.shape == "cone":
+        g = r * r
+    elif spec.shape == "sphere":
+        g = r * (2.0 - r)
+    elif spec.shape == "horizontal_cylinder":
+        g = math.sqrt(max(r * (2.0 - r), 0.0))
+    else:
+        g = 1.0
+    return spec.area * max(g, 0.05)
+
+
+def _process_rate(spec: LoopSpec, y, x, y0: float = 1.0):
     if spec.process == "foptd":
         return (-y + spec.K * x) / spec.tau
     if spec.process == "integrating":
         return spec.k_i * (x - 0.5)
-    return (spec.q_max * x - spec.c_out * math.sqrt(max(y, 0.0)) - spec.leak) / spec.area
+    return (spec.q_max * x - spec.c_out * math.sqrt(max(y, 0.0)) - spec.leak) / _area(spec, y, y0)
 
 
 def _steady(spec: LoopSpec, x0: float) -> float:
@@ -210,8 +235,12 @@ def simulate_loop(spec: LoopSpec, seed: int = 0, name: str | None = None) -> Rec
     n_total = int(spec.n * 1.1) + 1
     sub = 20
     h = spec.Ts / sub
+    if spec.process not in PROCESSES or spec.valve not in VALVES or spec.shape not in TANK_SHAPES:
+        raise ValueError(f"unknown process {spec.process!r}, valve {spec.valve!r} or tank shape "
+                         f"{spec.shape!r}; use one of {PROCESSES}, {VALVES}, {TANK_SHAPES}")
     x0 = 0.5
     y = _steady(spec, x0)
+    y0 = max(y, 1e-9)
     sp = y + spec.sp_step
     valve = (_TwoParam(spec.S, spec.J, spec.valve == "kano", x0) if spec.valve in ("choudhury", "kano")
              else _ForceBalance(spec.S, spec.J, 8.0 / spec.Ts, x0) if spec.valve == "force_balance"
@@ -245,7 +274,7 @@ def simulate_loop(spec: LoopSpec, seed: int = 0, name: str | None = None) -> Rec
             xv += h / max(spec.tau_v, h) * (target - xv)
             fifo.append(xv)
             xd = fifo.pop(0)
-            y += h * _process_rate(spec, y, min(max(xd + dist, 0.0), 1.0))
+            y += h * _process_rate(spec, y, min(max(xd + dist, 0.0), 1.0), y0)
     k0 = n_total - spec.n
     t = np.arange(spec.n) * spec.Ts
     return Recording(t=t, op=op[k0:], pv=pv[k0:], sp=sps[k0:], dt=spec.Ts,
@@ -294,11 +323,13 @@ def _tuning(rng, spec: dict[str, float], process: str, aggressive: bool):
 
 def random_spec(rng, sticky: bool, valve: str | None = None, process: str | None = None,
                 n: int = 1200, disturbance: str | None = None) -> LoopSpec:
-    """A random textbook loop (plant, tuning, noise colour, sample time, actuator, friction).
+    """A random textbook loop (plant, tank shape, tuning, noise colour, sample time, actuator, friction).
 
     ``sticky`` draws S in 0.5-10 % of stroke and J in 0.1-1.2 S; otherwise the
     valve is linear and ``disturbance`` (default random) is ``'none'``,
-    ``'sine'`` (external oscillating load) or ``'tuning'`` (aggressive PI).
+    ``'sine'`` (external oscillating load) or ``'tuning'`` (aggressive PI).  A tank's
+    shape is drawn last (the draws of the other processes do not depend on it); the PI
+    is tuned for the cross-section at the initial level.
     """
     process = process or str(rng.choice(PROCESSES))
     valve = valve or (str(rng.choice(VALVES[:3])) if sticky else "linear")
@@ -321,6 +352,9 @@ def random_spec(rng, sticky: bool, valve: str | None = None, process: str | None
                     noise_pole=float(rng.choice([0.0, rng.uniform(0.5, 0.95)])),
                     load=float(rng.uniform(0.0, 0.01)),
                     dist_amp=float(rng.uniform(0.01, 0.05)) if dist == "sine" else 0.0,
-                    dist_period=float(rng.uniform(20, 80) * Ts),
-                    **{k: v for k, v in p.items()})
+                    dist_period=float(rng.uniform(20, 80) * Ts), Ts=p["Ts"], theta=p["theta"],
+                    tau_v=p["tau_v"], K=p["K"], tau=p["tau"], k_i=p["k_i"], area=p["area"],
+                    q_max=p["q_max"], c_out=p["c_out"])
+    if process == "tank":
+        spec = replace(spec, shape=str(rng.choice(TANK_SHAPES)))
     return spec
