@@ -94,6 +94,7 @@ def vector_runner(env, n_steps, discrete):
 def kernel_runner(env, n_steps, threads=1):
     """The bare kernel on the vector env's valves, same random inputs (no env around it)."""
     from valve_gym import core
+    from valve_gym.plant import Plant
 
     env.reset(seed=0)
     n = env.num_envs
@@ -102,7 +103,10 @@ def kernel_runner(env, n_steps, threads=1):
     us = [rng.uniform(0, 1, (1, n)) for _ in range(n_act)]
     D = np.zeros((1, n))
     Y, H, LV = (np.empty((1, n)) for _ in range(3))
-    pk, S, buf, ns = env._pk, env._S.copy(), env._buf.copy(), env.substeps
+    plant = Plant(env.model, n, scan_s=env.config.control_period, check=False)   # the env's valves, at rest
+    plant.reset()
+    args = plant.scan_args(us[0], D, (Y, H, LV))
+    pk, S, buf, ns = args[0], args[1], args[2], args[5]
 
     def run():
         for i in range(n_steps):

@@ -1,253 +1,52 @@
 """Level control through a sticky valve: the single Gymnasium environment.
 
-The plant is simulated by the one physics core (:func:`valve_gym.core.run_packed`);
-this module only adds the task around it: the per-episode draw of the valve,
-set-point schedule, load disturbance and measurement noise (all from
-``self.np_random``), the action scaling, the observation and the reward.
-
-:func:`draw_episodes` is the per-episode draw shared with the native vector
-environment (:class:`~valve_gym.envs.vector.ValveTankVectorEnv`), which is why a
+The plant is a :class:`valve_gym.plant.Plant` of one loop (the one physics core,
+:func:`valve_gym.core.run_packed`); the task around it (the per-episode draw of
+the valve, set-point schedule, load disturbance and measurement noise from
+``self.np_random``, the options, the action scaling, the observation and the
+reward) is :mod:`valve_gym.envs.task`, shared with the native vector env
+(:class:`~valve_gym.envs.vector.ValveTankVectorEnv`). That is why a
 sub-environment of the vector env with seed ``s`` follows the same trajectory
 as this environment reset with seed ``s``.
+
+:data:`VALVE_KEYS`, :data:`NEVER`, :class:`EpisodeDraw`, :func:`draw_episodes`,
+:func:`schedule` and :func:`make_config` are re-exported from
+:mod:`valve_gym.envs.task`.
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import replace
-from typing import Any, NamedTuple
+from functools import partial
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
 from .. import core
-from ..config import EnvConfig, load_config
-from ..config import preset as _preset
-from ..control import PIParams, pi_init, pi_step
-from ..params import ModelParams, ParameterError, ValveParams
+from ..config import EnvConfig
+from ..control import pi_init, pi_step
+from ..params import ValveParams
+from ..plant import Plant
+from .task import (
+    NEVER,
+    VALVE_KEYS,
+    EpisodeDraw,
+    TaskPlan,
+    check_options,
+    direct_input,
+    draw_episodes,
+    make_config,
+    observation,
+    observation_space,
+    parse_options,
+    residual_input,
+    scalar_action,
+    schedule,
+    step_reward,
+)
 
 __all__ = ["ValveTankEnv", "EpisodeDraw", "draw_episodes", "schedule", "make_config", "VALVE_KEYS", "NEVER"]
-
-_INF = math.inf
-
-#: Valve parameters drawn each episode, reported in ``info`` and pinnable
-#: through ``reset(options=...)``.
-VALVE_KEYS = ("z_max", "e_dead", "tau", "v_max")
-
-
-def make_config(config: EnvConfig | Mapping | str | None = None, preset: str = "default") -> EnvConfig:
-    """The :class:`EnvConfig` of an environment.
-
-    Parameters
-    ----------
-    config : EnvConfig, mapping, str or path, optional
-        A config, or keys (mapping or YAML file) applied over the preset.
-    preset : {'default', 'fixed'}
-        Base configuration (see :data:`valve_gym.config.PRESETS`).
-    """
-    if isinstance(config, EnvConfig):
-        return config
-    return load_config(config, base=_preset(preset))
-
-
-# --------------------------------------------------------------------------- #
-# The per-episode draw (shared with the vector env)
-# --------------------------------------------------------------------------- #
-class _Plan:
-    """Numbers of an :class:`EnvConfig` that the draw needs, computed once."""
-
-    def __init__(self, cfg: EnvConfig):
-        self.cfg = cfg
-        self.H = cfg.episode_steps
-        self.Tc = float(cfg.control_period)
-        T = float(cfg.episode_seconds)
-        self.E_sp = int(math.floor(T / cfg.setpoint.interval[0])) + 1
-        self.E_ld = int(math.floor(T / cfg.load.interval[0])) + 1
-        self.K = 5 + 3 * self.E_sp + 3 * self.E_ld
-        r = cfg.randomise
-        self.randomise = r.enabled
-        zlo, zhi = r.z_max
-        self.zlo = float(zlo)
-        self.zlog = math.log(zhi / zlo) if zhi > zlo else 0.0
-        v = cfg.model.valve
-        self.fixed_valve = {k: float(getattr(v, k)) for k in VALVE_KEYS}
-
-
-class EpisodeDraw(NamedTuple):
-    """The random quantities of ``n`` episodes, each row one episode.
-
-    Set point and load are piecewise constant: ``*_0`` from the start, then
-    ``*_vals[:, e]`` from control step ``*_steps[:, e]`` on (the step that
-    starts at ``t = steps * control_period``; events after the horizon carry
-    the step :data:`NEVER`).
-
-    Fields
-    ------
-    z_max, e_dead, tau, v_max : (n,) valve parameters [s, -, s, 1/s]
-    sp_0 : (n,) initial set point [m]
-    sp_steps : (n, E_sp) int64, sp_vals : (n, E_sp) [m]
-    load_steps : (n, E_ld) int64, load_vals : (n, E_ld) extra inflow [m^3/s]
-        (the load is 0 before the first event)
-    noise : (n, H+1) measurement noise of the ``k``-th observation [m]
-    """
-
-    z_max: np.ndarray
-    e_dead: np.ndarray
-    tau: np.ndarray
-    v_max: np.ndarray
-    sp_0: np.ndarray
-    sp_steps: np.ndarray
-    sp_vals: np.ndarray
-    load_steps: np.ndarray
-    load_vals: np.ndarray
-    noise: np.ndarray
-
-
-#: Step index of an event that never happens (after the horizon).
-NEVER = np.iinfo(np.int64).max
-
-
-def schedule(v0, steps, vals, H):
-    """Dense ``(n, H+1)`` piecewise-constant schedule of an :class:`EpisodeDraw` event list."""
-    n, E = vals.shape
-    allv = np.concatenate([np.asarray(v0, float)[:, None], vals], axis=1)
-    cnt = np.zeros((n, H + 2), dtype=np.int64)
-    s = np.minimum(steps, H + 1)
-    rows = np.arange(n)
-    for e in range(E):
-        cnt[rows, s[:, e]] += 1
-    idx = np.cumsum(cnt[:, :H + 1], axis=1)
-    return np.take_along_axis(allv, idx, axis=1)
-
-
-def _lin(u, r):
-    return r[0] + u * (r[1] - r[0])
-
-
-def _event_steps(times, plan):
-    steps = np.ceil(times / plan.Tc - 1e-9).astype(np.int64)
-    steps[steps > plan.H] = NEVER
-    return steps
-
-
-def draw_episodes(rngs, plan: _Plan, pins: Mapping[str, np.ndarray] | None = None) -> EpisodeDraw:
-    """Draw ``len(rngs)`` episodes, one from each generator.
-
-    Each generator gives, in this order, ``rng.random(K)`` uniforms (valve,
-    initial set point, set-point and load events; ``K`` fixed by the config)
-    and ``rng.standard_normal(H + 1)`` for the noise. The number of draws never
-    depends on the values or on the pinned options, so pinning one parameter
-    leaves everything else of the episode unchanged. The transformation of
-    the uniforms is element-wise, so row ``j`` depends on ``rngs[j]`` only:
-    a batch draw equals single draws.
-
-    Parameters
-    ----------
-    rngs : sequence of numpy.random.Generator
-    plan : _Plan
-    pins : mapping of str to (n,) float arrays, optional
-        Valve parameters that replace the drawn ones where finite (NaN = drawn).
-
-    Returns
-    -------
-    EpisodeDraw
-    """
-    cfg = plan.cfg
-    n = len(rngs)
-    H = plan.H
-    U = np.empty((n, plan.K))
-    noise = np.empty((n, H + 1))
-    for j, g in enumerate(rngs):
-        g.random(out=U[j])
-        g.standard_normal(out=noise[j])
-    r = cfg.randomise
-    if plan.randomise:
-        zlo, zlog, exp = plan.zlo, plan.zlog, math.exp
-        z = np.array([zlo * exp(x * zlog) for x in U[:, 0].tolist()])
-        valve = {"z_max": z, "e_dead": _lin(U[:, 1], r.e_dead), "tau": _lin(U[:, 2], r.tau),
-                 "v_max": _lin(U[:, 3], r.v_max)}
-    else:
-        valve = {k: np.full(n, v) for k, v in plan.fixed_valve.items()}
-    if pins:
-        for k, v in pins.items():
-            v = np.broadcast_to(np.asarray(v, dtype=float), (n,))
-            valve[k] = np.where(np.isnan(v), valve[k], v)
-    # set point: steps of random size and sign, reflected at the limits
-    sp = cfg.setpoint
-    lo, hi = sp.limits
-    sp0 = _lin(U[:, 4], sp.initial)
-    c = 5
-    E = plan.E_sp
-    times = np.cumsum(_lin(U[:, c:c + 3 * E:3], sp.interval), axis=1)
-    sizes = _lin(U[:, c + 1:c + 3 * E:3], sp.step)
-    signs = np.where(U[:, c + 2:c + 3 * E:3] < 0.5, -1.0, 1.0)
-    sp_vals = np.empty((n, E))
-    cur = sp0
-    for e in range(E):
-        cand = cur + signs[:, e] * sizes[:, e]
-        out = (cand > hi) | (cand < lo)
-        cand = np.where(out, cur - signs[:, e] * sizes[:, e], cand)
-        cur = np.minimum(np.maximum(cand, lo), hi)
-        sp_vals[:, e] = cur
-    sp_steps = _event_steps(times, plan)
-    # load: jumps of the extra inflow to a random value
-    ld = cfg.load
-    c = 5 + 3 * E
-    E = plan.E_ld
-    times = np.cumsum(_lin(U[:, c:c + 3 * E:3], ld.interval), axis=1)
-    mags = _lin(U[:, c + 1:c + 3 * E:3], ld.magnitude)
-    load_vals = np.where(U[:, c + 2:c + 3 * E:3] < 0.5, -mags, mags)
-    load_steps = _event_steps(times, plan)
-    noise *= float(cfg.noise_std)
-    return EpisodeDraw(sp_0=sp0, sp_steps=sp_steps, sp_vals=sp_vals, load_steps=load_steps,
-                       load_vals=load_vals, noise=noise, **valve)
-
-
-def _parse_pins(options, n: int | None, allow_nan: bool):
-    """Validate ``reset(options)``: the pinnable valve parameters only."""
-    if options is None:
-        return None
-    if not isinstance(options, Mapping):
-        raise ValueError(f"options must be a dict (e.g. reset(options={{'z_max': 0.2}})), got {type(options).__name__}")
-    pins = {}
-    for key, val in options.items():
-        if key not in VALVE_KEYS:
-            raise ValueError(
-                f"unknown reset option {key!r}; the options pin the valve of the episode: "
-                f"{', '.join(VALVE_KEYS)} (e.g. reset(options={{'z_max': 0.2}}))")
-        try:
-            a = np.asarray(val, dtype=float)
-        except (TypeError, ValueError):
-            raise ValueError(f"reset option {key!r} must be a number, got {val!r}") from None
-        if n is None:
-            if a.ndim != 0 and a.size != 1:
-                raise ValueError(f"reset option {key!r} must be a single number, got {val!r}")
-            a = a.reshape(())
-        elif a.ndim != 0 and a.shape != (n,):
-            raise ValueError(f"reset option {key!r} must be a number or an array of shape "
-                             f"({n},) (one per sub-environment), got shape {a.shape}")
-        if np.isinf(a).any() or (np.isnan(a).any() and not allow_nan):
-            raise ValueError(f"reset option {key!r} must be finite, got {val!r}"
-                             + ("; use NaN to leave a sub-environment unpinned" if allow_nan else ""))
-        pins[key] = a
-    return pins or None
-
-
-def _check_pins(pins, model: ModelParams):
-    """Raise ValueError naming the option if a pinned valve parameter is out of range."""
-    if not pins:
-        return
-    v = model.valve
-    for key, a in pins.items():
-        a = np.asarray(a, dtype=float)
-        a = np.where(np.isnan(a), float(getattr(v, key)), a)
-        try:
-            vp = replace(v, **{key: a})
-            if key == "tau":
-                core.check_dt(replace(model, valve=vp))
-        except ParameterError as exc:
-            raise ValueError(f"reset option {key!r}: {exc}") from None
 
 
 # --------------------------------------------------------------------------- #
@@ -432,110 +231,106 @@ class ValveTankEnv(gym.Env):
                              f"got {render_mode!r}")
         self.render_mode = render_mode
         self.config = cfg
-        self._plan = _Plan(cfg)
-        self._H = self._plan.H
-        self._Tc = self._plan.Tc
+        self._plan = plan = TaskPlan(cfg)
+        self._H = plan.H
+        self._Tc = plan.Tc
         self.substeps = cfg.substeps
         self.episode_steps = cfg.episode_steps
         self.model = cfg.model
-        self.residual = cfg.action_mode == "residual"
+        self.residual = plan.residual
         self.action_space = spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
-        self.observation_space = _observation_space(cfg)
-        # the plant at rest (independent of the drawn friction parameters)
-        st = core.initial_state(cfg.model, 1)
-        self._S0 = core.state_to_array(st)
-        self._buf0 = np.ascontiguousarray(st.delay_buf, dtype=np.float64)
-        self._h0 = float(st.h[0])
-        self._stem0 = min(max(self._h0, 0.0), 1.0)
-        self._level0 = float(st.level2[0] if cfg.model.process_kind == "cascade" else st.level[0])
-        self._y0 = float(st.y[0])
-        self._pi_params = PIParams(Kc=cfg.pi.Kc, Ti=cfg.pi.Ti, Ts=cfg.control_period)
-        rw = cfg.reward
-        self._ce = float(rw.error) / float(rw.error_scale)
-        self._wt = float(rw.travel)
-        self._wu = float(rw.du)
-        self._scale = float(cfg.residual_scale)
+        self.observation_space = observation_space(cfg)
+        # the config and check_options() validate every valve an episode can have: no check per reset
+        self._plant = Plant(cfg.model, 1, scan_s=cfg.control_period, check=False)
+        # the plant at rest (independent of the drawn friction parameters), restored at each reset
+        rest = self._plant.reset(**plan.rest_levels())
+        self._rest_state = self._plant.state
+        self._h0, self._stem0 = float(rest.op[0]), float(rest.stem[0])
+        self._level0, self._y0 = float(rest.pv[0]), float(rest.y[0])
+        self._pi_params = plan.pi_params
+        self._ce, self._wt, self._wu = plan.ce, plan.wt, plan.wu
+        self._scale = plan.scale
+        self._measure_stem = plan.measure_stem
         self._U = np.zeros((1, 1))
         self._D = np.zeros((1, 1))
         self._out = np.zeros((3, 1))
-        self._outf = self._out.reshape(3)
-        self._Y, self._Hs, self._LV = self._out[0:1], self._out[1:2], self._out[2:3]
-        self._measure_stem = cfg.measure_stem
-        self._args = None
+        self._views()
+        self._scan = None
         self._level_max = 1.25 * cfg.setpoint.limits[1]
 
+    def _views(self):
+        """The plant's output rows ``(y, stem, level)`` as views of one (3, 1) array (one ``tolist`` per step)."""
+        self._outf = self._out.reshape(3)
+        self._rows = (self._out[0:1], self._out[1:2], self._out[2:3])
+
     def __getstate__(self):
-        # the kernel's output rows are views of one array: rebuilt on unpickling
+        # the output rows are views of one array and the scan holds them: rebuilt on unpickling
         state = self.__dict__.copy()
-        for key in ("_Y", "_Hs", "_LV", "_outf", "_args"):
+        for key in ("_outf", "_rows", "_scan"):
             state.pop(key, None)
-        state["_plant"] = None if self._args is None else self._args[:3]
+        state["_started"] = self._scan is not None
         return state
 
     def __setstate__(self, state):
-        plant = state.pop("_plant")
+        started = state.pop("_started")
         self.__dict__.update(state)
-        self._outf = self._out.reshape(3)
-        self._Y, self._Hs, self._LV = self._out[0:1], self._out[1:2], self._out[2:3]
-        self._args = None if plant is None else (*plant, self._U, self._D, self.substeps,
-                                                 self._Y, self._Hs, self._LV)
+        self._views()
+        self._scan = self._scan_fn() if started else None
+
+    def _scan_fn(self):
+        """One scan of the plant from ``_U``, ``_D`` into ``_rows``, as a call without arguments.
+
+        A core call on the plant's arrays (:meth:`Plant.scan_args`: :meth:`Plant.advance` without
+        its Python frame), or :meth:`Plant.advance` for a friction model with a per-scan law.
+        """
+        plant = self._plant
+        if plant.sample_law is not None:
+            return partial(plant.advance, self._U, self._D, self._rows)
+        return partial(core.run_packed, *plant.scan_args(self._U, self._D, self._rows))
 
     # ------------------------------------------------------------------ reset
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         """Start an episode; see the class docstring for ``options`` and ``info``."""
-        pins = _parse_pins(options, None, allow_nan=False)
-        _check_pins(pins, self.config.model)
+        pins = parse_options(options, None, allow_nan=False)
+        check_options(pins, self.config.model)
         super().reset(seed=seed)
-        d = draw_episodes([self.np_random], self._plan, pins)
+        plan = self._plan
+        d = draw_episodes([self.np_random], plan, pins)
         vp = {k: float(getattr(d, k)[0]) for k in VALVE_KEYS}
         self.model = replace(self.config.model, valve=ValveParams(**vp))
-        pk = core.pack(self.model, 1)
-        S = self._S0.copy()
-        buf = self._buf0.copy()
-        self._args = (pk, S, buf, self._U, self._D, self.substeps, self._Y, self._Hs, self._LV)
-        H = self._plan.H
+        plant = self._plant
+        plant.set_params(self.model)
+        plant.set_state(self._rest_state)
+        self._scan = self._scan_fn()
+        h0 = self._h0
+        H = plan.H
         self._sp = schedule(d.sp_0, d.sp_steps, d.sp_vals, H)[0].tolist()
         self._load = schedule(np.zeros(1), d.load_steps, d.load_vals, H)[0].tolist()
         self._noise = d.noise[0].tolist()
         self._k = 0
-        self._u = self._h0
+        self._u = h0
         self._h = self._stem0
+        level0 = self._level0
         sp = self._sp[0]
         ym = self._y0 + self._noise[0]
         if self.residual:
-            self._pi = pi_init(self._h0, sp - ym)
+            self._pi = pi_init(h0, sp - ym)
         self._valve_vals = tuple(vp[k] for k in VALVE_KEYS)
-        self._last = (ym, sp, self._level0, self._h, self._u)
-        info = {"setpoint": sp, "level": self._level0, "stem": self._h, "u": self._u,
+        self._last = (ym, sp, level0, self._h, self._u)
+        info = {"setpoint": sp, "level": level0, "stem": self._h, "u": self._u,
                 "t": 0.0, "load": self._load[0]}
         if self.residual:
-            info["u_pi"] = self._h0
+            info["u_pi"] = h0
         info.update(vp)
-        return self._obs(ym, sp, self._u), info
-
-    def _obs(self, ym, sp, u):
-        if self._measure_stem:
-            return np.array((ym, sp, sp - ym, u, self._h), dtype=np.float32)
-        return np.array((ym, sp, sp - ym, u), dtype=np.float32)
+        return observation(ym, sp, self._u, self._h, self._measure_stem), info
 
     # ------------------------------------------------------------------- step
     def step(self, action):
         """Apply ``action`` for one control period; returns ``(obs, reward, False, False, info)``."""
-        args = self._args
-        if args is None:
+        scan = self._scan
+        if scan is None:
             raise RuntimeError("call reset() before step()")
-        if type(action) is np.ndarray and action.shape == (1,):
-            a = float(action[0])
-        else:
-            a = _scalar_action(action)
-        if not -_INF < a < _INF:
-            raise ValueError(
-                f"action {action!r} is not finite (NaN or inf); pass a number in [-1, 1] "
-                f"(check the policy for NaN outputs, e.g. from diverging training)")
-        if a > 1.0:
-            a = 1.0
-        elif a < -1.0:
-            a = -1.0
+        a = scalar_action(action)
         k = self._k
         H = self._H
         kk = k if k < H else H
@@ -543,17 +338,13 @@ class ValveTankEnv(gym.Env):
             e_meas = self._last[1] - self._last[0]
             self._pi, upi = pi_step(self._pi, e_meas, self._pi_params)
             u_pi = float(upi[0])
-            u = u_pi + self._scale * a
-            if u > 1.0:
-                u = 1.0
-            elif u < 0.0:
-                u = 0.0
+            u = residual_input(u_pi, a, self._scale)
         else:
-            u = (a + 1.0) * 0.5
+            u = direct_input(a)
         self._U[0, 0] = u
         load = self._load[kk]
         self._D[0, 0] = load
-        core.run_packed(*args)  # pyright: ignore[reportArgumentType]
+        scan()
         y, h, lv = self._outf.tolist()
         k += 1
         self._k = k
@@ -563,10 +354,7 @@ class ValveTankEnv(gym.Env):
         else:
             sp = self._sp[H]
             ym = y + self._noise[k % (H + 1)]
-        reward = self._ce * abs(sp - lv) + self._wt * abs(h - self._h)
-        if self._wu:
-            reward += self._wu * abs(u - self._u)
-        reward = -reward
+        reward = step_reward(sp, lv, h, self._h, u, self._u, self._ce, self._wt, self._wu)
         self._h = h
         self._u = u
         self._last = (ym, sp, lv, h, u)
@@ -575,11 +363,7 @@ class ValveTankEnv(gym.Env):
                 "z_max": z, "e_dead": e, "tau": tau, "v_max": vm}
         if self.residual:
             info["u_pi"] = u_pi
-        if self._measure_stem:
-            obs = np.array((ym, sp, sp - ym, u, h), dtype=np.float32)
-        else:
-            obs = np.array((ym, sp, sp - ym, u), dtype=np.float32)
-        return obs, reward, False, False, info
+        return observation(ym, sp, u, h, self._measure_stem), reward, False, False, info
 
     # ----------------------------------------------------------------- render
     def render(self):
@@ -588,54 +372,7 @@ class ValveTankEnv(gym.Env):
             gym.logger.warn("render() called without a render_mode; create the env with "
                             "render_mode='rgb_array'")
             return None
-        if self._args is None:
+        if self._scan is None:
             raise RuntimeError("call reset() before render()")
         ym, sp, lv, h, u = self._last
         return render_frame(lv, sp, h, u, self._level_max)
-
-
-def _scalar_action(action) -> float:
-    try:
-        arr = np.asarray(action, dtype=float)
-    except (TypeError, ValueError):
-        raise ValueError(f"action must be a number or an array of shape (1,), got {action!r}") from None
-    if arr.size != 1:
-        raise ValueError(f"action must have shape (1,) (one valve), got an array of shape {arr.shape}")
-    return float(arr.reshape(-1)[0])
-
-
-def _level_bounds(cfg: EnvConfig):
-    """Range of the measured level [m].
-
-    For tanks, the steady level at full inflow (valve open plus the largest load) bounds the true
-    level; 10 noise standard deviations are added.
-    """
-    m = cfg.model
-    if m.process_kind not in ("tank", "cascade"):
-        return -math.inf, math.inf
-    pr: Any = m.process                      # TankParams here
-    q_in = float(pr.q_max) + float(cfg.load.magnitude[1])
-    if m.oscillating_disturbance is not None:
-        q_in += float(m.oscillating_disturbance.amplitude)
-    if m.process_kind == "cascade" and m.cascade is not None:
-        k, L0 = float(m.cascade.k_out2), float(m.cascade.level2_0)
-        top = float(m.overflow.L2_max) if m.overflow is not None else math.inf
-    else:
-        k, L0 = float(pr.k_out), float(pr.level0)
-        top = float(m.overflow.L_max) if m.overflow is not None else math.inf
-    if k <= 0.0:
-        return -math.inf, math.inf
-    hi = min(max(L0, (q_in / k) ** 2) * 1.01, top)
-    margin = 10.0 * float(cfg.noise_std)
-    return -margin, hi + margin
-
-
-def _observation_space(cfg: EnvConfig) -> spaces.Box:
-    ylo, yhi = _level_bounds(cfg)
-    lo, hi = cfg.setpoint.limits
-    low = [ylo, lo, lo - yhi, 0.0]
-    high = [yhi, hi, hi - ylo, 1.0]
-    if cfg.measure_stem:
-        low.append(0.0)
-        high.append(1.0)
-    return spaces.Box(np.array(low, dtype=np.float32), np.array(high, dtype=np.float32), dtype=np.float32)

@@ -1,18 +1,21 @@
 """Natively vectorised level-control environment: N valve-tank loops in one kernel call.
 
-Every :meth:`ValveTankVectorEnv.step` makes one call of the physics core
-(:func:`valve_gym.core.run_packed`) for all ``N`` sub-environments, followed by
-one compiled bookkeeping pass (:func:`_finish_step`: noise, set-point and load
-schedules, reward, observation); there is no per-environment Python loop in a
-step. Only the per-episode draws at a reset
+Every :meth:`ValveTankVectorEnv.step` advances a :class:`valve_gym.plant.Plant`
+of ``N`` loops by one scan (one call of the physics core,
+:func:`valve_gym.core.run_packed`), followed by one compiled bookkeeping pass
+(:func:`_finish_step`: noise, set-point and load schedules, reward,
+observation); there is no per-environment Python loop in a step. The task
+rules (episode draw, options, observation layout, action scaling, reward) are
+those of :mod:`valve_gym.envs.task`, shared with
+:class:`~valve_gym.envs.ValveTankEnv`. Only the per-episode draws at a reset
 loop over the resetting sub-environments, each drawing from its own generator
-with the same rule as :class:`~valve_gym.envs.ValveTankEnv`
-(:func:`~valve_gym.envs.valve_tank.draw_episodes`), so that sub-environment
-``i`` seeded with ``s_i`` is step-for-step equal to a single env reset with
+(:func:`~valve_gym.envs.task.draw_episodes`), so that sub-environment ``i``
+seeded with ``s_i`` is step-for-step equal to a single env reset with
 ``seed=s_i``.
 """
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
 
@@ -22,51 +25,37 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .. import core
+from .. import core  # noqa: F401  (the physics core the plant calls; kept as this module's attribute)
+from .._numba import HAVE_NUMBA, njit
 from ..config import EnvConfig
-from ..control import PIParams, pi_init, pi_step
+from ..control import pi_init, pi_step
 from ..params import ValveParams
-from .valve_tank import (
+from ..plant import Plant
+from . import task
+from .task import (
     NEVER,
     VALVE_KEYS,
-    _check_pins,
-    _observation_space,
-    _parse_pins,
-    _Plan,
+    TaskPlan,
+    batch_actions,
+    check_options,
+    clip_actions,
+    direct_inputs,
     draw_episodes,
     make_config,
-    render_frame,
+    observations,
+    parse_options,
+    raise_nonfinite,
+    residual_inputs,
+    step_reward_nb,
+    write_observation,
 )
-
-try:
-    from numba import njit
-except ImportError:  # pragma: no cover - numba is a dependency of the core
-    def njit(*a, **k):
-        return (lambda f: f) if not (a and callable(a[0])) else a[0]
+from .valve_tank import render_frame
 
 __all__ = ["ValveTankVectorEnv"]
 
 _MODES = {m.value: m for m in AutoresetMode}
 _MODES.update({m.name: m for m in AutoresetMode})
 _MODES.update({m.name.lower(): m for m in AutoresetMode})
-
-
-@njit(cache=True)
-def _direct_input(a, u):  # pragma: no cover - compiled
-    """``u = (clip(a, -1, 1) + 1)/2`` for actions ``a`` (N, 1); returns the number of non-finite actions."""
-    bad = 0
-    for i in range(u.shape[0]):
-        x = float(a[i, 0])
-        if not (x > -np.inf and x < np.inf):
-            bad += 1
-            u[i] = 0.5
-            continue
-        if x > 1.0:
-            x = 1.0
-        elif x < -1.0:
-            x = -1.0
-        u[i] = (x + 1.0) * 0.5
-    return bad
 
 
 @njit(cache=True)
@@ -77,10 +66,11 @@ def _finish_step(Y, Hs, LV, NOISE, k, H, sp_next, sp_ptr, sp_ev, sp_val, ld_next
     Advances the step counters ``k`` and the set-point/load event pointers,
     adds the measurement noise, and writes the observations, the rewards and
     the new set point, measured level and load (for the next step). The
-    arithmetic is that of ``ValveTankEnv.step``, operation for operation.
+    reward and the observation are the compiled rules of :mod:`valve_gym.envs.task`
+    (:func:`~valve_gym.envs.task.step_reward`, :func:`~valve_gym.envs.task.write_observation`),
+    so every number is computed as ``ValveTankEnv.step`` computes it.
     """
     n = k.shape[0]
-    stem = obs.shape[1] == 5
     for i in range(n):
         ki = k[i] + 1
         k[i] = ki
@@ -98,19 +88,28 @@ def _finish_step(Y, Hs, LV, NOISE, k, H, sp_next, sp_ptr, sp_ev, sp_val, ld_next
         kn = ki if ki <= H else ki % (H + 1)
         y = Y[0, i] + NOISE[kn, i]
         h = Hs[0, i]
-        ui = u[i]
-        r = ce * abs(s - LV[0, i]) + wt * abs(h - h_prev[i])
-        if wu != 0.0:
-            r += wu * abs(ui - u_prev[i])
-        reward[i] = -r
+        reward[i] = step_reward_nb(s, LV[0, i], h, h_prev[i], u[i], u_prev[i], ce, wt, wu)
         ym[i] = y
         sp[i] = s
-        obs[i, 0] = y
-        obs[i, 1] = s
-        obs[i, 2] = s - y
-        obs[i, 3] = ui
-        if stem:
-            obs[i, 4] = h
+        write_observation(obs, i, y, s, u[i], h)
+
+
+def _flush_stale_cache() -> None:
+    """Drop numba's on-disk cache of `_finish_step` when :mod:`valve_gym.envs.task` is newer than it.
+
+    numba keys the cache on this file only; the reward and observation rules it
+    inlines live in ``task.py``, so an edit there would otherwise run a stale pass.
+    """
+    try:
+        idx = _finish_step._cache._cache_file._index_path  # type: ignore[attr-defined]
+        if os.path.exists(idx) and task.__file__ and os.path.getmtime(task.__file__) > os.path.getmtime(idx):
+            _finish_step._cache.flush()  # type: ignore[attr-defined]
+    except Exception:  # pragma: no cover - numba internals moved: keep the cache as numba decides
+        pass
+
+
+if HAVE_NUMBA:
+    _flush_stale_cache()
 
 
 def _transpose_into(dst, src, idx=None, block=256):
@@ -213,16 +212,16 @@ class ValveTankVectorEnv(VectorEnv):
         self.autoreset_mode = autoreset_mode
         self.metadata = {**type(self).metadata, "autoreset_mode": autoreset_mode}
         self.render_mode = render_mode
-        self._plan = _Plan(cfg)
+        self._plan = TaskPlan(cfg)
         self.substeps = cfg.substeps
         self.episode_steps = cfg.episode_steps
         self.model = cfg.model
-        self.residual = cfg.action_mode == "residual"
+        self.residual = self._plan.residual
         self.single_action_space = gym.spaces.Box(-1.0, 1.0, shape=(1,), dtype=np.float32)
         self.action_space = batch_space(self.single_action_space, N)
-        self.single_observation_space = _observation_space(cfg)
+        self.single_observation_space = task.observation_space(cfg)
         self.observation_space = batch_space(self.single_observation_space, N)
-        self._nobs = self.single_observation_space.shape[0]
+        self._nobs = self._plan.n_obs
         self._init_state(cfg, N)
 
     def _check_args(self, num_envs, config, preset, max_episode_steps, autoreset_mode, render_mode,
@@ -253,21 +252,16 @@ class ValveTankVectorEnv(VectorEnv):
 
     def _init_state(self, cfg: EnvConfig, N: int) -> None:
         """Initial state, rewards' weights, schedules and per-env buffers of ``N`` sub-environments."""
-        st = core.initial_state(cfg.model, 1)
-        self._S0 = core.state_to_array(st)[:, 0]
-        self._buf0 = np.asarray(st.delay_buf, dtype=np.float64)[0]
-        self._h0 = float(st.h[0])
-        self._stem0 = min(max(self._h0, 0.0), 1.0)
-        self._level0 = float(st.level2[0] if cfg.model.process_kind == "cascade" else st.level[0])
-        self._y0 = float(st.y[0])
-        self._S = np.ascontiguousarray(np.repeat(self._S0[:, None], N, axis=1))
-        self._buf = np.ascontiguousarray(np.repeat(self._buf0[None, :], N, axis=0))
-        self._pi_params = PIParams(Kc=cfg.pi.Kc, Ti=cfg.pi.Ti, Ts=cfg.control_period)
-        rw = cfg.reward
-        self._ce = float(rw.error) / float(rw.error_scale)
-        self._wt = float(rw.travel)
-        self._wu = float(rw.du)
-        self._scale = float(cfg.residual_scale)
+        # the config and check_options() validate every valve an episode can have: no check per reset
+        self._plant = Plant(cfg.model, N, scan_s=cfg.control_period, threads=self.threads, check=False)
+        # the plant at rest (independent of the drawn friction parameters), restored at each reset
+        rest = self._plant.reset(**self._plan.rest_levels())
+        self._rest_state = self._plant.state
+        self._h0 = float(rest.op[0])
+        self._stem0 = float(rest.stem[0])
+        self._level0 = float(rest.pv[0])
+        self._y0 = float(rest.y[0])
+        self._started = False
         H1 = self._plan.H + 1
         self._NOISE = np.zeros((H1, N))  # time-major: one row per step
         # piecewise-constant schedules: event steps (last column NEVER), values
@@ -284,7 +278,6 @@ class ValveTankVectorEnv(VectorEnv):
         self._ld_next = np.full(N, NEVER, dtype=np.int64)
         self._rngs: list = [None] * N
         self._valve = {k: np.zeros(N) for k in VALVE_KEYS}
-        self._pk = None
         self._k = np.zeros(N, dtype=np.int64)
         self._sp = np.zeros(N)
         self._ym = np.zeros(N)
@@ -296,6 +289,8 @@ class ValveTankVectorEnv(VectorEnv):
         self._pi = pi_init(np.full(N, self._h0), 0.0)
         self._autoreset = np.zeros(N, dtype=bool)
         self._level_max = 1.25 * cfg.setpoint.limits[1]
+        keys = ("setpoint", "level", "stem", "u", "t", "load") + (("u_pi",) if self.residual else ()) + VALVE_KEYS
+        self._mask_keys = tuple("_" + key for key in keys)   # Gymnasium's masks of the info keys
 
     # ----------------------------------------------------------------- seeding
     @property
@@ -339,12 +334,12 @@ class ValveTankVectorEnv(VectorEnv):
             if mask.shape != (N,) or mask.dtype != np.bool_:
                 raise ValueError(f"options['reset_mask'] must be a bool array of shape ({N},), got "
                                  f"{mask.dtype} {mask.shape}")
-            if self._pk is None and not mask.all():
+            if not self._started and not mask.all():
                 raise ValueError("the first reset must reset every sub-environment (no reset_mask)")
             idx = np.flatnonzero(mask)
-        pins = _parse_pins(options, N, allow_nan=True)
+        pins = parse_options(options, N, allow_nan=True)
         if pins:
-            _check_pins({k: (v if v.ndim == 0 else v[idx]) for k, v in pins.items()}, self.config.model)
+            check_options({k: (v if v.ndim == 0 else v[idx]) for k, v in pins.items()}, self.config.model)
         super().reset(seed=seed if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool)
                       else None)
         self._seed(seed, idx)
@@ -364,15 +359,10 @@ class ValveTankVectorEnv(VectorEnv):
             new.flags.writeable = False
             self._valve[key] = new
         self.model = replace(self.config.model, valve=ValveParams(**self._valve))
-        self._pk = core.pack(self.model, N)
-        if all_:
-            self._S[:] = self._S0[:, None]
-            self._buf[:] = self._buf0[None, :]
-            _transpose_into(self._NOISE, d.noise)
-        else:
-            self._S[:, idx] = self._S0[:, None]
-            self._buf[idx] = self._buf0[None, :]
-            _transpose_into(self._NOISE, d.noise, idx)
+        self._plant.set_params(self.model)
+        self._plant.set_state(self._rest_state, index=None if all_ else idx)
+        self._started = True
+        _transpose_into(self._NOISE, d.noise, None if all_ else idx)
         E = d.sp_steps.shape[1]
         self._sp_ev[idx, :E] = d.sp_steps
         self._sp_val[idx, 0] = d.sp_0
@@ -411,10 +401,7 @@ class ValveTankVectorEnv(VectorEnv):
             self._pi = pi_init(u, e)
 
     def _obs_now(self):
-        cols = (self._ym, self._sp, self._sp - self._ym, self._u)
-        if self._nobs == 5:
-            cols += (self._h,)
-        return np.stack(cols, axis=1).astype(np.float32)
+        return observations(self._ym, self._sp, self._u, self._h, self._plan.measure_stem)
 
     def _info_now(self, load=None):
         """The info of the current state; ``load`` that of the step just taken.
@@ -428,45 +415,23 @@ class ValveTankVectorEnv(VectorEnv):
             info["u_pi"] = self._upi
         for key in VALVE_KEYS:
             info[key] = self._valve[key]
-        mask = np.ones(self.num_envs, dtype=bool)
-        for key in list(info):
-            info["_" + key] = mask
+        info.update(dict.fromkeys(self._mask_keys, np.ones(self.num_envs, dtype=bool)))
         return info
 
     def _valve_inputs(self, actions):
         """Validate ``actions`` (N, 1) and turn them into the valve inputs ``u`` (N,) (and the PI's, residual mode)."""
         N = self.num_envs
-        a = np.asarray(actions)
-        if a.dtype != np.float32 and a.dtype != np.float64:
-            try:
-                a = a.astype(np.float64)
-            except (TypeError, ValueError):
-                raise ValueError(f"actions must be numbers, got an array of {a.dtype}") from None
-        if a.shape != (N, 1):
-            if a.shape != (N,):
-                raise ValueError(f"actions must have shape ({N}, 1) (one valve per sub-environment), "
-                                 f"got {a.shape}")
-            a = a.reshape(N, 1)
-        if not a.flags.c_contiguous:
-            a = np.ascontiguousarray(a)
+        a = batch_actions(actions, N)
+        u = np.empty(N)
         upi = None
         if self.residual:
-            a = a.reshape(N).astype(np.float64)
-            bad = np.count_nonzero(~np.isfinite(a))
-            if not bad:
-                a = np.clip(a, -1.0, 1.0)
-                self._pi, upi = pi_step(self._pi, self._sp - self._ym, self._pi_params)
-                u = np.clip(upi + self._scale * a, 0.0, 1.0)
-        else:
-            u = np.empty(N)
-            bad = _direct_input(a, u)
-        if bad:
-            flat = np.asarray(actions, dtype=np.float64).reshape(-1)
-            idx = np.flatnonzero(~np.isfinite(flat))
-            raise ValueError(
-                f"actions of sub-environments {idx[:10].tolist()} are not finite "
-                f"({flat[idx[:10]].tolist()}); pass numbers in [-1, 1] (check the policy for NaN "
-                f"outputs, e.g. from diverging training)")
+            ac = np.empty(N)
+            if clip_actions(a, ac):
+                raise_nonfinite(actions)
+            self._pi, upi = pi_step(self._pi, self._sp - self._ym, self._plan.pi_params)
+            residual_inputs(upi, ac, self._plan.scale, u)
+        elif direct_inputs(a, u):
+            raise_nonfinite(actions)
         return u, upi
 
     # ------------------------------------------------------------------- step
@@ -481,17 +446,17 @@ class ValveTankVectorEnv(VectorEnv):
         truncated : (N,) bool, True at ``max_episode_steps``
         info : dict of (N,) arrays (see the class docstring)
         """
-        if self._pk is None:
+        if not self._started:
             raise RuntimeError("call reset() before step()")
         N = self.num_envs
-        H = self._plan.H
+        plan = self._plan
+        H = plan.H
         u, upi = self._valve_inputs(actions)
         load = self._load
         Y = np.empty((1, N))
         Hs = np.empty((1, N))
         LV = np.empty((1, N))
-        core.run_packed(self._pk, self._S, self._buf, u.reshape(1, N), load.reshape(1, N),
-                        self.substeps, Y, Hs, LV, threads=self.threads)
+        self._plant.advance(u.reshape(1, N), load.reshape(1, N), (Y, Hs, LV))
         obs = np.empty((N, self._nobs), dtype=np.float32)
         reward = np.empty(N)
         ym = np.empty(N)
@@ -499,7 +464,7 @@ class ValveTankVectorEnv(VectorEnv):
         new_load = np.empty(N)
         _finish_step(Y, Hs, LV, self._NOISE, self._k, H, self._sp_next, self._sp_ptr, self._sp_ev,
                      self._sp_val, self._ld_next, self._ld_ptr, self._ld_ev, self._ld_val, self._h, u,
-                     self._u, self._ce, self._wt, self._wu, obs, reward, ym, sp, new_load)
+                     self._u, plan.ce, plan.wt, plan.wu, obs, reward, ym, sp, new_load)
         k = self._k
         terminated = np.zeros(N, dtype=bool)
         truncated = k >= self.max_episode_steps
@@ -547,7 +512,7 @@ class ValveTankVectorEnv(VectorEnv):
             gym.logger.warn("render() called without a render_mode; create the env with "
                             "render_mode='rgb_array'")
             return None
-        if self._pk is None:
+        if not self._started:
             raise RuntimeError("call reset() before render()")
         return tuple(render_frame(float(self._lv[i]), float(self._sp[i]), float(self._h[i]),
                                   float(self._u[i]), self._level_max) for i in range(self.num_envs))
