@@ -4,7 +4,9 @@ A :class:`ModelStructure` turns a matrix of candidate parameter vectors
 ``W`` (``(n, k)``, each coordinate in 0..1) into one batched
 :class:`~valve_gym.params.ModelParams` plus initial state, runs the one
 physics core (:func:`valve_gym.core.run_packed`) once for the whole batch and
-returns the simulated process variable ``(T, n)`` in the recording's units.
+returns the simulated process variable ``(T, n)`` in the recording's units
+(through :class:`valve_gym.plant.Plant`, the stepper the envs and the benchmark
+share: one kernel call for the batch).
 Nothing here re-implements physics: it chooses which parameters are free,
 their ranges and units, and the measurement map from the core's output to
 the recorded PV.
@@ -72,7 +74,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from ..core import check_dt, initial_state, pack, run_packed
+from ..core import check_dt, initial_state
 from ..effects import CANDIDATE_EFFECTS, candidate_effects, effect_spec
 from ..params import (
     Cascade,
@@ -84,6 +86,7 @@ from ..params import (
     ValveParams,
 )
 from ..paramspec import FreeParam
+from ..plant import Plant
 
 __all__ = ["PLANTS", "ACTUATORS", "CANDIDATE_EFFECTS", "FreeParam", "DataScales",
            "ModelStructure", "effect_applicability", "kernel_threads", "set_kernel_threads",
@@ -550,18 +553,12 @@ class ModelStructure:
         values = self.decode(W) if coords else W
         mp, init, sign, offset = self.build(values, n_sub=n_sub)
         ns = self.n_sub if n_sub is None else int(n_sub)
-        n = mp.batch_size()
-        n = max(n, len(sign))
-        pk = pack(mp, n, check=False)
-        st = initial_state(mp, n, buf_len=pk.buf_len, **init)
-        S = np.ascontiguousarray(np.stack([np.asarray(a, float) for a in st[:12]]))
-        buf = np.array(st.delay_buf, dtype=np.float64, copy=True)
-        U = np.ascontiguousarray(np.asarray(u, float).reshape(-1, 1))
-        T = U.shape[0]
+        n = max(mp.batch_size(), len(sign))
+        T = len(u)
         Y = np.empty((T, n))
         H, LV, Dz = self._work(T, n)
         threads = kernel_threads() if T * n * ns >= _MIN_THREADED_STEPS else 1
-        run_packed(pk, S, buf, U, Dz, ns, Y, H, LV, threads=threads)
+        self._plant(mp, init, n, threads).run(u, Dz, out=(Y, H, LV))
         if np.any(sign != 1.0):
             Y *= sign[None, :]
         if np.any(offset != 0.0):
@@ -589,18 +586,16 @@ class ModelStructure:
         """Simulated stem position ``(T,)`` of the first row of ``W`` (0..1)."""
         values = self.decode(np.atleast_2d(W)[:1])
         mp, init, sign, offset = self.build(values, n_sub=n_sub)
-        ns = self.n_sub if n_sub is None else int(n_sub)
-        pk = pack(mp, 1, check=False)
-        st = initial_state(mp, 1, buf_len=pk.buf_len, **init)
-        S = np.ascontiguousarray(np.stack([np.asarray(a, float) for a in st[:12]]))
-        buf = np.array(st.delay_buf, dtype=np.float64, copy=True)
-        U = np.ascontiguousarray(np.asarray(u, float).reshape(-1, 1))
-        T = U.shape[0]
-        Y = np.empty((T, 1))
-        H = np.empty((T, 1))
-        LV = np.empty((T, 1))
-        run_packed(pk, S, buf, U, np.zeros((T, 1)), ns, Y, H, LV)
-        return H[:, 0]
+        return self._plant(mp, init, 1).run(u)[1][:, 0]
+
+    def _plant(self, mp: ModelParams, init: dict, n: int, threads: int = 1) -> Plant:
+        """The shared plant stepper for ``n`` candidate rows, started from ``init``.
+
+        No parameter checks: invalid rows give NaN columns, which the fitter drops.
+        """
+        plant = Plant(mp, n, scan_s=self.scales.dt, threads=threads, check=False)
+        plant.set_state(initial_state(mp, n, buf_len=plant.packed.buf_len, **init))
+        return plant
 
     # ---------------------------------------------------------------- reporting
     def model_params(self, w, n_sub: int | None = None) -> ModelParams:
