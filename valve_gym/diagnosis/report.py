@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from ..effects import effect_spec
+
 __all__ = ["write_json", "write_text", "write_report", "plot_overlay", "plot_residuals",
            "plot_acf", "plot_validation", "render_markdown", "summary_table"]
 
@@ -330,16 +332,28 @@ def _md_candidates(d: dict) -> list[str]:
     L: list[str] = []
     L.append("## Candidates tried")
     L.append("")
-    L.append("| round | effect | criterion change | held-out change | verdict |")
-    L.append("|---|---|---|---|---|")
+    L.append("| round | effect | its signature in the base residual | criterion change | held-out change | verdict |")
+    L.append("|---|---|---|---|---|---|")
     for c in d["candidates"]:
         name = c["effect"] + (f" ({c['variant']})" if c["variant"] else "")
         hc = "–" if c["holdout_change"] is None else f"{100 * c['holdout_change']:+.1f} %"
-        L.append(f"| {c['round']} | {name} | {_g(c['delta_ic'], 3)} | {hc} | "
+        L.append(f"| {c['round']} | {name} | {_signature_seen(c['effect'], d)} | {_g(c['delta_ic'], 3)} | {hc} | "
                  f"{'**added**' if c['accepted'] else ('pays' if c['pays'] else 'no')} |")
     for e, why in d["skipped"].items():
-        L.append(f"| – | {e} | – | – | skipped: {why} |")
+        L.append(f"| – | {e} | – | – | – | skipped: {why} |")
     return L
+
+
+def _signature_seen(effect: str, d: dict) -> str:
+    """The located conditions an effect's spec names as its signature, and whether the base residual shows them."""
+    try:
+        names = effect_spec(effect).conditions
+    except ValueError:
+        return "–"
+    stats = {c["condition"]: c for c in d["mismatch_conditions"]}
+    seen = [f"{stats[n]['description']}: {'yes' if stats[n]['significant'] else 'no'} "
+            f"(x{_g(stats[n]['ratio'], 2)})" for n in names if n in stats]
+    return "; ".join(seen) if seen else "– (in the residual tests)"
 
 
 def _md_end(d: dict, figures: dict | None) -> list[str]:
