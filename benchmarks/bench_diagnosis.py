@@ -10,7 +10,15 @@ wall-clock and other processes slow them down.
 Usage::
 
     python benchmarks/bench_diagnosis.py [--samples 3600] [--jobs 2] [--repeat 1]
-        [--effects none,overflow] [--effort auto] [--reference]
+        [--effects none,overflow] [--effort auto] [--search full|fast] [--reference]
+        [--before REV] [--old] [--coarse auto]
+
+``--before REV`` also diagnoses every recording, right after the timed run, with the
+package as it was at git revision ``REV`` (extracted with ``git archive`` into a temporary
+folder and run in a subprocess with the same ``--jobs``), and reports the wall- and
+CPU-time ratios and what that version named: a before/after comparison under the same
+machine load.  ``--search fast`` times the opt-in fast search
+(:func:`valve_gym.diagnosis.diagnose`, ``search``; fewer effects named).
 
 ``--reference`` also diagnoses every recording serially (one process, kernel
 threads off) right after the timed run, and reports the ratio of the two wall
@@ -28,8 +36,11 @@ all samples.
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import subprocess
 import sys
+import tempfile
 import time
 
 import numpy as np
@@ -63,7 +74,8 @@ def _old_path(case, res, wall, a):
     """Time the search of earlier versions (every sample, ``coarse=1``) on the same recording."""
     t1 = time.perf_counter()
     c1 = _cpu()
-    old = diagnose(case.recording, plant="tank", actuator="valve", jobs=a.jobs, effort=a.effort, coarse=1)
+    old = diagnose(case.recording, plant="tank", actuator="valve", jobs=a.jobs, effort=a.effort, coarse=1,
+                   search=a.search)
     w_old = time.perf_counter() - t1
     OLD_CPU.append(_cpu() - c1)
     same_e = old.effects == res.effects
@@ -74,6 +86,55 @@ def _old_path(case, res, wall, a):
 
 #: CPU seconds of the old-path runs (``--old``), in order.
 OLD_CPU: list = []
+
+#: Run in a subprocess on the package of another revision (``--before``): one diagnosis, JSON out.
+_BEFORE_SCRIPT = r"""
+import json, os, sys, time
+sys.path.insert(0, sys.argv[1])
+from valve_gym.diagnosis import diagnose
+from valve_gym.diagnosis.synthetic import make_case
+eff, seed, n, jobs, effort = sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), int(sys.argv[5]), sys.argv[6]
+diagnose(make_case("none", seed=1, n=300).recording, candidates=(), effort="fast")
+case = make_case(eff, seed=seed, n=n)
+c = os.times(); c0 = c.user + c.system + c.children_user + c.children_system
+t0 = time.perf_counter()
+res = diagnose(case.recording, plant="tank", actuator="valve", jobs=jobs, effort=effort)
+wall = time.perf_counter() - t0
+c = os.times(); cpu = c.user + c.system + c.children_user + c.children_system - c0
+print(json.dumps({"wall": wall, "cpu": cpu, "effects": list(res.effects), "present": res.stiction.get("present"),
+                  "rmse": float(res.final.rmse_all), "pv": float(abs(case.recording.pv).sum()),
+                  "module": sys.modules["valve_gym"].__file__}))
+"""
+
+
+def _export(rev: str, dest: str) -> str:
+    """Extract the package of git revision ``rev`` into ``dest``; the folder to put on ``sys.path``."""
+    root = subprocess.run(["git", "rev-parse", "--show-toplevel"], capture_output=True, text=True,
+                          check=True, cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip()
+    arch = subprocess.run(["git", "archive", rev, "valve_gym"], capture_output=True, check=True, cwd=root).stdout
+    subprocess.run(["tar", "-x", "-C", dest], input=arch, check=True)
+    return dest
+
+
+def _before_path(tree: str, case, eff: str, seed: int, res, wall: float, cpu: float, a) -> str:
+    """Diagnose the same recording with the package of ``--before`` (subprocess); table cells."""
+    out = subprocess.run([sys.executable, "-c", _BEFORE_SCRIPT, tree, eff, str(seed), str(a.samples),
+                          str(a.jobs), a.effort], capture_output=True, text=True, check=True)
+    b = json.loads(out.stdout.strip().splitlines()[-1])
+    if not b["module"].startswith(tree):
+        raise SystemExit(f"--before: imported {b['module']}, not the package of {a.before}")
+    if abs(b["pv"] - float(np.abs(case.recording.pv).sum())) > 1e-6 * b["pv"]:
+        raise SystemExit(f"--before: {case.name}: revision {a.before} generates another recording")
+    BEFORE.append((b["wall"], b["cpu"], wall, cpu))
+    same_e = b["effects"] == list(res.effects)
+    same_v = b["present"] == res.stiction.get("present")
+    return (f" {b['wall']:.1f} | {b['wall'] / wall:.2f}x | {b['cpu'] / cpu:.2f}x | "
+            f"{', '.join(b['effects']) or 'none'}, {'yes' if same_v else 'NO'} "
+            f"({'same' if same_e else 'OTHER'}; RMSE {res.final.rmse_all:.4g} vs {b['rmse']:.4g}) |")
+
+
+#: (wall, CPU) of the ``--before`` runs and of the timed runs, per recording.
+BEFORE: list = []
 
 
 def main(argv=None):
@@ -88,6 +149,11 @@ def main(argv=None):
                     help="also time a serial diagnosis (1 process, no kernel threads) of each recording")
     ap.add_argument("--old", action="store_true",
                     help="also time the search of earlier versions (coarse=1) on each recording")
+    ap.add_argument("--search", default="full", choices=("fast", "full"),
+                    help="search of the timed run (diagnose(search=...))")
+    ap.add_argument("--before", metavar="REV",
+                    help="also diagnose each recording with the package of git revision REV "
+                         "(subprocess, same jobs), right after the timed run")
     ap.add_argument("--coarse", default="1",
                     help="coarse-to-fine decimation of the timed run: 'auto' or a whole number (default 1)")
     a = ap.parse_args(argv)
@@ -95,17 +161,20 @@ def main(argv=None):
     rate = kernel_rate(a.samples)
     load = os.getloadavg()
     print(f"## Diagnosis speed ({a.samples}-sample recordings, all 7 candidate effects, "
-          f"{a.jobs} worker(s), effort {a.effort})\n")
+          f"{a.jobs} worker(s), effort {a.effort}, search {a.search})\n")
     print(f"Machine: {os.cpu_count()} cores, load average {load[0]:.1f} / {load[1]:.1f} / "
           f"{load[2]:.1f} (1/5/15 min) at the start; batched core {rate / 1e6:.1f} M simulated "
           f"samples/s (2 Euler steps each) in this process.\n")
     ref_head = " serial reference [s] | speed-up |" if a.reference else ""
     ref_head += " old path (coarse=1) [s] | speed-up | same effects, same verdict |" if a.old else ""
+    ref_head += (f" before ({a.before}) [s] | wall ratio | CPU ratio | before: effects named, same verdict |"
+                 if a.before else "")
     print("| recording | effects named | total [s] | base fit | selection (screen + confirm) | "
           "candidate fits | per candidate [s] | friction verdict | whole-record refits | locate |"
           + ref_head)
     print("|---|---|---|---|---|---|---|---|---|---|" + ("---|---|" if a.reference else "")
-          + ("---|---|---|" if a.old else ""))
+          + ("---|---|---|" if a.old else "") + ("---|---|---|---|" if a.before else ""))
+    tree = _export(a.before, tempfile.mkdtemp(prefix="valve_gym_before_")) if a.before else ""
     totals, cpu = [], []
     for eff in a.effects.split(","):
         for rep in range(a.repeat):
@@ -114,7 +183,7 @@ def main(argv=None):
             c0 = _cpu()
             coarse = a.coarse if a.coarse == "auto" else int(a.coarse)
             res = diagnose(case.recording, plant="tank", actuator="valve", jobs=a.jobs,
-                           effort=a.effort, coarse=coarse)
+                           effort=a.effort, coarse=coarse, search=a.search)
             wall = time.perf_counter() - t0
             cpu.append(_cpu() - c0)
             totals.append(wall)
@@ -126,7 +195,7 @@ def main(argv=None):
                 try:
                     t1 = time.perf_counter()
                     res1 = diagnose(case.recording, plant="tank", actuator="valve", jobs=1,
-                                    effort=a.effort)
+                                    effort=a.effort, search=a.search)
                     serial = time.perf_counter() - t1
                 finally:
                     set_kernel_threads(threads)
@@ -136,6 +205,8 @@ def main(argv=None):
                 ref = f" {serial:.1f} | {serial / wall:.2f}x |"
             if a.old:
                 ref += _old_path(case, res, wall, a)
+            if a.before:
+                ref += _before_path(tree, case, eff.strip(), 100 + rep, res, wall, cpu[-1], a)
             print(f"| {case.name} | {', '.join(res.effects) or 'none'} | {wall:.1f} | "
                   f"{t['base_fit']:.1f} | {t['selection']:.1f} | {t['candidate_fits']} | "
                   f"{t['per_candidate']:.2f} | {t['friction_verdict']:.1f} | "
@@ -145,6 +216,10 @@ def main(argv=None):
           f"(this process and its workers) per recording: "
           f"{', '.join(f'{c:.1f}' for c in cpu)} s, i.e. {np.mean(cpu) / a.jobs:.1f} s of wall "
           f"time on {a.jobs} otherwise idle core(s) if the work splits evenly.\n")
+    if BEFORE:
+        bw, bc, nw, nc = (np.sum([b[i] for b in BEFORE]) for i in range(4))
+        print(f"Before ({a.before}) vs now, same recordings, same run: wall time {bw:.1f} s vs {nw:.1f} s "
+              f"({bw / nw:.2f}x), CPU time {bc:.1f} s vs {nc:.1f} s ({bc / nc:.2f}x).\n")
     if OLD_CPU:
         print(f"Old path (coarse=1) CPU time per recording: {', '.join(f'{c:.1f}' for c in OLD_CPU)} s; "
               f"CPU-time ratio old/new {np.sum(OLD_CPU) / np.sum(cpu):.2f}x (CPU time is much less "

@@ -13,7 +13,8 @@ parallel worker processes, and the result is compared with the truth.
 Usage::
 
     python benchmarks/concealed_suite.py [--quick] [--per-effect 6] [--none 12]
-        [--samples 1800] [--jobs 2] [--seed 0] [--effort auto] [--json OUT.json]
+        [--samples 1800] [--jobs 2] [--seed 0] [--effort auto] [--search full|fast]
+        [--json OUT.json]
 
 Prints markdown tables: the confusion matrix, the accuracy and the fit
 improvement.  Case ``i`` uses seed ``seed * 1000 + i``.  The selection rule's
@@ -44,10 +45,10 @@ _PARAM = {"dead_time": ("dead_time.theta", "dead_time.theta"),
 
 
 def run_case(args):
-    effect, seed, n, effort = args
+    effect, seed, n, effort, search = args
     t0 = time.perf_counter()
     case = make_case(effect, seed=seed, n=n)
-    res = diagnose(case.recording, plant="tank", actuator="valve", effort=effort, seed=seed)
+    res = diagnose(case.recording, plant="tank", actuator="valve", effort=effort, seed=seed, search=search)
     d = res.to_dict()
     param = None
     if effect in _PARAM and effect in d["effects"]:
@@ -69,7 +70,7 @@ def main(argv=None):
     i = 0
     for e in ("none",) + SUITE_EFFECTS:
         for _ in range(a.none if e == "none" else a.per_effect):
-            tasks.append((e, a.seed * 1000 + i, a.samples, a.effort))
+            tasks.append((e, a.seed * 1000 + i, a.samples, a.effort, a.search))
             i += 1
     t0 = time.perf_counter()
     out = _run_all(tasks, a.jobs)
@@ -78,7 +79,7 @@ def main(argv=None):
     _print_confusion(out, a)
     _print_fit_table(out)
     secs = [r["seconds"] for r in out]
-    print(f"\n{len(out)} diagnoses in {elapsed:.0f} s with {a.jobs} workers "
+    print(f"\n{len(out)} diagnoses (search {a.search}) in {elapsed:.0f} s with {a.jobs} workers "
           f"(median {np.median(secs):.1f} s per recording, kernel threads shared out between the workers).\n")
     if a.json:
         from valve_gym.diagnosis.report import write_json
@@ -88,7 +89,7 @@ def main(argv=None):
 
 def _parse_args(argv):
     """Command-line options (``--quick`` sets the case counts and the record length)."""
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n")[0])
     ap.add_argument("--quick", action="store_true",
                     help="3 cases per effect, 6 none cases, 900 samples")
     ap.add_argument("--per-effect", type=int, default=6)
@@ -97,6 +98,8 @@ def _parse_args(argv):
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--effort", default="auto", choices=("auto", "fast", "normal", "thorough"))
+    ap.add_argument("--search", default="full", choices=("fast", "full"),
+                    help="search of the diagnosis (diagnose(search=...)): 'full' (default) or the opt-in 'fast'")
     ap.add_argument("--json", help="write every case's outcome as JSON")
     a = ap.parse_args(argv)
     if a.quick:

@@ -266,3 +266,63 @@ def test_parameter_uncertainty_covers_the_truth():
     assert {p.name for p in pus} <= set(truth)
     for p in pus:
         assert p.sd > 0 and abs(p.value - float(truth[p.name][0])) <= 4 * p.sd + 1e-9, p
+
+
+# --------------------------------------------------------------------------- fast search
+def _tank_fit(n=600, seed=12):
+    """A whole-record tank fit of a synthetic recording: (structure, u, y, FitResult)."""
+    from valve_gym.diagnosis.fit import fit_structure
+
+    rec = make_case("none", seed=seed, n=n).recording
+    sc = DataScales.from_signals(rec.op, rec.pv, rec.dt)
+    st = ModelStructure("tank", "valve", (), sc)
+    return st, rec.op, rec.pv, fit_structure(st, rec.op, rec.pv, rng=0, effort="fast")
+
+
+def test_early_stop_ends_a_search_that_gains_nothing():
+    """Warm-started at the exact optimum, the early-stopped evolution ends after its quiet generations."""
+    from valve_gym.diagnosis.fit import fit_structure
+
+    t = np.arange(600)
+    u = 0.5 + 0.2 * np.sign(np.sin(2 * np.pi * t / 150))
+    sc = DataScales.from_signals(u, np.linspace(0.0, 2.0, 600), 1.0)
+    st = ModelStructure("first_order", "valve", (), sc, n_sub=2, friction=False)
+    w = np.full((1, st.k), 0.5)
+    y = st.simulate(w, u)[:, 0]
+    full = fit_structure(st, u, y, seeds=w, rng=1, effort="normal", final_n_sub=False)
+    fast = fit_structure(st, u, y, seeds=w, spread=np.full(st.k, 0.05), rng=1, effort="normal",
+                         final_n_sub=False, early_stop=True)
+    assert fast.n_evals < 0.6 * full.n_evals
+    assert fast.cost <= 1e-20 and full.cost <= 1e-20
+    np.testing.assert_allclose(fast.w, w[0], atol=1e-6)
+
+
+def test_a_new_friction_law_gets_the_whole_search():
+    """A warm start that leaves the friction coordinates unknown is searched as without a cloud."""
+    from valve_gym.diagnosis.fit import fit_structure, transfer
+
+    st, u, y, fit = _tank_fit(n=500, seed=3)
+    st1 = st.with_effects(("slip_jump",))
+    seeds, spread = transfer(fit, st1)
+    assert spread[st1.index("S")] >= 1.0
+    a = fit_structure(st1, u, y, seeds=seeds, spread=spread, rng=2, effort="fast", early_stop=True)
+    b = fit_structure(st1, u, y, seeds=seeds, rng=2, effort="fast")
+    assert a.n_evals == b.n_evals and np.array_equal(a.w, b.w)
+
+
+def test_serial_blas_is_restored():
+    from valve_gym.diagnosis.fit import _blas_libs, _SerialBlas
+
+    libs = _blas_libs()
+    before = [fn(2) for fn in libs]                        # set 2, remember what it was
+    with _SerialBlas():
+        assert [fn(1) for fn in libs] == [1] * len(libs)
+    assert [fn(b) for fn, b in zip(libs, before)] == [2] * len(libs)
+
+
+def test_search_is_checked():
+    rec = make_recording("none", seed=4, n=300)
+    with pytest.raises(ValueError, match="search must be one of fast, full"):
+        diagnose(rec, candidates=(), search="quick")
+    assert diagnose(rec, candidates=(), effort="fast").to_dict()["settings"]["search"] == "full"
+    assert diagnose(rec, candidates=(), effort="fast", search="fast").to_dict()["settings"]["search"] == "fast"

@@ -195,13 +195,14 @@ _EFFORT_PLAN = {
 
 
 # --------------------------------------------------------------------------- helpers
-def _refit_full(split: FitResult, rec: Recording, seed: int, effort: str) -> FitResult:
+def _refit_full(split: FitResult, rec: Recording, seed: int, effort: str, fast: bool = False) -> FitResult:
     """Refit a split fit on the whole record (same structure and scales), warm-started."""
     if split.n_fit >= len(rec):
         return split
     seeds = split.w[None, :]
-    return fit_structure(split.structure, rec.op, rec.pv, None, seeds=seeds, rng=seed,
-                         effort=effort)
+    spread = np.full(split.k, 0.05) if fast else None
+    return fit_structure(split.structure, rec.op, rec.pv, None, seeds=seeds, spread=spread, rng=seed,
+                         effort=effort, early_stop=fast)
 
 
 def _locate(rec: Recording, res: FitResult) -> MismatchReport:
@@ -246,8 +247,9 @@ def _friction_params(fit: FitResult) -> dict:
 
 
 def _fit_task(args):
-    st, u, y, seeds, seed, effort, coarse = args
-    return fit_structure(st, u, y, None, seeds=seeds, rng=seed, effort=effort, coarse=coarse)
+    st, u, y, seeds, spread, seed, effort, coarse = args
+    return fit_structure(st, u, y, None, seeds=seeds, spread=spread, rng=seed, effort=effort, coarse=coarse,
+                         early_stop=spread is not None)
 
 
 #: Records of at least this many samples are searched coarse-to-fine.
@@ -266,7 +268,7 @@ def coarse_factor(n_samples: int) -> int:
 
 
 def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, seed: int,
-                      effort: str, mm: MismatchReport, jobs: int = 1, coarse: int = 1):
+                      effort: str, mm: MismatchReport, jobs: int = 1, coarse: int = 1, fast: bool = False):
     """Does the valve stick?  Friction models against frictionless ones, whole record.
 
     Friction (the paper's valve and the slip-jump valve, each with the final
@@ -291,10 +293,11 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
     u, y = rec.op, rec.pv
     base_eff = tuple(e for e in st.effects if e != "slip_jump")
     tasks, n_frictionless = _verdict_tasks(final, base_eff)
-    args = [(t[0], u, y, t[1], seed + 17 + i, effort, coarse) for i, t in enumerate(tasks)]
+    args = [(t[0], u, y, t[1], transfer(final, t[0])[1] if fast else None, seed + 17 + i, effort, coarse)
+            for i, t in enumerate(tasks)]
     if jobs > 1:
-        with process_pool(jobs) as ex:
-            fits = list(ex.map(_fit_task, args))
+        with process_pool(jobs) as ex:     # the friction fits (the longest) first, so that none runs alone last
+            fits = list(ex.map(_fit_task, args[::-1]))[::-1]
     else:
         fits = [_fit_task(a) for a in args]
     frictionless, fric = fits[:n_frictionless], fits[n_frictionless:]
@@ -419,6 +422,17 @@ def _combine_verdict(stiction: dict, rec: Recording, plant: str, slip: FitResult
     stiction["explanation"] = (stiction.get("explanation", "") + " " + explain_combined(a)).strip()
 
 
+#: Searches :func:`diagnose` knows (``search=``).
+SEARCHES = ("fast", "full")
+
+
+def _resolve_search(search: str) -> bool:
+    """Whether ``search`` asks for the fast search (warm-start clouds and early stops)."""
+    if search not in SEARCHES:
+        raise ValueError(f"search must be one of {', '.join(SEARCHES)}, got {search!r}")
+    return search == "fast"
+
+
 def _resolve_coarse(coarse, n_samples: int) -> int:
     """The decimation factor ``coarse`` stands for (see :func:`coarse_factor`)."""
     if coarse == "auto":
@@ -449,7 +463,7 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
              candidates: Sequence[str] | None = None, holdout: float = 0.3,
              validate: Recording | None = None, rule: SelectionRule = SelectionRule(),
              effort: str = "auto", seed: int = 0, jobs: int = 1, saturation="auto",
-             n_sub: int = 1, coarse: int | str = 1,
+             n_sub: int = 1, coarse: int | str = 1, search: str = "full",
              progress: Callable[[str], None] | None = None) -> DiagnosisResult:
     """Diagnose one recording: base fit, mismatch location, missing physics, friction verdict.
 
@@ -493,6 +507,17 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
         3600-sample test records it named the same effects and verdicts with
         about 1.2x less CPU time (``benchmarks/bench_diagnosis.py --coarse auto
         --old``), too little evidence and too little gain to make it the default.
+    search : {'full', 'fast'}
+        ``'full'`` (default): every evolution starts from a Latin hypercube
+        plus its seeds and spends its whole budget.  ``'fast'`` (opt-in): every
+        warm-started fit whose friction coordinates are known (candidates, the
+        whole-record refits, the friction verdict) draws half of its first
+        population around the warm start and its evolution ends after
+        ``max(20, generations / 4)`` generations without a gain
+        (:func:`~valve_gym.diagnosis.fit.fit_structure`, ``early_stop``):
+        about 2.5x less CPU, but it names fewer effects (a leak whose benefit
+        needs several parameters to move together is stopped before it is
+        found; ``docs/diagnosis.md``).
     progress : callable(str), optional
 
     Returns
@@ -528,13 +553,15 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     effort_asked, effort = effort, resolve_effort(effort, len(rec))
     plan = _EFFORT_PLAN[effort]
     q = _resolve_coarse(coarse, T)
-    base_split, _ = fit_with_friction(st, rec.op, rec.pv, n_fit, rng=seed, effort=plan["base"], coarse=q)
+    fast = _resolve_search(search)
+    base_split, _ = fit_with_friction(st, rec.op, rec.pv, n_fit, rng=seed, effort=plan["base"], coarse=q,
+                                      fast=fast)
     timing["base_fit"] = time.perf_counter() - t0
     # ---- selection
     t0 = time.perf_counter()
     sel = select_effects(base_split, rec.op, rec.pv, cands, rule=rule, seed=seed,
                          effort=plan["confirm"], screen_effort=plan["screen"],
-                         n_confirm=plan["n_confirm"], jobs=jobs, coarse=q,
+                         n_confirm=plan["n_confirm"], jobs=jobs, coarse=q, fast=fast,
                          progress=lambda s: say(f"{rec.name}: {s}"))
     timing["selection"] = time.perf_counter() - t0
     n_cand = max(len(sel.candidates), 1)
@@ -543,8 +570,8 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     final_split = sel.final
     # ---- whole-record refits
     t0 = time.perf_counter()
-    base = _refit_full(base_split, rec, seed + 1, "fast")
-    final = base if final_split is base_split else _refit_full(final_split, rec, seed + 2, "fast")
+    base = _refit_full(base_split, rec, seed + 1, "fast", fast)
+    final = base if final_split is base_split else _refit_full(final_split, rec, seed + 2, "fast", fast)
     timing["full_refit"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     mm = _locate(rec, base)
@@ -552,7 +579,8 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     timing["locate"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     say(f"{rec.name}: friction verdict")
-    fv = _friction_stage(rec, plant, actuator, base, final, mm, mm_final, rule, seed, plan["verdict"], jobs, q)
+    fv = _friction_stage(rec, plant, actuator, base, final, mm, mm_final, rule, seed, plan["verdict"], jobs, q,
+                         fast)
     base, final, mm, mm_final = fv.base, fv.final, fv.mismatch, fv.mismatch_final
     timing["friction_verdict"] = time.perf_counter() - t0
     expl = _explanations(rec, sel, base, final, mm)
@@ -566,7 +594,7 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     timing["total"] = time.perf_counter() - t_all
     settings = {"plant": plant, "actuator": actuator, "candidates": list(cands),
                 "holdout": float(holdout), "effort": effort, "effort_asked": effort_asked,
-                "seed": seed, "coarse_to_fine": q,
+                "seed": seed, "coarse_to_fine": q, "search": search,
                 "rule": dict(rule.__dict__), "n_sub_search": st.n_sub,
                 "sensor_range": {"lo": sc.sat_lo, "hi": sc.sat_hi},
                 "valve_model": ("quasi-static: tau = dt/n_sub, v_max = inf"
@@ -630,10 +658,10 @@ class _FrictionStage(NamedTuple):
 
 def _friction_stage(rec: Recording, plant: str, actuator: str, base: FitResult, final: FitResult,
                     mm: MismatchReport, mm_final: MismatchReport, rule: SelectionRule, seed: int,
-                    effort: str, jobs: int, coarse: int) -> _FrictionStage:
+                    effort: str, jobs: int, coarse: int, fast: bool = False) -> _FrictionStage:
     """Friction verdict, Horch's test and the combined assessment; the final model it keeps."""
     stiction, fr0, final_v, slip = _friction_verdict(final, rec, rule, seed, effort, mm,
-                                                     jobs=jobs, coarse=coarse)
+                                                     jobs=jobs, coarse=coarse, fast=fast)
     if actuator == "valve":
         stiction["horch"] = horch_ccf(rec.op, rec.pv, _dt(rec), plant)
         _combine_verdict(stiction, rec, plant, slip)

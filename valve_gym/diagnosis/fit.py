@@ -207,7 +207,7 @@ def _lhs(rng, pop, k):
 
 
 def _de(obj: _Objective, rng, pop: int, gens: int, seeds=None, spread=None, tol=1e-7,
-        patience=20, islands: int = 2):
+        patience=20, islands: int = 2, stop_after: int | None = None):
     """Differential evolution (current-to-pbest/1/bin) in the unit cube; all rows at once.
 
     ``islands`` independent populations of ``pop`` members evolve side by
@@ -216,24 +216,43 @@ def _de(obj: _Objective, rng, pop: int, gens: int, seeds=None, spread=None, tol=
     converged or stalled restarts from a fresh Latin hypercube that keeps the
     best member found so far.  Stick-slip friction makes the cost rugged;
     several independent populations make the search much less of a lottery.
+
+    Warm start: the ``seeds`` rows are simulated once and put into every
+    island; with ``spread`` up to half of each island is drawn around the
+    best seed (normal with standard deviation ``spread`` per coordinate,
+    uniform where ``spread >= 1``), the rest stays a Latin hypercube.
+    ``stop_after``: the evolution ends once the best cost has not fallen by
+    a relative ``1e-6`` for that many generations (None: the whole budget).
     """
     k = len(obj.free)
     n_isl = max(1, int(islands))
     X = np.stack([_lhs(rng, pop, k) for _ in range(n_isl)])          # (n_isl, pop, k)
-    if seeds is not None:
+    if seeds is None:
+        fx = obj(X.reshape(-1, k)).reshape(n_isl, pop)
+    else:
         S = np.atleast_2d(np.asarray(seeds, float))[:, obj.free]
         m = min(len(S), pop)
+        fs = obj(S[:m])                                              # each seed simulated once
         X[:, :m] = S[:m]
         if spread is not None and m < pop:
             sp = np.asarray(spread, float)[obj.free]
             nc = min(pop - m, pop // 2)
+            centre = S[int(np.argmin(fs))]
             for j in range(n_isl):
-                C = S[0][None, :] + rng.normal(size=(nc, k)) * sp[None, :]
+                C = centre[None, :] + rng.normal(size=(nc, k)) * sp[None, :]
                 wide = sp >= 1.0
                 C[:, wide] = rng.random((nc, int(wide.sum())))
                 X[j, m:m + nc] = np.clip(C, 0.0, 1.0)
-    budget = n_isl * pop * gens
-    fx = obj(X.reshape(-1, k)).reshape(n_isl, pop)
+        fx = np.empty((n_isl, pop))
+        fx[:, :m] = fs[None, :]
+        if m < pop:
+            fx[:, m:] = obj(X[:, m:].reshape(-1, k)).reshape(n_isl, pop - m)
+    return _evolve(obj, rng, X, fx, n_isl * pop * gens, tol, patience, stop_after)
+
+
+def _evolve(obj: _Objective, rng, X, fx, budget: int, tol: float, patience: int, stop_after: int | None):
+    """The generations of :func:`_de` from the evaluated islands ``X`` (n_isl, pop, k), costs ``fx``."""
+    n_isl, pop, k = X.shape
     used = n_isl * pop
     best = fx.min(axis=1)
     med = np.median(fx, axis=1)
@@ -244,6 +263,7 @@ def _de(obj: _Objective, rng, pop: int, gens: int, seeds=None, spread=None, tol=
     gbest_x, gbest_f = X[gi].copy(), float(fx[gi])
     p = max(2, int(round(_PBEST * pop)))
     ar = np.arange(pop)
+    quiet = 0                                   # generations without a gain of the best cost
     while used < budget:
         order = np.argsort(fx, axis=1)
         pb = np.take_along_axis(order, rng.integers(0, p, (n_isl, pop)), axis=1)
@@ -278,8 +298,11 @@ def _de(obj: _Objective, rng, pop: int, gens: int, seeds=None, spread=None, tol=
         stall = np.where(moving, 0, stall + 1)
         best, med = np.minimum(b, best), np.minimum(m, med)
         gi = np.unravel_index(int(np.argmin(fx)), fx.shape)
+        quiet = 0 if fx[gi] < gbest_f * (1 - 1e-6) else quiet + 1
         if fx[gi] < gbest_f:
             gbest_x, gbest_f = X[gi].copy(), float(fx[gi])
+        if stop_after is not None and quiet >= stop_after:
+            break
         done = ((m - b) / np.maximum(np.abs(b), 1e-300) < tol) | (stall >= patience)
         if done.any():
             if budget - used < 0.25 * budget:
@@ -292,6 +315,52 @@ def _de(obj: _Objective, rng, pop: int, gens: int, seeds=None, spread=None, tol=
                 best[j], med[j], stall[j] = fx[j].min(), np.median(fx[j]), 0
                 muF[j], muCR[j] = 0.6, 0.9
     return gbest_x, gbest_f, X, fx
+
+
+_BLAS_LIBS: list = []
+
+
+def _blas_libs() -> list:
+    """The OpenBLAS libraries numpy and scipy ship (ctypes handles; empty where they use another BLAS)."""
+    if not _BLAS_LIBS:
+        import ctypes
+        import glob
+        import os
+
+        import scipy
+
+        found = []
+        for mod in (np, scipy):
+            folder = os.path.join(os.path.dirname(os.path.dirname(mod.__file__ or "")), mod.__name__ + ".libs")
+            for path in glob.glob(os.path.join(folder, "*openblas*.so*")):
+                try:
+                    fn = ctypes.CDLL(path).openblas_set_num_threads_local
+                except (OSError, AttributeError):
+                    continue
+                fn.restype, fn.argtypes = ctypes.c_int, [ctypes.c_int]
+                found.append(fn)
+        _BLAS_LIBS.append(found)
+    return _BLAS_LIBS[0]
+
+
+class _SerialBlas:
+    """Context: numpy's and scipy's OpenBLAS run in one thread (this thread only), then as before.
+
+    The least-squares refinement factorises tall Jacobians (``N x k``, ``k`` <= 10) every
+    step: microseconds of work that threaded OpenBLAS spreads over all cores, and on cores
+    busy with other work (the other worker, the kernel's threads) its threads wait for each
+    other: 0.2 ms serial against 6-20 ms threaded per SVD of 2520 x 7 measured on a loaded
+    2-core machine.  A no-op where numpy or scipy use another BLAS.
+    """
+
+    def __enter__(self):
+        self.prev = [fn(1) for fn in _blas_libs()]
+        return self
+
+    def __exit__(self, *exc):
+        for fn, n in zip(_blas_libs(), self.prev):
+            fn(n)
+        return False
 
 
 def _refine(obj: _Objective, x0, max_nfev=40, step=2e-3):
@@ -332,9 +401,10 @@ def _refine(obj: _Objective, x0, max_nfev=40, step=2e-3):
 
     z0 = np.clip(x0[cont], 0.0, 1.0)
     try:
-        res = least_squares(fun, z0, jac=jac,  # pyright: ignore[reportArgumentType]  # a callable jac is valid
-                            bounds=(0.0, 1.0), method="trf",
-                            max_nfev=max_nfev, x_scale=1.0, xtol=1e-8, ftol=1e-10)
+        with _SerialBlas():
+            res = least_squares(fun, z0, jac=jac,  # pyright: ignore[reportArgumentType]  # a callable jac is valid
+                                bounds=(0.0, 1.0), method="trf",
+                                max_nfev=max_nfev, x_scale=1.0, xtol=1e-8, ftol=1e-10)
         x = expand(np.clip(res.x, 0.0, 1.0))
     except (ValueError, np.linalg.LinAlgError):  # pragma: no cover - defensive
         x = x0
@@ -407,6 +477,10 @@ def _grid_polish(obj: _Objective, x, c, rounds: int = 4, n_grid: int = 17):
 
 _EFFORT = {"fast": (0.7, 0.45), "normal": (1.0, 0.6), "thorough": (1.25, 1.0)}
 
+#: Early stop (``fit_structure(early_stop=True)``): the evolution ends after
+#: ``max(a, b * generations)`` generations without a gain of the best cost.
+_STOP = (20, 0.25)
+
 #: ``effort='auto'`` searches thoroughly up to this many samples, normally above: a thorough
 #: diagnosis of 1800 samples takes 12-17 s on two cores, of 3600 about 30 s
 #: (``benchmarks/bench_diagnosis.py --effort thorough``).
@@ -426,7 +500,7 @@ def fit_structure(structure: ModelStructure, u, y, n_fit: int | None = None, *,
                   seeds=None, spread=None, free: Sequence[str] | None = None,
                   w_fixed=None, rng=None, popsize: int | None = None,
                   maxiter: int | None = None, local: bool = True, effort: str = "normal",
-                  final_n_sub: bool = True, coarse: int = 1) -> FitResult:
+                  final_n_sub: bool = True, coarse: int = 1, early_stop: bool = False) -> FitResult:
     """Fit ``structure`` to ``y`` (T,) driven by ``u`` (T,), free-run, on the first ``n_fit`` samples.
 
     Parameters
@@ -463,6 +537,12 @@ def fit_structure(structure: ModelStructure, u, y, n_fit: int | None = None, *,
         warm-started from that optimum (a quarter of the generations) and the
         local refinement run on the full record.  Cheaper for long records;
         ignored when fewer than 300 samples would remain.
+    early_stop : bool
+        End the evolution once its best cost has not fallen (by a relative
+        ``1e-6``) for ``max(20, generations / 4)`` generations, instead of
+        always spending the whole budget.  Meant for warm starts with a
+        ``spread`` (a cloud around the seed): without one the population spends
+        its first generations catching up with the seed, and would stop there.
 
     Returns
     -------
@@ -483,6 +563,8 @@ def fit_structure(structure: ModelStructure, u, y, n_fit: int | None = None, *,
                    else np.array([structure.neutral_coord(p) for p in structure.params]))
     names = structure.names
     free_idx = [names.index(n) for n in (free if free is not None else names)]
+    if early_stop and _new_friction(structure, spread):
+        early_stop, spread = False, None        # a new friction law: the whole global search
     obj = _Objective(structure, u, y, n_fit, free_idx, w_fixed)
     kf = len(free_idx)
     pf, gf = _EFFORT[resolve_effort(effort, len(u))]
@@ -491,7 +573,8 @@ def fit_structure(structure: ModelStructure, u, y, n_fit: int | None = None, *,
     else:
         pop = popsize or int(np.clip(round(pf * (10 + 4 * kf)), 10, 48))
         gens = maxiter or int(round(gf * (40 + 15 * kf)))
-        x, c, X, fx = _de(obj, rng, pop, gens, seeds=seeds, spread=spread)
+        stop = int(max(_STOP[0], round(_STOP[1] * gens))) if early_stop else None
+        x, c, X, fx = _de(obj, rng, pop, gens, seeds=seeds, spread=spread, stop_after=stop)
         if local:
             for _ in range(2):
                 c_start = c
@@ -507,6 +590,23 @@ def fit_structure(structure: ModelStructure, u, y, n_fit: int | None = None, *,
     res = _make_result(structure, w, y, y_sim, n_fit, ns, obj.n_evals, time.perf_counter() - t0)
     structure.__dict__.pop("_scratch", None)     # the search's scratch arrays: not kept with the result
     return res
+
+
+#: Coordinates of the friction laws (the rugged ones, see :func:`_grid_polish`).
+_FRICTION_COORDS = ("S", "J_rel", "e_dead", "z_max")
+
+
+def _new_friction(structure: ModelStructure, spread) -> bool:
+    """Whether a warm start with ``spread`` leaves friction coordinates of ``structure`` unknown (spread >= 1).
+
+    Stick-slip makes the cost of a friction law multimodal in its band and jump:
+    a cloud around a seed that does not know them, and an early stop, miss the
+    better basins that the whole global search finds.
+    """
+    if spread is None:
+        return False
+    sp = np.asarray(spread, float)
+    return any(sp[i] >= 1.0 for i, n in enumerate(structure.names) if n in _FRICTION_COORDS)
 
 
 def _recode(src: ModelStructure, dst: ModelStructure, W) -> np.ndarray:
@@ -541,14 +641,15 @@ def _coarse_to_fine(structure: ModelStructure, u, y, n_fit, *, seeds, spread, rn
 
 def fit_with_friction(structure: ModelStructure, u, y, n_fit=None, *, seeds=None, rng=None,
                       effort: str = "normal", frictionless: FitResult | None = None,
-                      coarse: int = 1):
+                      coarse: int = 1, fast: bool = False):
     """Fit a valve model and its frictionless twin so that the friction fit is nested.
 
     The frictionless model (``z_max = e_dead = 0``, no slip-jump) is fitted
     first (fewer parameters, smoother cost); the model with friction starts
     from its optimum with the friction parameters at zero, so its cost can
-    only be lower.  Without a valve (or with ``structure.friction`` False)
-    the structure is fitted alone.
+    only be lower.  ``fast``: both searches stop early (see :func:`fit_structure`),
+    the friction fit from a cloud around the frictionless optimum.  Without a
+    valve (or with ``structure.friction`` False) the structure is fitted alone.
 
     Returns
     -------
@@ -556,21 +657,24 @@ def fit_with_friction(structure: ModelStructure, u, y, n_fit=None, *, seeds=None
     """
     rng = np.random.default_rng(rng)
     if structure.actuator != "valve" or not structure.friction:
-        return fit_structure(structure, u, y, n_fit, seeds=seeds, rng=rng, effort=effort, coarse=coarse), None
+        return fit_structure(structure, u, y, n_fit, seeds=seeds, rng=rng, effort=effort, coarse=coarse,
+                             early_stop=fast), None
     st0 = structure.with_effects(tuple(e for e in structure.effects if e != "slip_jump"),
                                  friction=False)
     if frictionless is None:
         s0 = None
         if seeds is not None:
             s0 = np.vstack([transfer(_pseudo(structure, w), st0)[0] for w in np.atleast_2d(seeds)])
-        frictionless = fit_structure(st0, u, y, n_fit, seeds=s0, rng=rng, effort=effort, coarse=coarse)
-    s1, _ = transfer(frictionless, structure)
+        frictionless = fit_structure(st0, u, y, n_fit, seeds=s0, rng=rng, effort=effort, coarse=coarse,
+                                     early_stop=fast)
+    s1, spread1 = transfer(frictionless, structure)
     for name in ("e_dead", "z_max", "S"):
         if name in structure.names:
             s1[0, structure.index(name)] = 0.0
     if seeds is not None:
         s1 = np.vstack([s1, np.atleast_2d(seeds)])
-    fr = fit_structure(structure, u, y, n_fit, seeds=s1, rng=rng, effort=effort, coarse=coarse)
+    fr = fit_structure(structure, u, y, n_fit, seeds=s1, spread=spread1 if fast else None, rng=rng,
+                       effort=effort, coarse=coarse, early_stop=fast)
     return fr, frictionless
 
 

@@ -184,7 +184,7 @@ def _candidate_structure(current: FitResult, effect, variant, period_hint):
 
 
 def _fit_candidate(args):
-    (current, effect, variant, u, y, n_fit, seed, effort, period_hint, extra, coarse) = args
+    (current, effect, variant, u, y, n_fit, seed, effort, period_hint, extra, coarse, fast) = args
     st = _candidate_structure(current, effect, variant, period_hint)
     seeds, spread = transfer(current, st)
     seed_rule = effect_spec(effect).seed
@@ -192,7 +192,8 @@ def _fit_candidate(args):
         seeds = seed_rule(current.structure.decode(current.w[None, :]), st, seeds)
     if extra is not None:
         seeds = np.vstack([seeds, np.atleast_2d(extra)])
-    return fit_structure(st, u, y, n_fit, seeds=seeds, spread=spread, rng=seed, effort=effort, coarse=coarse)
+    return fit_structure(st, u, y, n_fit, seeds=seeds, spread=spread if fast else None, rng=seed, effort=effort,
+                         coarse=coarse, early_stop=fast)
 
 
 def _run(tasks, jobs, executor=None):
@@ -207,7 +208,7 @@ def _run(tasks, jobs, executor=None):
 def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_EFFECTS,
                    rule: SelectionRule = SelectionRule(), seed: int = 0, effort: str = "thorough",
                    jobs: int = 1, progress=None, screen_effort: str = "fast",
-                   n_confirm: int = 3, coarse: int = 1) -> Selection:
+                   n_confirm: int = 3, coarse: int = 1, fast: bool = False) -> Selection:
     """Greedy forward selection of candidate effects on top of ``base``.
 
     Parameters
@@ -225,6 +226,8 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
         whose screening fit lowered the criterion most)
     coarse : int, decimation of the coarse-to-fine search of every fit
         (:func:`~valve_gym.diagnosis.fit.fit_structure`; 1 = off)
+    fast : bool, every fit starts from a cloud around its warm start and stops
+        early (:func:`~valve_gym.diagnosis.fit.fit_structure`, ``early_stop``)
     progress : callable(str), optional, told about each round
 
     Returns
@@ -258,7 +261,7 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
                 progress(f"round {rnd}: screening {', '.join(pool)}")
             # 1) screening: every candidate with a small budget
             tasks = [(current, e, v, u, y, n_fit, seed + 7919 * rnd + i, screen_effort, period,
-                      None, coarse) for i, (e, v) in enumerate(meta)]
+                      None, coarse, fast) for i, (e, v) in enumerate(meta)]
             screened = _run(tasks, jobs, ex)
             scores = [compare(current, r, rule, n_eff)[0] for r in screened]
             # 2) confirmation: the most promising with the full budget
@@ -266,7 +269,7 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
             if progress:
                 progress(f"round {rnd}: confirming {', '.join(meta[i][0] for i in short)}")
             tasks = [(current, meta[i][0], meta[i][1], u, y, n_fit, seed + 104729 * rnd + i,
-                      effort, period, _coords_in(screened[i]), coarse) for i in short]
+                      effort, period, _coords_in(screened[i]), coarse, fast) for i in short]
             confirmed = _run(tasks, jobs, ex)
             results = list(screened)
             for i, r in zip(short, confirmed):
