@@ -32,6 +32,8 @@ import valve_gym  # noqa: F401  (registers the env ids)
 from valve_gym.envs import ValveTankEnv, ValveTankVectorEnv
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+from bench_env_speed import single_runner  # noqa: E402  (the same timed loop over gymnasium.make)
 
 
 def load_old(ref: str):
@@ -68,21 +70,6 @@ def best(fns, repeats, clock=time.thread_time):
             fn()
             b[k] = min(b[k], clock() - t0)
     return b
-
-
-def single_runner(env_id, n, **kw):
-    env = gym.make(env_id, **kw)
-    env.reset(seed=0)
-    env.action_space.seed(0)
-    acts = [env.action_space.sample() for _ in range(n)]
-    step, reset = env.step, env.reset
-
-    def run():
-        for a in acts:
-            _, _, term, trunc, _ = step(a)
-            if term or trunc:
-                reset()
-    return run
 
 
 def vector_runner(env, n_steps):

@@ -231,19 +231,8 @@ def test_env_starts_from_the_plant_rest_state():
     assert info["u"] == core.steady_input(cfg.model, cfg.model.cascade.level2_0, 1)[0] == st.h[0]
 
 
-def test_envs_run_a_friction_model_with_a_per_scan_law():
+def test_envs_run_a_friction_model_with_a_per_scan_law(he_model):
     """The plant applies a per-scan friction law (docs/examples/he_friction.py); both envs run it alike."""
-    import importlib.util
-    import sys
-    from pathlib import Path
-
-    name = "valve_gym_docs_he_friction"          # the name the other tests import it under
-    if name not in sys.modules:
-        path = Path(__file__).resolve().parents[1] / "docs" / "examples" / "he_friction.py"
-        spec = importlib.util.spec_from_file_location(name, path)
-        mod = importlib.util.module_from_spec(spec)
-        sys.modules[name] = mod
-        spec.loader.exec_module(mod)
     cfg = make_config({**SHORT, "model": {"slip_jump": {"law": "he", "S": 0.03, "J": 0.01}}})
     env, venv = ValveTankEnv(cfg), ValveTankVectorEnv(2, cfg)
     obs, _ = env.reset(seed=1)

@@ -397,23 +397,6 @@ def test_karnopp_stiff_stem_is_refused_with_advice():
 
 
 # --------------------------------------------------------------------------- a model in one file (docs)
-@pytest.fixture(scope="module")
-def he_model():
-    """docs/examples/he_friction.py, imported once (importing it registers the 'he' model)."""
-    import importlib.util
-    import sys
-    from pathlib import Path
-
-    name = "valve_gym_docs_he_friction"
-    if name not in sys.modules:
-        path = Path(__file__).resolve().parents[1] / "docs" / "examples" / "he_friction.py"
-        spec = importlib.util.spec_from_file_location(name, path)
-        mod = importlib.util.module_from_spec(spec)
-        sys.modules[name] = mod
-        spec.loader.exec_module(mod)
-    return sys.modules[name]
-
-
 def plant_stems(p, u):
     from valve_gym.plant import Plant
 

@@ -323,24 +323,7 @@ def test_run_and_state_errors():
         plant.set_state(initial_state(ModelParams(), 1, level=np.nan))
 
 
-def _he_model():
-    """docs/examples/he_friction.py (a friction model with a per-scan law), imported once."""
-    import importlib.util
-    import sys
-    from pathlib import Path
-
-    name = "valve_gym_docs_he_friction"          # the name tests/test_friction_models.py imports it under
-    if name not in sys.modules:
-        path = Path(__file__).resolve().parents[1] / "docs" / "examples" / "he_friction.py"
-        spec = importlib.util.spec_from_file_location(name, path)
-        mod = importlib.util.module_from_spec(spec)
-        sys.modules[name] = mod
-        spec.loader.exec_module(mod)
-    return sys.modules[name]
-
-
-def test_run_with_a_per_scan_friction_law_equals_stepping():
-    _he_model()
+def test_run_with_a_per_scan_friction_law_equals_stepping(he_model):
     rng = np.random.default_rng(11)
     n, T = 2, 60
     p = valve_model("he", np.array([0.03, 0.05]), np.array([0.01, 0.02]))
