@@ -1,20 +1,22 @@
 """Effect naming on recordings of a simulator other than the package's own.
 
 The textbook-loop simulator :mod:`valve_gym.diagnosis.stiction.loops` (written
-independently of :mod:`valve_gym.core`) makes level loops on Torricelli tanks with a
-PI controller, set-point moves, white or coloured noise and a positioner lag, with
+independently of :mod:`valve_gym.core`) makes level loops on tanks with a PI controller,
+set-point moves, white or coloured noise, a slowly drifting load and a positioner lag, with
 one concealed effect: ``none`` (healthy valve), ``slip_jump`` (Kano's or Choudhury's
 two-parameter stiction, S 1.5-4 % of the stroke) or ``leak`` (extra constant outflow,
-10-25 % of the mean inflow).  No dead time (it would be a second effect; a first run with
-0-3 s of dead time in every loop had the tool name ``dead_time`` in 3 of 6 healthy loops).
-Each is diagnosed with every candidate effect (``plant='tank'``, ``actuator='valve'``,
-default rule); "named right" means the first effect named is the concealed one (none for
-``none``).  Case ``i`` uses seed
-``70_000 + i``; nothing here was tuned on these cases.
+10-25 % of the mean inflow). The plant varies from case to case: the sample time (0.5, 1
+or 2 s) and the tank's shape (cylinder, cone, sphere, horizontal cylinder; the diagnosis
+fits a cylinder); ``--fixed-plant`` gives every case a cylinder sampled at 1 s, the set of
+earlier releases. No dead time (it would be a second effect; a first run with 0-3 s of dead
+time in every loop had the tool name ``dead_time`` in 3 of 6 healthy loops). Each is
+diagnosed with every candidate effect (``plant='tank'``, ``actuator='valve'``, default
+rule); "named right" means the first effect named is the concealed one (none for ``none``).
+Case ``i`` uses seed ``70_000 + i``; nothing here was tuned on these cases.
 
 Usage::
 
-    nice -n 10 python benchmarks/naming_other_sim.py [--per-effect 6] [--jobs 2]
+    nice -n 10 python benchmarks/naming_other_sim.py [--per-effect 6] [--jobs 2] [--fixed-plant]
 """
 from __future__ import annotations
 
@@ -26,13 +28,13 @@ import numpy as np
 
 from valve_gym.diagnosis import diagnose
 from valve_gym.diagnosis.model import process_pool
-from valve_gym.diagnosis.stiction.loops import LoopSpec, _tuning, simulate_loop
+from valve_gym.diagnosis.stiction.loops import TANK_SHAPES, LoopSpec, _tuning, simulate_loop
 
 EFFECTS = ("none", "slip_jump", "leak")
 
 
-def make_spec(effect: str, seed: int) -> LoopSpec:
-    """A random tank loop with ``effect`` concealed in it."""
+def make_spec(effect: str, seed: int, vary: bool = True) -> LoopSpec:
+    """A random tank loop with ``effect`` concealed in it (``vary``: random sample time and tank shape)."""
     rng = np.random.default_rng(70_000 + seed)
     p = {"Ts": 1.0, "theta": 0.0, "tau_v": float(rng.uniform(0.05, 0.4)),
          "K": 1.0, "tau": 50.0, "k_i": 0.01, "area": float(rng.uniform(0.15, 0.4)),
@@ -46,39 +48,48 @@ def make_spec(effect: str, seed: int) -> LoopSpec:
     elif effect == "leak":
         leak = float(rng.uniform(0.10, 0.25) * 0.5 * p["q_max"])
     y0 = (max(p["q_max"] * 0.5 - leak, 1e-9) / p["c_out"]) ** 2
-    return LoopSpec(process="tank", valve=valve, S=S, J=J, Kc=Kc, Ti=Ti, n=1800, leak=leak,
-                    noise=float(rng.uniform(0.001, 0.004) * y0),
-                    noise_pole=float(rng.choice([0.0, rng.uniform(0.5, 0.9)])),
-                    load=float(rng.uniform(0.0, 0.005)), sp_moves=float(0.25 * y0), **p)
+    noise = float(rng.uniform(0.001, 0.004) * y0)
+    noise_pole = float(rng.choice([0.0, rng.uniform(0.5, 0.9)]))
+    load = float(rng.uniform(0.0, 0.005))
+    if vary:         # drawn after the rest, so a case keeps its other values with or without --fixed-plant
+        p["Ts"] = float(rng.choice([0.5, 1.0, 2.0]))
+        shape = str(rng.choice(TANK_SHAPES))
+    else:
+        shape = "cylinder"
+    return LoopSpec(process="tank", valve=valve, S=S, J=J, Kc=Kc, Ti=Ti, n=1800, leak=leak, noise=noise,
+                    noise_pole=noise_pole, load=load, sp_moves=float(0.25 * y0), shape=shape, **p)
 
 
 def run_case(args):
     """Diagnose one case; returns (effect, seed, effects named, seconds, stiction present, probability)."""
-    effect, seed = args
-    rec = simulate_loop(make_spec(effect, seed), seed=seed, name=f"{effect}_{seed}")
+    effect, seed, vary = args
+    spec = make_spec(effect, seed, vary)
+    rec = simulate_loop(spec, seed=seed, name=f"{effect}_{seed}")
     t0 = time.perf_counter()
     res = diagnose(rec, plant="tank", actuator="valve", jobs=1)
     s = res.stiction
     return (effect, seed, list(res.effects), time.perf_counter() - t0, bool(s["present"]),
-            float(s.get("probability", float("nan"))))
+            float(s.get("probability", float("nan"))), f"{spec.shape}, Ts {spec.Ts:g} s")
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n")[0])
     ap.add_argument("--per-effect", type=int, default=6)
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--fixed-plant", action="store_true",
+                    help="every loop a cylindrical tank sampled at 1 s (the set of earlier releases)")
     a = ap.parse_args(argv)
     if a.per_effect < 1:
         raise SystemExit("--per-effect must be at least 1")
-    tasks = [(e, i) for i, e in enumerate(EFFECTS * a.per_effect)]
+    tasks = [(e, i, not a.fixed_plant) for i, e in enumerate(EFFECTS * a.per_effect)]
     t0 = time.perf_counter()
     with process_pool(a.jobs) as ex:
         out = []
         for r in ex.map(run_case, tasks):
             out.append(r)
-            print(f"[{len(out)}/{len(tasks)}] {r[0]}_{r[1]}: named {r[2] or 'none'} ({r[3]:.0f} s)",
+            print(f"[{len(out)}/{len(tasks)}] {r[0]}_{r[1]} ({r[6]}): named {r[2] or 'none'} ({r[3]:.0f} s)",
                   file=sys.stderr, flush=True)
-    print("| concealed | cases | named right | what was named | stiction verdict (model-based) | "
+    print("| concealed | cases | named right | what was named | `stiction.present` | "
           "combined probability |\n|---|---|---|---|---|---|")
     right = 0
     for e in EFFECTS:
@@ -90,7 +101,8 @@ def main(argv=None):
         probs = ", ".join(f"{r[5]:.2f}" for r in rows)
         print(f"| {e} | {len(rows)} | {sum(ok)} | {named} | {pres} of {len(rows)} | {probs} |")
     print(f"\n**{right} of {len(out)} named right** ({time.perf_counter() - t0:.0f} s, {a.jobs} workers). "
-          f"Command: `nice -n 10 python benchmarks/naming_other_sim.py --per-effect {a.per_effect}`.")
+          f"Command: `nice -n 10 python benchmarks/naming_other_sim.py --per-effect {a.per_effect}"
+          f"{' --fixed-plant' if a.fixed_plant else ''}`.")
     return 0
 
 
