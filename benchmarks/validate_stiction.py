@@ -64,7 +64,8 @@ from valve_gym.diagnosis.stiction import (
     model_free_evidence,
     oscillation,
 )
-from valve_gym.diagnosis.stiction.combine import combine_sizes, features, verdict_of
+from valve_gym.diagnosis.stiction.assess import combine_size_estimates
+from valve_gym.diagnosis.stiction.combine import features, verdict_of
 from valve_gym.diagnosis.stiction.hammerstein import hammerstein_evidence
 from valve_gym.diagnosis.stiction.loops import random_spec, simulate_loop
 
@@ -112,8 +113,12 @@ def _spec_key(spec: dict) -> str:
     return hashlib.sha1(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:12]
 
 
+#: Version of the cached slip-jump sizes (2: profile re-optimising the other parameters, widened).
+SIZE_VERSION = 2
+
+
 def _key(item) -> str:
-    return item["name"] + ":" + item.get("key", "")
+    return item["name"] + ":" + item.get("key", "") + f":sizes{SIZE_VERSION}"
 
 
 def _load(item):
@@ -171,9 +176,9 @@ def refresh(data, items):
         sizes = [SizeEstimate("hammerstein", *[nan if s[k] is None else float(s[k]) for k in SizeEstimate._fields[1:]])
                  for s in r["sizes"] if s["method"] == "hammerstein"]
         if ell.applicable:
-            sizes.append(SizeEstimate("ellipse", ell.details["S_app"], ell.details["S_lo"],
-                                      ell.details["S_hi"], nan, nan, nan))
-        size, agree = combine_sizes(sizes)
+            sizes.append(SizeEstimate("ellipse", ell.details["S_est"], ell.details["S_est_lo"],
+                                      ell.details["S_est_hi"], nan, nan, nan))
+        size, agree = combine_size_estimates(sizes)
         r["method_verdicts"] = {e.method: e.verdict for e in ev}
         r["method_verdicts"]["hammerstein"] = "stiction" if r["model_based_present"] else "no stiction"
         r.update({"S": size.S, "J": size.J, "S_interval": [size.S_lo, size.S_hi],

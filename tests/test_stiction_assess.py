@@ -1,9 +1,11 @@
 """The combined stiction assessment inside the diagnosis, and the S/J estimates with intervals."""
+import numpy as np
 import pytest
 
 from valve_gym.diagnosis import diagnose
 from valve_gym.diagnosis.diagnose import coarse_factor
 from valve_gym.diagnosis.stiction import assess_stiction, default_model
+from valve_gym.diagnosis.stiction.hammerstein import SizeEstimate, _profile, profile_interval, widen
 from valve_gym.diagnosis.stiction.loops import LoopSpec, simulate_loop
 
 STICKY = LoopSpec(process="integrating", valve="kano", S=0.05, J=0.02, k_i=0.02, Kc=4.0, Ti=60.0, Ts=1.0,
@@ -55,3 +57,69 @@ def test_default_model_is_fitted_and_coarse_factor():
     with pytest.raises(ValueError, match="coarse"):
         diagnose(simulate_loop(STICKY, seed=3), plant="integrating", candidates=(), coarse=0)
 
+
+
+@pytest.fixture(scope="module")
+def slip_fit():
+    """The slip-jump fit the diagnosis sizes the sticky loop with (caught on its way to the profile)."""
+    import valve_gym.diagnosis.stiction.assess as assess
+
+    rec = simulate_loop(STICKY, seed=3)
+    seen = {}
+    orig = assess.slip_jump_profile
+
+    def spy(fit, u, y, **kw):
+        seen["fit"] = fit
+        return orig(fit, u, y, **kw)
+
+    mp = pytest.MonkeyPatch()
+    mp.setattr(assess, "slip_jump_profile", spy)
+    try:
+        diagnose(rec, plant="integrating", candidates=(), effort="fast")
+    finally:
+        mp.undo()
+    assert seen.get("fit") is not None
+    return seen["fit"], rec
+
+
+def test_profile_reoptimises_the_other_parameters(slip_fit):
+    fit, rec = slip_fit
+    st = fit.structure
+    pr = _profile(fit, rec.op, rec.pv, 9, 5)
+    i_s = st.index("S")
+    W = np.repeat(fit.w[None, :], len(pr.s), axis=0)          # the other parameters fixed at the optimum
+    W[:, i_s] = st.params[i_s].coord(pr.s)
+    Y = st.simulate(W, np.asarray(rec.op))[: fit.n_fit]
+    fixed = np.sum((Y - np.asarray(rec.pv)[: fit.n_fit, None]) ** 2, axis=0)
+    assert np.all(pr.sse <= fixed * (1 + 1e-9))                 # re-optimising never does worse
+    assert np.any(pr.sse < 0.9 * fixed)                         # and away from the optimum it does better
+    est, s_err = profile_interval(fit, rec.op, rec.pv, 9, 5)
+    assert est.S_lo <= est.S <= est.S_hi and est.J_lo <= est.J <= est.J_hi and s_err >= 0.0
+
+
+def test_widen_adds_window_error_and_discrepancy():
+    e = SizeEstimate("hammerstein", 0.05, 0.04, 0.06, 0.02, 0.01, 0.03)
+    assert widen(e, 0.0, 0.0, 0.0) == e
+    w = widen(e, 0.01 / 1.645, 0.0, 0.0)                        # 90 % half-width 0.01 in quadrature
+    assert w.S_lo == pytest.approx(0.05 - np.hypot(0.01, 0.01)) and w.S_hi == pytest.approx(0.05 + np.hypot(0.01, 0.01))
+    w = widen(e, 0.0, np.log(2.0), np.log(3.0))
+    assert (w.S_lo, w.S_hi, w.J_lo, w.J_hi) == pytest.approx((0.02, 0.12, 0.01 / 3, 0.09))
+    assert widen(e, 1.0, 0.0, 0.0).S_lo == 0.0                  # never below zero
+
+
+def test_two_size_methods_combine_on_the_log_scale_with_the_union_interval():
+    from valve_gym.diagnosis.stiction.assess import combine_size_estimates
+
+    nan = float("nan")
+    ham = SizeEstimate("hammerstein", 0.04, 0.02, 0.08, 0.01, 0.005, 0.02)      # log half-width ln 2
+    ell = SizeEstimate("ellipse", 0.06, 0.03, 0.12, nan, nan, nan)              # the same width: equal weights
+    s, agree = combine_size_estimates([ham, ell])
+    assert agree is True and s.method == "hammerstein+ellipse"
+    assert s.S == pytest.approx(np.sqrt(0.04 * 0.06)) and (s.S_lo, s.S_hi) == (0.02, 0.12)
+    assert (s.J, s.J_lo, s.J_hi) == (0.01, 0.005, 0.02)                        # J: the slip-jump block's
+    narrow = ell._replace(S_lo=0.055, S_hi=0.0655)                              # a tighter ellipse weighs more
+    assert combine_size_estimates([ham, narrow])[0].S > 0.055
+    far = ell._replace(S=0.3, S_lo=0.2, S_hi=0.4)
+    s, agree = combine_size_estimates([ham, far])
+    assert agree is False and (s.S_lo, s.S_hi) == (0.02, 0.4)                  # disagreeing: the union, flagged
+    assert combine_size_estimates([ham]) == (ham, None)

@@ -4,7 +4,7 @@ import pytest
 
 from valve_gym.diagnosis.stiction import oscillation
 from valve_gym.diagnosis.stiction.bicoherence import bicoherence, bicoherence_evidence
-from valve_gym.diagnosis.stiction.ellipse import apparent_stiction, ellipse_evidence, fit_ellipse
+from valve_gym.diagnosis.stiction.ellipse import apparent_stiction, ellipse_evidence, ellipse_size, fit_ellipse
 from valve_gym.diagnosis.stiction.episodes import episodes_evidence
 from valve_gym.diagnosis.stiction.horch import horch_evidence
 from valve_gym.diagnosis.stiction.waveform import stiction_shape_index, waveform_evidence
@@ -36,6 +36,15 @@ def test_ellipse_recovers_phase_chord():
     assert ev.applicable and ev.value == pytest.approx(np.sin(phi), abs=0.05)
     assert ev.details["S_lo"] <= ev.details["S_app"] <= ev.details["S_hi"]
     assert fit_ellipse(np.arange(10.0), 2 * np.arange(10.0)) is None      # a line is no ellipse
+    d = ev.details
+    assert (d["S_est"], d["S_est_lo"], d["S_est_hi"]) == pytest.approx(ellipse_size(d["S_app"], d["S_lo"], d["S_hi"]))
+    assert d["S_est_lo"] <= d["S_est"] <= d["S_est_hi"]
+
+
+def test_ellipse_size_scales_and_widens_on_the_log_scale():
+    assert ellipse_size(0.02, 0.015, 0.025, scale=1.0, discrepancy=0.0) == pytest.approx((0.02, 0.015, 0.025))
+    s, lo, hi = ellipse_size(0.02, 0.015, 0.025, scale=2.0, discrepancy=np.log(1.5))
+    assert (s, lo, hi) == pytest.approx((0.04, 0.03 / 1.5, 0.05 * 1.5))
 
 
 def test_waveform_triangle_vs_sine():

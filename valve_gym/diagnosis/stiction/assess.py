@@ -4,7 +4,8 @@
 model-based evidence of a friction fit when one is given (the diagnosis
 passes its friction verdict and slip-jump fit), combines them with the
 fitted logistic model of :mod:`.combine` and estimates S and J with the two
-size methods (ellipse, fitted slip-jump block).
+size methods (ellipse, fitted slip-jump block), combined by
+:func:`combine_size_estimates`.
 """
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ from .hammerstein import NAN_SIZE, SizeEstimate, hammerstein_evidence, slip_jump
 from .horch import horch_evidence
 from .waveform import waveform_evidence
 
-__all__ = ["assess_stiction", "default_model", "model_free_evidence"]
+__all__ = ["assess_stiction", "combine_size_estimates", "default_model", "model_free_evidence"]
 
 
 def default_model() -> LogisticModel:
@@ -45,7 +46,30 @@ def _ellipse_size(ev) -> SizeEstimate:
         return NAN_SIZE
     d = e.details
     nan = float("nan")
-    return SizeEstimate("ellipse", d["S_app"], d["S_lo"], d["S_hi"], nan, nan, nan)
+    return SizeEstimate("ellipse", d["S_est"], d["S_est_lo"], d["S_est_hi"], nan, nan, nan)
+
+
+def _log_half_width(s: SizeEstimate) -> float:
+    return float(np.log(max(s.S_hi, 1e-12) / max(s.S_lo, 1e-12))) / 2.0
+
+
+def combine_size_estimates(sizes) -> tuple[SizeEstimate, bool | None]:
+    """One S, J estimate from the size methods, and whether their S intervals overlap.
+
+    With two estimates of S (fitted slip-jump block first, ellipse second), each
+    with a calibrated 90 % interval, ``S`` is their precision-weighted mean on the
+    log scale (weights ``1 / w^2``, ``w`` half the log-width of each interval) and
+    the interval is the union (hull) of the two: it holds the truth at least as
+    often as either.  ``sizes_agree`` is True when the intervals overlap (:func:`.combine.combine_sizes`).
+    ``J`` and its interval are the slip-jump block's.  One method: its own estimate.
+    """
+    main, agree = combine_sizes(sizes)
+    ok = [s for s in sizes if np.isfinite(s.S)]
+    if len(ok) < 2 or any(s.S <= 0 for s in ok):
+        return main, agree
+    w = np.array([1.0 / max(_log_half_width(s), 1e-6) ** 2 for s in ok])
+    s_hat = float(np.exp(np.sum(w * np.log([s.S for s in ok])) / np.sum(w)))
+    return main._replace(S=s_hat, S_lo=min(s.S_lo for s in ok), S_hi=max(s.S_hi for s in ok)), agree
 
 
 def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None,
@@ -79,7 +103,7 @@ def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None
     p = float(model.probability(x)[0])
     z = x / np.asarray(model.scale) * np.asarray(model.coef)     # pull away from a silent method (0)
     sizes = [s for s in (slip, _ellipse_size(ev)) if np.isfinite(s.S)]
-    size, agree = combine_sizes(sizes)
+    size, agree = combine_size_estimates(sizes)
     return StictionAssessment(p, verdict_of(p), size.S, size.J, (size.S_lo, size.S_hi),
                               (size.J_lo, size.J_hi), agree, sizes, ev,
                               dict(zip(FEATURES, map(float, x))),

@@ -17,7 +17,16 @@ in the OP's units (fraction of stroke for a normalised recording).  The chord
 along the OP axis does not change when the PV axis is scaled, so the PV is
 standardised before the fit.  The 90 % interval comes from the spread of the
 same estimate over windows of two periods (5 % and 95 % quantiles, widened to
-at least +-25 % of the estimate when fewer than 6 windows exist).  The index
+at least +-25 % of the estimate when fewer than 6 windows exist).
+
+The apparent stiction of the filtered plot is not ``S``: band-pass filtering
+keeps the fundamental of a triangular or square OP, and the chord of an
+ellipse through a loop with sharp corners is shorter than the loop's width.
+:func:`ellipse_size` turns it into an estimate of ``S`` with a scale
+:data:`ELLIPSE_SCALE` and a model discrepancy :data:`DISCREPANCY_ELLIPSE`
+(log-scale widening of the window interval), both chosen on the textbook
+loops of :mod:`.loops` (``benchmarks/sizes_on_benchmark_loops.py
+--calibrate``) and checked on the benchmark's loops (other friction models).  The index
 ``value`` is ``S_app`` divided by the filtered OP's peak-to-peak range:
 ``|sin(phi)|`` for a phase lag ``phi`` between OP and PV, near 1 for the
 quarter-period lag of stiction in self-regulating loops, near 0 for
@@ -41,11 +50,29 @@ import numpy as np
 
 from ._base import Evidence, bandpass, check_signals, not_applicable, oscillation, reliability
 
-__all__ = ["EllipseFit", "fit_ellipse", "apparent_stiction", "ellipse_evidence"]
+__all__ = ["EllipseFit", "fit_ellipse", "apparent_stiction", "ellipse_evidence", "ellipse_size"]
 
 CITE = "Choudhury, Shah, Thornhill & Shook 2006, Control Engineering Practice 14, 1395-1412"
 DOC = ("apparent stiction / filtered OP peak-to-peak (= |sin phi| of the OP-PV phase lag); near 1 "
        "quarter-period lag (stiction in self-regulating loops), near 0 counter-phase")
+
+
+#: S over the apparent stiction of the filtered PV-OP plot (median on the textbook loops of :mod:`.loops`).
+ELLIPSE_SCALE = 2.21
+#: Log-scale widening of the scaled window interval (loop-to-loop spread of the ratio S / apparent stiction).
+DISCREPANCY_ELLIPSE = 0.9
+
+
+def ellipse_size(s_app: float, lo: float, hi: float, scale: float | None = None,
+                 discrepancy: float | None = None) -> tuple[float, float, float]:
+    """Estimate of ``S`` (with a 90 % interval) from the apparent stiction and its window interval.
+
+    ``(scale s_app, scale lo exp(-c), scale hi exp(c))`` with ``scale``
+    :data:`ELLIPSE_SCALE` and ``c`` :data:`DISCREPANCY_ELLIPSE` unless given.
+    """
+    k = ELLIPSE_SCALE if scale is None else float(scale)
+    g = float(np.exp(DISCREPANCY_ELLIPSE if discrepancy is None else discrepancy))
+    return k * s_app, k * lo / g, k * hi * g
 
 
 class EllipseFit(NamedTuple):
@@ -143,7 +170,9 @@ def ellipse_evidence(op, pv, dt: float = 1.0) -> Evidence:
     Returns
     -------
     Evidence, ``value`` the phase index (see module notes); ``details``:
-    ``S_app`` (OP units), ``S_lo``, ``S_hi`` (90 % interval), ``n_windows``, ``period_samples``
+    ``S_app`` (OP units), ``S_lo``, ``S_hi`` (its 90 % window interval), ``S_est``,
+    ``S_est_lo``, ``S_est_hi`` (the estimate of ``S`` with its 90 % interval,
+    :func:`ellipse_size`), ``n_windows``, ``period_samples``
     """
     op, pv = check_signals(op, pv, dt)
     osc = oscillation(pv)
@@ -168,9 +197,11 @@ def ellipse_evidence(op, pv, dt: float = 1.0) -> Evidence:
     if len(wins) < 6:
         lo, hi = min(lo, 0.75 * s), max(hi, 1.25 * s)
     lo, hi = min(lo, s), max(hi, s)
+    est = ellipse_size(s, lo, hi)
     verdict = "stiction" if idx > 2 / 3 else ("no stiction" if idx < 1 / 3 else "undetermined")
     return Evidence("ellipse", CITE, True, idx, reliability(osc), verdict,
                     f"apparent stiction {100 * s:.2g} % of the OP range over a filtered OP swing of "
                     f"{100 * amp:.2g} %", DOC,
-                    {"S_app": s, "S_lo": lo, "S_hi": hi, "n_windows": float(len(wins)),
+                    {"S_app": s, "S_lo": lo, "S_hi": hi, "S_est": est[0], "S_est_lo": est[1],
+                     "S_est_hi": est[2], "n_windows": float(len(wins)),
                      "period_samples": osc.period, "op_pp_filtered": amp})
