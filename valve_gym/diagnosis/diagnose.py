@@ -509,15 +509,18 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
         --old``), too little evidence and too little gain to make it the default.
     search : {'full', 'fast'}
         ``'full'`` (default): every evolution starts from a Latin hypercube
-        plus its seeds and spends its whole budget.  ``'fast'`` (opt-in): every
-        warm-started fit whose friction coordinates are known (candidates, the
-        whole-record refits, the friction verdict) draws half of its first
-        population around the warm start and its evolution ends after
-        ``max(20, generations / 4)`` generations without a gain
-        (:func:`~valve_gym.diagnosis.fit.fit_structure`, ``early_stop``):
-        about 2.5x less CPU, but it names fewer effects (a leak whose benefit
-        needs several parameters to move together is stopped before it is
-        found; ``docs/diagnosis.md``).
+        plus its seeds and spends its whole budget.  ``'fast'`` (opt-in): the
+        confirmation fits, the whole-record refits and the friction verdict
+        draw half of their first population around the warm start and end
+        after ``max(20, generations / 4)`` generations without a gain
+        (:func:`~valve_gym.diagnosis.fit.fit_structure`, ``early_stop``); the
+        screening fits and every fit of a friction law the warm start does not
+        know keep the whole search.  On four 3600-sample records it used 1.9x
+        less CPU than the version before the BLAS change (``'full'``: 1.5x;
+        ``benchmarks/bench_diagnosis.py --before e8f7925 [--search fast]``) and
+        named the same effects, but its final fits were up to 18 % worse in
+        RMSE and it adds a second, spurious effect more often
+        (``benchmarks/concealed_suite.py --search fast``).
     progress : callable(str), optional
 
     Returns

@@ -259,9 +259,10 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
             meta = [(e, v) for e in pool for v in candidate_variants(e, st.actuator)]
             if progress:
                 progress(f"round {rnd}: screening {', '.join(pool)}")
-            # 1) screening: every candidate with a small budget
+            # 1) screening: every candidate with a small budget, always the whole search (stopped
+            #    early, a leak whose gain needs several coordinates to move together is missed)
             tasks = [(current, e, v, u, y, n_fit, seed + 7919 * rnd + i, screen_effort, period,
-                      None, coarse, fast) for i, (e, v) in enumerate(meta)]
+                      None, coarse, False) for i, (e, v) in enumerate(meta)]
             screened = _run(tasks, jobs, ex)
             scores = [compare(current, r, rule, n_eff)[0] for r in screened]
             # 2) confirmation: the most promising with the full budget
