@@ -226,8 +226,9 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
         whose screening fit lowered the criterion most)
     coarse : int, decimation of the coarse-to-fine search of every fit
         (:func:`~valve_gym.diagnosis.fit.fit_structure`; 1 = off)
-    fast : bool, every fit starts from a cloud around its warm start and stops
-        early (:func:`~valve_gym.diagnosis.fit.fit_structure`, ``early_stop``)
+    fast : bool, the confirmation fits start from a cloud around their warm start
+        and stop early (:func:`~valve_gym.diagnosis.fit.fit_structure`,
+        ``early_stop``); the screening fits always search in full
     progress : callable(str), optional, told about each round
 
     Returns
