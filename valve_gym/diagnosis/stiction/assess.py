@@ -72,6 +72,14 @@ def combine_size_estimates(sizes) -> tuple[SizeEstimate, bool | None]:
     return main._replace(S=s_hat, S_lo=min(s.S_lo for s in ok), S_hi=max(s.S_hi for s in ok)), agree
 
 
+def _fitted_band(fit: FitResult | None) -> float:
+    """Stick band ``S`` of a fitted slip-jump model (NaN without one)."""
+    if fit is None or "slip_jump" not in fit.structure.effects:
+        return float("nan")
+    i = fit.structure.index("S")
+    return float(fit.structure.params[i].value(fit.w[i]))
+
+
 def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None,
                     verdict: Mapping | None = None, slip_fit: FitResult | None = None,
                     model: LogisticModel | None = None) -> StictionAssessment:
@@ -97,7 +105,9 @@ def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None
     ev = model_free_evidence(op, pv, dt, plant, sp)
     slip = slip_jump_profile(slip_fit, op, pv) if slip_fit is not None else NAN_SIZE
     if verdict is not None:
-        ev.append(hammerstein_evidence(verdict, slip.S))
+        # the band feature reads the slip-jump fit's own S (what the combination was fitted and
+        # validated on), not the profile's re-optimised estimate
+        ev.append(hammerstein_evidence(verdict, _fitted_band(slip_fit)))
     model = model or default_model()
     x = features(ev, plant)
     p = float(model.probability(x)[0])
