@@ -314,6 +314,8 @@ def test_serial_blas_is_restored():
     from valve_gym.diagnosis.fit import _blas_libs, _SerialBlas
 
     libs = _blas_libs()
+    if not libs:
+        pytest.skip("numpy and scipy use a BLAS other than their own OpenBLAS here")
     before = [fn(2) for fn in libs]                        # set 2, remember what it was
     with _SerialBlas():
         assert [fn(1) for fn in libs] == [1] * len(libs)
