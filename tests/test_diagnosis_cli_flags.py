@@ -55,7 +55,7 @@ def run_json(rec_dir, tmp_path, capsys, *flags, path=None):
 # --------------------------------------------------------------------------
 
 CASES = {"-h", "--help", "--columns", "--op-range", "--plant", "--actuator", "--validate", "--holdout", "--json",
-         "--report", "--effects", "--jobs", "--effort", "--seed", "--quiet", "--out", "--address", "--full",
+         "--report", "--effects", "--jobs", "--effort", "--search", "--seed", "--quiet", "--out", "--address", "--full",
          "--max-loops", "--top"}
 
 
@@ -185,6 +185,15 @@ def test_effort(rec_dir, tmp_path, capsys):
     assert d["settings"]["effort"] == "normal"
     code, _, err = run([rec_dir / "loop.csv", "--effort", "max"], capsys)
     assert code == 2 and "invalid choice" in err
+
+
+def test_search(rec_dir, tmp_path, capsys):
+    d, _, _ = run_json(rec_dir, tmp_path, capsys, "--search", "fast")
+    assert d["settings"]["search"] == "fast"
+    code, _, err = run([rec_dir / "loop.csv", "--search", "quick"], capsys)
+    assert code == 2 and "invalid choice" in err
+    code, _, err = run([rec_dir, "--out", tmp_path / "fleet", "--search", "fast"], capsys)
+    assert code == 2 and "single recording" in err
 
 
 def test_seed(rec_dir, tmp_path, capsys):
