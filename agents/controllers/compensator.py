@@ -29,8 +29,8 @@ import numpy as np
 from .block import FunctionBlock, Setting, fmt
 from .pi import PI_SETTINGS, PIBlock, resolve_pi
 
-__all__ = ["Compensator", "S_SETTING", "NOISE_SETTING", "integral_direction", "default_hysteresis", "as_setting",
-           "check_slip"]
+__all__ = ["Compensator", "S_SETTING", "NOISE_SETTING", "J_SETTING", "HYST_SETTING", "integral_direction",
+           "default_hysteresis", "as_setting", "check_slip", "slip_and_hysteresis"]
 
 #: The stiction estimate every compensator takes.
 S_SETTING = Setting("S", "-", 0.02, 0.0, 0.5,
@@ -39,6 +39,13 @@ S_SETTING = Setting("S", "-", 0.02, 0.0, 0.5,
 #: Measurement noise on the level, for noise-robust rules.
 NOISE_SETTING = Setting("noise", "m", 0.002, 0.0, 1.0, "standard deviation of the level measurement noise",
                         per_loop=True)
+#: The slip-jump estimate of the compensators that move the valve by it (default S/2, see
+#: :func:`slip_and_hysteresis`).
+J_SETTING = Setting("J", "-", None, 0.0, 0.5, "slip-jump estimate, fraction of stroke (<= S); default S/2",
+                    per_loop=True)
+#: Hysteresis on the PI's integral part that noise does not cross (default :func:`default_hysteresis`).
+HYST_SETTING = Setting("hyst", "-", None, 0.0, 1.0, "hysteresis on the integral part; default 3 Kc noise sqrt(Ts/Ti)",
+                       per_loop=True)
 
 
 def as_setting(x) -> float | np.ndarray:
@@ -51,6 +58,18 @@ def check_slip(block: str, s: dict) -> None:
     if np.any(np.asarray(s["J"]) > np.asarray(s["S"])):
         raise ValueError(f"{block}: settings need J <= S (slip no larger than the band), "
                          f"got S = {fmt(s['S'])}, J = {fmt(s['J'])}")
+
+
+def slip_and_hysteresis(block: str, pi, s: dict) -> dict:
+    """Fill the defaults of :data:`J_SETTING` (``S/2``) and :data:`HYST_SETTING` in settings ``s``.
+
+    Checks ``J <= S`` (:func:`check_slip`); ``pi`` is the block's PI (its ``Kc``, ``Ti``).
+    """
+    s["J"] = s["S"] / 2.0 if s["J"] is None else s["J"]
+    check_slip(block, s)
+    if s["hyst"] is None:
+        s["hyst"] = default_hysteresis(pi.Kc, pi.Ti, s["scan_s"], s["noise"])
+    return s
 
 
 def default_hysteresis(Kc, Ti, scan_s: float, noise) -> float | np.ndarray:

@@ -52,13 +52,14 @@ import numpy as np
 
 from .block import Setting
 from .compensator import (
+    HYST_SETTING,
+    J_SETTING,
     NOISE_SETTING,
     S_SETTING,
     Compensator,
     as_setting,
-    check_slip,
-    default_hysteresis,
     integral_direction,
+    slip_and_hysteresis,
 )
 from .pi import PIBlockState
 
@@ -105,19 +106,14 @@ class ConstantReinforcement(Compensator):
     OWN_SETTINGS = (
         S_SETTING,
         NOISE_SETTING,
-        Setting("J", "-", None, 0.0, 0.5, "slip-jump estimate, fraction of stroke (<= S); default S/2",
-                per_loop=True),
+        J_SETTING,
         Setting("a", "-", None, 0.0, 1.0, "reinforcement, fraction of stroke; default (S - J)/2", per_loop=True),
-        Setting("hyst", "-", None, 0.0, 1.0, "hysteresis on the integral part; default 3 Kc noise sqrt(Ts/Ti)",
-                per_loop=True),
+        HYST_SETTING,
     )
 
     def _rules(self, s: dict) -> dict:
-        s["J"] = s["S"] / 2.0 if s["J"] is None else s["J"]
-        check_slip(self.name, s)
+        s = slip_and_hysteresis(self.name, self.pi, s)
         s["a"] = as_setting((s["S"] - s["J"]) / 2.0) if s["a"] is None else s["a"]
-        if s["hyst"] is None:
-            s["hyst"] = default_hysteresis(self.pi.Kc, self.pi.Ti, s["scan_s"], s["noise"])
         return s
 
     def initial_state(self, sp, pv, op) -> CRState:

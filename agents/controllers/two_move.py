@@ -74,13 +74,14 @@ import numpy as np
 
 from .block import Setting
 from .compensator import (
+    HYST_SETTING,
+    J_SETTING,
     NOISE_SETTING,
     S_SETTING,
     Compensator,
     as_setting,
-    check_slip,
-    default_hysteresis,
     integral_direction,
+    slip_and_hysteresis,
 )
 from .pi import PIBlockState, PIScan
 
@@ -202,19 +203,14 @@ class TwoMove(Compensator):
     OWN_SETTINGS = (
         S_SETTING,
         NOISE_SETTING,
-        Setting("J", "-", None, 0.0, 0.5, "slip-jump estimate, fraction of stroke (<= S); default S/2",
-                per_loop=True),
-        Setting("hyst", "-", None, 0.0, 1.0, "hysteresis on the integral part; default 3 Kc noise sqrt(Ts/Ti)",
-                per_loop=True),
+        J_SETTING,
+        HYST_SETTING,
         Setting("release", "m", None, 0.0, 10.0, "error that ends the hold; default max(S/(2 Kc), 4 noise)",
                 lo_open=True, per_loop=True),
     )
 
     def _rules(self, s: dict) -> dict:
-        s["J"] = s["S"] / 2.0 if s["J"] is None else s["J"]
-        check_slip(self.name, s)
-        if s["hyst"] is None:
-            s["hyst"] = default_hysteresis(self.pi.Kc, self.pi.Ti, s["scan_s"], s["noise"])
+        s = slip_and_hysteresis(self.name, self.pi, s)
         if s["release"] is None:
             s["release"] = as_setting(np.maximum(s["S"] / (2.0 * self.pi.Kc), 4.0 * s["noise"]))
             if np.any(np.asarray(s["release"]) <= 0):
