@@ -22,7 +22,6 @@ import pathlib
 import subprocess
 import sys
 import tempfile
-import time
 from typing import Any
 
 import gymnasium as gym
@@ -34,6 +33,7 @@ from valve_gym.envs import ValveTankEnv, ValveTankVectorEnv
 ROOT = pathlib.Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "benchmarks"))
 from bench_env_speed import single_runner  # noqa: E402  (the same timed loop over gymnasium.make)
+from bench_kernel import timed as best  # noqa: E402  (best thread CPU time, repeats interleaved)
 
 
 def load_old(ref: str):
@@ -58,18 +58,6 @@ def load_old(ref: str):
         spec.loader.exec_module(mod)
         mods[name] = mod
     return mods["valve_tank"], mods["vector"]
-
-
-def best(fns, repeats, clock=time.thread_time):
-    for fn in fns.values():
-        fn()
-    b = {k: float("inf") for k in fns}
-    for _ in range(repeats):
-        for k, fn in fns.items():
-            t0 = clock()
-            fn()
-            b[k] = min(b[k], clock() - t0)
-    return b
 
 
 def vector_runner(env, n_steps):
