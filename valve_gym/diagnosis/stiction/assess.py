@@ -74,10 +74,7 @@ def combine_size_estimates(sizes) -> tuple[SizeEstimate, bool | None]:
 
 def _fitted_band(fit: FitResult | None) -> float:
     """Stick band ``S`` of a fitted slip-jump model (NaN without one)."""
-    if fit is None or "slip_jump" not in fit.structure.effects:
-        return float("nan")
-    i = fit.structure.index("S")
-    return float(fit.structure.params[i].value(fit.w[i]))
+    return float("nan") if fit is None else float(fit.physical.get("slip_jump.S", float("nan")))
 
 
 def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None,
