@@ -29,6 +29,8 @@ from typing import NamedTuple, Union
 
 import numpy as np
 
+from .signals import acf_zero_crossings
+
 __all__ = [
     "iae", "ise", "error_std",
     "LimitCycle", "limit_cycle",
@@ -1017,14 +1019,6 @@ def _acf(x: np.ndarray, max_lag: int) -> np.ndarray:
     return c / c[0]
 
 
-def _acf_zero_crossings(r: np.ndarray, n_max: int) -> np.ndarray:
-    """Interpolated lags (samples) of the first ``n_max`` sign changes of ``r``."""
-    s = np.signbit(r)
-    k = np.flatnonzero(s[1:] != s[:-1])[:n_max]
-    r0, r1 = r[k], r[k + 1]
-    return k + r0 / (r0 - r1)
-
-
 def _decay_ratio(r: np.ndarray, z: np.ndarray) -> float:
     """Miao & Seborg's decay ratio ``a / b`` of the ACF lobes between the crossings ``z[0..3]``.
 
@@ -1179,7 +1173,7 @@ def acf_oscillation(e: ArrayLike, dt: float, *, max_lag_frac: float = 0.5, min_i
     if _is_flat(x) or _is_flat(y, float(np.max(np.abs(x)))):
         return none
     r = _acf(y, max(4, int(frac * (x.size - 1))))
-    z = _acf_zero_crossings(r, int(n_intervals) + 1)
+    z = acf_zero_crossings(r, int(n_intervals) + 1)
     if z.size < int(min_intervals) + 1:
         return none._replace(n_crossings=int(z.size))
     tp = 2.0 * np.diff(z)

@@ -1,13 +1,15 @@
 """Small signal helpers shared by the diagnosis, its stiction evidence and the fleet screen.
 
-One implementation each, so the mismatch locator, the stiction methods and the fleet's
-oscillation screen read the same autocorrelation of the same detrended signal.
+One implementation each, so the mismatch locator, the stiction methods, the fleet's
+oscillation screen and the benchmark's limit-cycle detector read the same autocorrelation of the
+same detrended signal and the same zero crossings (Thornhill's regularity is computed from them by
+each detector with its own published rule).
 """
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["acf", "detrend"]
+__all__ = ["acf", "acf_zero_crossings", "detrend"]
 
 
 def detrend(x) -> np.ndarray:
@@ -39,3 +41,24 @@ def acf(x, max_lag: int) -> np.ndarray:
     f = np.fft.rfft(x, 2 * n)
     a = np.fft.irfft(f * np.conj(f))[: max_lag + 1]
     return a / a[0] if a[0] > 0 else np.zeros(max_lag + 1)
+
+
+def acf_zero_crossings(r, n_max: int | None = None) -> np.ndarray:
+    """Interpolated lags (samples) of the first ``n_max`` sign changes of an autocorrelation ``r``.
+
+    A sign change is between lags ``k`` and ``k + 1`` where the sign bit differs; the lag is
+    interpolated linearly, ``k + r_k / (r_k - r_{k+1})``.  All of them when ``n_max`` is None.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> acf_zero_crossings(np.array([1.0, 0.5, -0.5, -1.0, 1.0]))
+    array([1.5, 3.5])
+    """
+    r = np.asarray(r, float)
+    s = np.signbit(r)
+    k = np.flatnonzero(s[1:] != s[:-1])
+    if n_max is not None:
+        k = k[:n_max]
+    r0, r1 = r[k], r[k + 1]
+    return k + r0 / (r0 - r1)

@@ -47,7 +47,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..diagnosis.recording import Recording
-from ..signals import detrend
+from ..signals import acf_zero_crossings, detrend
 
 __all__ = ["Oscillation", "HorchEvidence", "Screen", "oscillation_index", "screen_recording",
            "R_MIN", "ACF_MIN"]
@@ -118,12 +118,6 @@ def _autocov(x: np.ndarray) -> np.ndarray:
     return np.fft.irfft(f * np.conj(f), 2 * n)[:n] / n
 
 
-def _crossings(acf: np.ndarray) -> np.ndarray:
-    s = np.sign(acf)
-    i = np.flatnonzero(s[1:] != s[:-1])[:_MAX_CROSSINGS]
-    return i + acf[i] / (acf[i] - acf[i + 1])
-
-
 def oscillation_index(e, dt: float = 1.0) -> Oscillation:
     """Thornhill's regularity of the ACF zero crossings of one signal.
 
@@ -142,7 +136,7 @@ def oscillation_index(e, dt: float = 1.0) -> Oscillation:
     if len(x) < 20 or c[0] <= 0:
         return Oscillation(False, nan, nan, 0.0, nan, "too short or constant")
     acf = c[: 2 * len(x) // 3] / c[0]
-    z = _crossings(acf)
+    z = acf_zero_crossings(acf, _MAX_CROSSINGS)
     if len(z) < 5:
         return Oscillation(False, nan, nan, 0.0, nan, "the ACF crosses zero fewer than 5 times: no regular "
                                                       "oscillation within two thirds of the record")

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...signals import acf, detrend
+from ...signals import acf, acf_zero_crossings, detrend
 
 __all__ = ["Evidence", "Oscillation", "oscillation", "bandpass", "check_signals", "not_applicable"]
 
@@ -118,13 +118,9 @@ def oscillation(x, min_period: float = 4.0) -> Oscillation:
     n = len(x)
     if np.std(x) <= 1e-12 * max(np.abs(x).max(), 1e-300):
         return Oscillation(False, float("nan"), 0.0, 0.0)
-    a = acf(x, n // 2)
-    s = np.sign(a)
-    idx = np.nonzero(s[1:] * s[:-1] < 0)[0]
-    if len(idx) < 3:
+    zc = acf_zero_crossings(acf(x, n // 2), 12)      # interpolated crossing lags
+    if len(zc) < 3:
         return Oscillation(False, float("nan"), 0.0, 0.0)
-    zc = idx + a[idx] / (a[idx] - a[idx + 1])          # interpolated crossing lags
-    zc = zc[:12]
     tp = 2.0 * np.diff(zc)
     period = float(np.mean(tp))
     r = period / (3.0 * max(float(np.std(tp)), 1.0))
