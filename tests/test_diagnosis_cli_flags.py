@@ -192,8 +192,6 @@ def test_search(rec_dir, tmp_path, capsys):
     assert d["settings"]["search"] == "fast"
     code, _, err = run([rec_dir / "loop.csv", "--search", "quick"], capsys)
     assert code == 2 and "invalid choice" in err
-    code, _, err = run([rec_dir, "--out", tmp_path / "fleet", "--search", "fast"], capsys)
-    assert code == 2 and "single recording" in err
 
 
 def test_seed(rec_dir, tmp_path, capsys):

@@ -1,6 +1,7 @@
 """Tests of the fleet mode (valve_gym.fleet): sources, screening, actions, and runs on Ray (one session)."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -193,6 +194,8 @@ def test_interrupted_and_resumed_equals_uninterrupted(ray_session, folder, tmp_p
     changed = run_fleet(folder, out, FleetSettings(op_range=(0.0, 100.0), effort="fast", candidates=(),
                                                    seed=1), stream=None, top=0, max_loops=1)
     assert changed.done == 1                                              # other settings: not reused
+    fast = run_fleet(folder, out, dataclasses.replace(SETTINGS, search="fast"), stream=None, top=0, max_loops=1)
+    assert fast.done == 1                                                 # the fast search: not reused either
 
 
 def test_bad_recording_is_a_failed_row(ray_session, folder, tmp_path):

@@ -30,6 +30,7 @@ class FleetSettings:
     candidates : tuple of str, candidate effects of the full diagnosis
     holdout : float, fraction held out of the selection fits
     effort : str, search budget of the full diagnosis
+    search : str, ``'full'`` or ``'fast'`` (the opt-in fast search of :func:`valve_gym.diagnosis.diagnose`)
     seed : int, seed of the full diagnosis
     full : bool, run the full diagnosis on every loop (default: only on oscillating loops)
     columns : tuple of (role, column) pairs, optional, for one-recording CSV files
@@ -43,6 +44,7 @@ class FleetSettings:
     candidates: tuple[str, ...] = ()
     holdout: float = 0.3
     effort: str = "auto"
+    search: str = "full"
     seed: int = 0
     full: bool = False
     columns: tuple[tuple[str, Any], ...] | None = None
@@ -54,6 +56,8 @@ class FleetSettings:
         """Canonical JSON of the settings that change a result."""
         d = dataclasses.asdict(self)
         d.pop("report_dir")
+        if d["search"] == "full":           # the default: keys of runs made before it existed stay valid
+            d.pop("search")
         d["version"] = RESULT_VERSION
         return json.dumps(d, sort_keys=True, default=list)
 
