@@ -20,11 +20,16 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 def test_builtin_effects_are_the_core_blocks_in_the_order_tried():
     assert CANDIDATE_EFFECTS == ("slip_jump", "valve_characteristic", "dead_time", "overflow", "leak",
-                                 "sensor_lag", "oscillating_disturbance")
+                                 "sensor_lag", "sensor_curve", "oscillating_disturbance")
+    measurement = {"sensor_curve"}                  # acts on the PV after the core, no core block
     assert set(EFFECTS) - set(CANDIDATE_EFFECTS) == {"cascade", "actuator"}   # plant structure, not effects
+    assert set(CANDIDATE_EFFECTS) - set(EFFECTS) == measurement
     for e in CANDIDATE_EFFECTS:
         spec = effect_spec(e)
-        assert spec.build is not None and spec.measure is None
+        if e in measurement:
+            assert spec.build is None and spec.measure is not None
+        else:
+            assert spec.build is not None and spec.measure is None
         assert spec.params and spec.kernel and spec.signature
         # each spec's module is one file named after the effect
         assert (ROOT / "valve_gym" / "effects" / f"{e}.py").is_file()
@@ -35,7 +40,8 @@ def test_specs_declare_free_parameters_their_blocks_use():
     y = 1.0 + 0.5 * np.sin(np.linspace(0, 12, 400))
     sc = DataScales.from_signals(u, y, 1.0)
     for e in CANDIDATE_EFFECTS:
-        ms = ModelStructure("tank", "valve", (e,), sc, n_sub=2)
+        plant = "tank" if effect_spec(e).applicable("tank", "valve")[0] else "cascade"
+        ms = ModelStructure(plant, "valve", (e,), sc, n_sub=2)
         free = [p.name for p in effect_spec(e).free(ms)]
         assert set(free) <= set(ms.names)
         for name in free:                           # a neutral start inside the unit interval
@@ -99,3 +105,22 @@ def test_one_file_effect_is_found_fitted_and_explained(sensor_drift):
     assert res.to_dict()["effects"] == ["sensor_drift"]
     clean = diagnose(rec, plant="tank", candidates=cands, effort="fast")
     assert "sensor_drift" not in clean.effects
+
+
+def test_sensor_curve_reads_the_cascade_level_through_a_power_curve():
+    ok, why = effect_applicability("sensor_curve", "tank", "pump")
+    assert not ok and "cascade" in why
+    u = 0.3 + 0.2 * (np.arange(300) // 50 % 2)
+    y = 4.0 + 2.0 * np.sin(np.linspace(0, 6, 300))
+    sc = DataScales.from_signals(u, y, 4.0)
+    base = ModelStructure("cascade", "pump", (), sc, n_sub=2)
+    ms = ModelStructure("cascade", "pump", ("sensor_curve",), sc, n_sub=2)
+    v = base.decode(np.full((1, len(base.params)), 0.4))
+    lin = base.simulate(v, u, coords=False)[:, 0]
+    neutral = ms.decode(ms.encode({k: float(a[0]) for k, a in v.items()}))
+    assert np.allclose(ms.simulate(neutral, u, coords=False)[:, 0], lin)      # gamma = 1: linear reading
+    curved = dict(neutral, gamma=np.array([2.0]))
+    c, X = float(v["c"][0]), sc.y_range
+    assert np.allclose(ms.simulate(curved, u, coords=False)[:, 0], c + X * ((lin - c) / X) ** 2)
+    phys = ms.physical(ms.encode({k: float(a[0]) for k, a in curved.items()}))
+    assert np.isclose(phys["sensor_curve.gamma"], 2.0) and np.isclose(phys["sensor_curve.scale"], X)

@@ -15,13 +15,22 @@ measurement is a single file (``docs/extending.md``).
 """
 from __future__ import annotations
 
-from . import dead_time, leak, oscillating_disturbance, overflow, sensor_lag, slip_jump, valve_characteristic  # noqa: F401
+from . import (  # noqa: F401
+    dead_time,
+    leak,
+    oscillating_disturbance,
+    overflow,
+    sensor_curve,
+    sensor_lag,
+    slip_jump,
+    valve_characteristic,
+)
 from .spec import EffectSpec, effect_spec, register_effect, registered_effects
 
 __all__ = ["CANDIDATE_EFFECTS", "EffectSpec", "effect_spec", "register_effect", "candidate_effects"]
 
 _ORDER = ("slip_jump", "valve_characteristic", "dead_time", "overflow", "leak", "sensor_lag",
-          "oscillating_disturbance")
+          "sensor_curve", "oscillating_disturbance")
 
 
 def candidate_effects() -> tuple[str, ...]:
