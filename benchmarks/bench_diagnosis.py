@@ -17,8 +17,13 @@ Usage::
 package as it was at git revision ``REV`` (extracted with ``git archive`` into a temporary
 folder and run in a subprocess with the same ``--jobs``), and reports the wall- and
 CPU-time ratios and what that version named: a before/after comparison under the same
-machine load.  ``--search fast`` times the opt-in fast search
-(:func:`valve_gym.diagnosis.diagnose`, ``search``; fewer effects named).
+machine load.  Both sides first diagnose a full-length recording with the same workers (not
+timed): the numba kernel has a threaded specialisation that only full-size batches use, and a
+revision extracted into a new folder has no compiled cache, so without it the first timed
+recording of ``REV`` included a compilation of several seconds (earlier releases of this script
+warmed up on 300 samples, which inflated the first recording's ratio to about 1.9x).
+``--search fast`` times the opt-in fast search (:func:`valve_gym.diagnosis.diagnose`, ``search``;
+fewer effects named).
 
 ``--reference`` also diagnoses every recording serially (one process, kernel
 threads off) right after the timed run, and reports the ratio of the two wall
@@ -94,7 +99,9 @@ sys.path.insert(0, sys.argv[1])
 from valve_gym.diagnosis import diagnose
 from valve_gym.diagnosis.synthetic import make_case
 eff, seed, n, jobs, effort = sys.argv[2], int(sys.argv[3]), int(sys.argv[4]), int(sys.argv[5]), sys.argv[6]
-diagnose(make_case("none", seed=1, n=300).recording, candidates=(), effort="fast")
+# warm-up at full length and with the same workers: compiles (or loads) every kernel specialisation,
+# the threaded one included, before the timed run
+diagnose(make_case("none", seed=1, n=n).recording, candidates=(), effort="fast", jobs=jobs)
 case = make_case(eff, seed=seed, n=n)
 c = os.times(); c0 = c.user + c.system + c.children_user + c.children_system
 t0 = time.perf_counter()
@@ -157,7 +164,9 @@ def main(argv=None):
     ap.add_argument("--coarse", default="1",
                     help="coarse-to-fine decimation of the timed run: 'auto' or a whole number (default 1)")
     a = ap.parse_args(argv)
-    diagnose(make_case("none", seed=1, n=300).recording, candidates=(), effort="fast")  # warm-up
+    # warm-up at full length with the timed run's workers (as in every --before subprocess): the kernel's
+    # specialisations, the threaded one included, are compiled or loaded from numba's cache before timing
+    diagnose(make_case("none", seed=1, n=a.samples).recording, candidates=(), effort="fast", jobs=a.jobs)
     rate = kernel_rate(a.samples)
     load = os.getloadavg()
     print(f"## Diagnosis speed ({a.samples}-sample recordings, all 7 candidate effects, "

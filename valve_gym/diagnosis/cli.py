@@ -75,7 +75,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--effort", default="auto", choices=("auto", "fast", "normal", "thorough"),
                    help="search budget (default auto: thorough up to 1800 samples, normal above)")
     p.add_argument("--search", default="full", choices=("full", "fast"),
-                   help="full (default) or fast: warm-start clouds and early stops, about 1.9x less CPU, "
+                   help="full (default) or fast: warm-start clouds and early stops, about 1.15x less CPU, "
                         "fits up to 18 %% worse; in fleet mode it applies to the full diagnoses")
     p.add_argument("--seed", default="0", help="seed of the search (default 0)")
     p.add_argument("--quiet", action="store_true", help="no progress messages")

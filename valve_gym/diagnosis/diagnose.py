@@ -187,7 +187,7 @@ def _tests(mm: MismatchReport) -> dict:
 _EFFORT_PLAN = {
     "fast": {"base": "normal", "screen": "fast", "confirm": "normal", "n_confirm": 2,
              "verdict": "fast"},
-    "normal": {"base": "thorough", "screen": "fast", "confirm": "thorough", "n_confirm": 3,
+    "normal": {"base": "thorough", "screen": "fast", "confirm": "thorough", "n_confirm": 2,
                "verdict": "normal"},
     "thorough": {"base": "thorough", "screen": "normal", "confirm": "thorough", "n_confirm": 4,
                  "verdict": "thorough"},
@@ -515,8 +515,8 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
         after ``max(20, generations / 4)`` generations without a gain
         (:func:`~valve_gym.diagnosis.fit.fit_structure`, ``early_stop``); the
         screening fits and every fit of a friction law the warm start does not
-        know keep the whole search.  On four 3600-sample records it used 1.9x
-        less CPU than the version before the BLAS change (``'full'``: 1.5x;
+        know keep the whole search.  On four 3600-sample records it used 1.44x
+        less CPU than revision e8f7925 (``'full'``: 1.23x;
         ``benchmarks/bench_diagnosis.py --before e8f7925 [--search fast]``) and
         named the same effects, but its final fits were up to 18 % worse in
         RMSE and it adds a second, spurious effect more often
