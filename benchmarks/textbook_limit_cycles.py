@@ -30,7 +30,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from valve_gym.diagnosis import diagnose
+from valve_gym.diagnosis import Recording, diagnose
 from valve_gym.diagnosis.model import process_pool
 from valve_gym.diagnosis.stiction import oscillation
 from valve_gym.diagnosis.stiction.loops import LoopSpec, random_spec, simulate_loop
@@ -38,8 +38,9 @@ from valve_gym.diagnosis.stiction.loops import LoopSpec, random_spec, simulate_l
 SEED0 = 130_000
 
 
-def draw(i: int, sticky: bool, n: int = 1800) -> tuple[LoopSpec, int]:
-    """Loop ``i`` of its class: the spec and the seed of its simulation (redrawn until a sticky loop cycles)."""
+def draw(i: int, sticky: bool, n: int = 1800) -> tuple[LoopSpec, Recording]:
+    """Loop ``i`` of its class: the spec and its recording (redrawn until a sticky loop cycles)."""
+    name = f"{'sticky' if sticky else 'healthy'}_{i}"
     for attempt in range(50):
         seed = SEED0 + 1000 * attempt + 2 * i + int(sticky)
         rng = np.random.default_rng(seed)
@@ -49,16 +50,16 @@ def draw(i: int, sticky: bool, n: int = 1800) -> tuple[LoopSpec, int]:
             spec = replace(spec, S=S, J=float(S * rng.uniform(0.1, 1.2)))
         op_noise = float(np.exp(rng.uniform(np.log(3e-4), np.log(1e-2))))
         spec = replace(spec, noise=op_noise / spec.Kc)
-        if not sticky or oscillation(simulate_loop(spec, seed=seed).pv).present:
-            return spec, seed
+        rec = simulate_loop(spec, seed=seed, name=name)
+        if not sticky or oscillation(rec.pv).present:
+            return spec, rec
     raise RuntimeError(f"no cycling sticky loop found for case {i}")
 
 
 def run_case(args):
     """Diagnose one loop; returns a row of the results."""
     i, sticky = args
-    spec, seed = draw(i, sticky)
-    rec = simulate_loop(spec, seed=seed, name=f"{'sticky' if sticky else 'healthy'}_{i}")
+    spec, rec = draw(i, sticky)
     t0 = time.perf_counter()
     res = diagnose(rec, plant="tank", actuator="valve", jobs=1)
     s = res.stiction
