@@ -1,9 +1,10 @@
 """Small signal helpers shared by the diagnosis, its stiction evidence and the fleet screen.
 
-One implementation each, so the mismatch locator, the stiction methods, the fleet's
-oscillation screen and the benchmark's limit-cycle detector read the same autocorrelation of the
-same detrended signal and the same zero crossings (Thornhill's regularity is computed from them by
-each detector with its own published rule).
+One implementation each: the mismatch locator, the stiction methods and the fleet's oscillation
+screen read the same detrended signal and autocorrelation, and all three ACF oscillation detectors
+(those two and the benchmark's limit-cycle detector in :mod:`valve_gym.metrics`, which keeps its own
+checked, power-of-two FFT autocorrelation) the same zero crossings; each computes Thornhill's
+regularity from them with its own published rule.
 """
 from __future__ import annotations
 
