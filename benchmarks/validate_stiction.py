@@ -115,8 +115,17 @@ def _sim_items(n_sim):
     return out
 
 
+#: LoopSpec fields added after caches were written, with the values those loops had.
+_LATER_FIELDS = {"characteristic": "linear", "rangeability": 30.0, "level_max": 0.0, "sensor_tau": 0.0}
+
+
 def _spec_key(spec: dict) -> str:
-    """Short hash of a loop's specification: a cached diagnosis is reused only for the same loop."""
+    """Short hash of a loop's specification: a cached diagnosis is reused only for the same loop.
+
+    Fields added to :class:`LoopSpec` later are left out while they hold the value every earlier
+    loop had, so a cache stays valid for the loops it describes.
+    """
+    spec = {k: v for k, v in spec.items() if not (k in _LATER_FIELDS and v == _LATER_FIELDS[k])}
     return hashlib.sha1(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:12]
 
 

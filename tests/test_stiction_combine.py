@@ -100,3 +100,31 @@ def test_tank_shapes_change_the_dynamics_not_the_steady_state():
     assert np.max(np.abs(moves["cone"] - moves["cylinder"])) > 0.02
     with pytest.raises(ValueError, match="tank shape"):
         simulate_loop(_tank("pyramid"))
+
+
+def test_plant_effects_of_the_textbook_simulator():
+    from dataclasses import replace
+
+    from valve_gym.diagnosis.stiction.loops import _flow_fraction
+    base = _tank("cylinder", 0.0, 0.3)
+    assert _flow_fraction(replace(base, characteristic="equal_percentage", rangeability=30.0), 1.0) == 1.0
+    assert _flow_fraction(replace(base, characteristic="equal_percentage", rangeability=30.0), 0.5) == \
+        pytest.approx(30.0 ** -0.5)
+    assert _flow_fraction(replace(base, characteristic="quick_opening"), 0.25) == pytest.approx(0.5)
+    ref = simulate_loop(base, seed=0)
+    # overflow: the level never rises above the rim, so the PV stays below the highest set points
+    top = simulate_loop(replace(base, level_max=1.2), seed=0)
+    assert top.pv.max() <= 1.2 + 1e-12 < ref.pv.max()
+    # a sensor lag delays the measured response to the set-point steps
+    lag = simulate_loop(replace(base, sensor_tau=30.0), seed=0)
+    k = int(np.flatnonzero(np.diff(ref.sp))[0]) + 1
+    assert abs(lag.pv[k + 5] - lag.pv[k - 1]) < abs(ref.pv[k + 5] - ref.pv[k - 1])
+    # equal percentage: at the starting opening (50 %) the flow is 30^-0.5 of the full flow, not half,
+    # and the Torricelli level goes with the square of the flow
+    eq = simulate_loop(replace(base, characteristic="equal_percentage"), seed=0)
+    assert eq.sp is not None and ref.sp is not None
+    assert eq.sp[0] == pytest.approx(ref.sp[0] * (30.0 ** -0.5 / 0.5) ** 2)
+    with pytest.raises(ValueError, match="characteristic"):
+        simulate_loop(replace(base, characteristic="butterfly"))
+    with pytest.raises(ValueError, match="sensor_tau"):
+        simulate_loop(replace(base, sensor_tau=0.01))

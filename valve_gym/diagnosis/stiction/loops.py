@@ -29,6 +29,12 @@ Processes (``x`` valve position, ``y`` PV):
   ``A ~ y^2``), a sphere or a horizontal cylinder (``A`` largest half full), scaled so that
   ``A = area`` at the initial level.
 
+Optional plant effects (all off by default), for tests of effect naming on loops this
+simulator makes: an installed flow characteristic ``f(x)`` between the valve position and
+the flow (``'equal_percentage'``: ``R^(x - 1)``; ``'quick_opening'``: ``sqrt(x)``), a tank
+that spills over at ``level_max`` (the level cannot rise above it), a first-order lag of the
+level sensor (``sensor_tau``), the transport delay ``theta`` and a constant leak.
+
 References
 ----------
 .. [1] M.A.A.S. Choudhury, N.F. Thornhill, S.L. Shah, "Modelling valve stiction",
@@ -47,11 +53,12 @@ import numpy as np
 
 from ..recording import Recording
 
-__all__ = ["LoopSpec", "simulate_loop", "random_spec", "VALVES", "PROCESSES", "TANK_SHAPES"]
+__all__ = ["LoopSpec", "simulate_loop", "random_spec", "VALVES", "PROCESSES", "TANK_SHAPES", "CHARACTERISTICS"]
 
 VALVES = ("choudhury", "kano", "force_balance", "linear")
 PROCESSES = ("foptd", "integrating", "tank")
 TANK_SHAPES = ("cylinder", "cone", "sphere", "horizontal_cylinder")
+CHARACTERISTICS = ("linear", "equal_percentage", "quick_opening")
 
 
 @dataclass(frozen=True)
@@ -78,6 +85,10 @@ class LoopSpec:
     sp_moves : float, set-point steps of this size [PV] (random sign) every n/6 samples (0: none)
     leak : float, extra constant outflow of the tank [m^3/s] (``'tank'`` only)
     shape : str, tank cross-section, one of :data:`TANK_SHAPES` (``'tank'`` only)
+    characteristic : str, installed flow characteristic, one of :data:`CHARACTERISTICS`
+    rangeability : float, ``R`` of the equal-percentage characteristic
+    level_max : float, level at which the tank spills over [m] (``'tank'`` only; 0: never)
+    sensor_tau : float, time constant of a first-order lag of the PV sensor [s] (0: none)
 
     The measurement noise of :func:`random_spec` is drawn in controller-output
     terms (0.03-0.3 % of stroke after the PI gain), so that it matters as much
@@ -109,6 +120,10 @@ class LoopSpec:
     sp_moves: float = 0.0
     leak: float = 0.0
     shape: str = "cylinder"
+    characteristic: str = "linear"
+    rangeability: float = 30.0
+    level_max: float = 0.0
+    sensor_tau: float = 0.0
 
     @property
     def sticky(self) -> bool:
@@ -209,20 +224,31 @@ def _area(spec: LoopSpec, y: float, y0: float) -> float:
     return spec.area * max(g, 0.05)
 
 
+def _flow_fraction(spec: LoopSpec, x: float) -> float:
+    """Installed characteristic: flow fraction at valve position ``x`` (0..1)."""
+    if spec.characteristic == "equal_percentage":
+        return spec.rangeability ** (x - 1.0)
+    if spec.characteristic == "quick_opening":
+        return math.sqrt(max(x, 0.0))
+    return x
+
+
 def _process_rate(spec: LoopSpec, y, x, y0: float = 1.0):
+    """``dy/dt`` at level/output ``y`` for the flow fraction ``x`` (characteristic and load applied)."""
     if spec.process == "foptd":
         return (-y + spec.K * x) / spec.tau
     if spec.process == "integrating":
-        return spec.k_i * (x - 0.5)
+        return spec.k_i * (x - _flow_fraction(spec, 0.5))
     return (spec.q_max * x - spec.c_out * math.sqrt(max(y, 0.0)) - spec.leak) / _area(spec, y, y0)
 
 
 def _steady(spec: LoopSpec, x0: float) -> float:
+    f0 = _flow_fraction(spec, x0)
     if spec.process == "foptd":
-        return spec.K * x0
+        return spec.K * f0
     if spec.process == "integrating":
         return 1.0
-    return (max(spec.q_max * x0 - spec.leak, 1e-9) / spec.c_out) ** 2
+    return (max(spec.q_max * f0 - spec.leak, 1e-9) / spec.c_out) ** 2
 
 
 def simulate_loop(spec: LoopSpec, seed: int = 0, name: str | None = None) -> Recording:
@@ -245,6 +271,14 @@ def simulate_loop(spec: LoopSpec, seed: int = 0, name: str | None = None) -> Rec
     valve = (_TwoParam(spec.S, spec.J, spec.valve == "kano", x0) if spec.valve in ("choudhury", "kano")
              else _ForceBalance(spec.S, spec.J, 8.0 / spec.Ts, x0) if spec.valve == "force_balance"
              else None)
+    if spec.characteristic not in CHARACTERISTICS:
+        raise ValueError(f"unknown characteristic {spec.characteristic!r}; use one of {CHARACTERISTICS}")
+    if not (spec.sensor_tau == 0.0 or spec.sensor_tau >= h):
+        raise ValueError(f"sensor_tau = {spec.sensor_tau} s is shorter than the integration step {h} s; "
+                         f"use 0 (no lag) or at least Ts/20")
+    spill = spec.process == "tank" and spec.level_max > 0
+    lag_s = spec.sensor_tau > 0
+    ys = y
     nz = _noise(rng, n_total, spec.noise, spec.noise_pole)
     ld = _noise(rng, n_total, spec.load, 0.995) if spec.load > 0 else np.zeros(n_total)
     lag = max(0, int(round(spec.theta / h)))
@@ -257,7 +291,7 @@ def simulate_loop(spec: LoopSpec, seed: int = 0, name: str | None = None) -> Rec
     sps = _sp_profile(rng, n_total, sp, spec.sp_moves)
     for k in range(n_total):
         t = k * spec.Ts
-        ym = y + nz[k]
+        ym = ys + nz[k]
         e = sps[k] - ym
         u = u + spec.Kc * (e - e_prev + spec.Ts / spec.Ti * e)
         u = float(min(max(u, 0.0), 1.0))
@@ -274,7 +308,10 @@ def simulate_loop(spec: LoopSpec, seed: int = 0, name: str | None = None) -> Rec
             xv += h / max(spec.tau_v, h) * (target - xv)
             fifo.append(xv)
             xd = fifo.pop(0)
-            y += h * _process_rate(spec, y, min(max(xd + dist, 0.0), 1.0), y0)
+            y += h * _process_rate(spec, y, min(max(_flow_fraction(spec, xd) + dist, 0.0), 1.0), y0)
+            if spill and y > spec.level_max:
+                y = spec.level_max
+            ys = ys + h / spec.sensor_tau * (y - ys) if lag_s else y
     k0 = n_total - spec.n
     t = np.arange(spec.n) * spec.Ts
     return Recording(t=t, op=op[k0:], pv=pv[k0:], sp=sps[k0:], dt=spec.Ts,
