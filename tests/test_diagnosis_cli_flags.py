@@ -55,8 +55,8 @@ def run_json(rec_dir, tmp_path, capsys, *flags, path=None):
 # --------------------------------------------------------------------------
 
 CASES = {"-h", "--help", "--columns", "--op-range", "--plant", "--actuator", "--validate", "--holdout", "--json",
-         "--report", "--effects", "--jobs", "--effort", "--search", "--seed", "--quiet", "--out", "--address", "--full",
-         "--max-loops", "--top"}
+         "--report", "--effects", "--jobs", "--effort", "--search", "--op-lag", "--seed", "--quiet", "--out",
+         "--address", "--full", "--max-loops", "--top"}
 
 
 def test_every_help_flag_has_a_case(capsys):
@@ -192,6 +192,19 @@ def test_search(rec_dir, tmp_path, capsys):
     assert d["settings"]["search"] == "fast"
     code, _, err = run([rec_dir / "loop.csv", "--search", "quick"], capsys)
     assert code == 2 and "invalid choice" in err
+
+
+def test_op_lag(rec_dir, tmp_path, capsys):
+    d, _, _ = run_json(rec_dir, tmp_path, capsys, "--op-lag", "1")
+    assert d["settings"]["op_lag"] == 1 and d["recording"]["n"] == 299     # op[k-1] paired with pv[k]
+    d, _, _ = run_json(rec_dir, tmp_path, capsys, "--op-lag", "auto")
+    t = d["settings"]["op_lag_test"]
+    assert t["tested"] and d["settings"]["op_lag"] in (0, 1) and set(t["rmse_fit_part"]) == {"0", "1"}
+    assert (d["settings"]["op_lag"] == 1) == (t["delta_ic"] < -2.0)
+    code, _, err = run([rec_dir / "loop.csv", "--op-lag", "2"], capsys)
+    assert code == 2 and "invalid choice" in err
+    code, _, err = run([rec_dir, "--op-range", "0,100", "--op-lag", "1", "--out", tmp_path / "fleet", *FAST], capsys)
+    assert code == 2 and "fleet mode" in err
 
 
 def test_seed(rec_dir, tmp_path, capsys):

@@ -160,6 +160,24 @@ def test_recording_methods(tmp_path):
     assert "demo" in repr(rec)
 
 
+def test_with_op_lag_pairs_each_op_with_the_next_pv():
+    t = np.arange(6.0)
+    rec = Recording(t=t, op=np.linspace(0.1, 0.6, 6), pv=t * 10, sp=t * 100, mv=np.linspace(0.0, 0.5, 6),
+                    name="r")
+    assert rec.with_op_lag(0) is rec
+    sh = rec.with_op_lag(1)
+    assert len(sh) == 5 and sh.dt == rec.dt and sh.name == "r"
+    np.testing.assert_array_equal(sh.op, rec.op[:-1])
+    for k in ("t", "pv", "sp", "mv"):                      # measured (or read) with the PV: they stay with it
+        np.testing.assert_array_equal(getattr(sh, k), getattr(rec, k)[1:])
+    assert "op[k-1] with pv[k]" in sh.notes[-1]
+    for bad in (2, -1, True, 0.5):
+        with pytest.raises(ValueError, match="op lag must be 0 or 1"):
+            rec.with_op_lag(bad)
+    with pytest.raises(ValueError, match="at least 3"):
+        rec.slice(0, 2).with_op_lag(1)
+
+
 def test_recording_validates():
     t = np.arange(10.0)
     with pytest.raises(ValueError, match="normalised"):

@@ -6,7 +6,7 @@ Usage::
         [--op-range LO,HI] [--plant tank|integrating|first_order|cascade]
         [--actuator valve|pump] [--validate OTHER.csv] [--holdout FRAC]
         [--json OUT.json] [--report DIR] [--effects LIST] [--jobs N]
-        [--effort auto|fast|normal|thorough] [--search full|fast] [--seed N] [--quiet]
+        [--effort auto|fast|normal|thorough] [--search full|fast] [--op-lag auto|0|1] [--seed N] [--quiet]
     valve-gym diagnose DIR|EXPORT --out OUTDIR [--jobs N] [--address ADDR] [--full]
         [--max-loops N] [--top N] [same options as above]
 
@@ -77,6 +77,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--search", default="full", choices=("full", "fast"),
                    help="full (default) or fast: warm-start clouds and early stops, about 1.15x less CPU, "
                         "fits up to 18 %% worse; in fleet mode it applies to the full diagnoses")
+    p.add_argument("--op-lag", default="0", choices=("auto", "0", "1"),
+                   help="how the recorder pairs OP and PV: 0 (default) PV[k] measured after OP[k] acted for one "
+                        "sample; 1 OP[k] computed from the PV[k] beside it (a scan logged as it happened, or a "
+                        "zero-order-hold input sampled with the output): OP[k-1] is paired with PV[k]; auto "
+                        "fits both and keeps 1 only when it is clearly better")
     p.add_argument("--seed", default="0", help="seed of the search (default 0)")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     g = p.add_argument_group("fleet mode (a folder or a wide export, on Ray; see docs/fleet.md)")
@@ -176,7 +181,8 @@ def _main(argv: list[str]) -> int:
     say = (lambda s: None) if a.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
     load_kw = {"columns": columns, "op_range": op_range}
     diag_kw = {"plant": a.plant, "actuator": a.actuator, "candidates": cands,
-               "holdout": holdout, "effort": a.effort, "seed": seed, "search": a.search}
+               "holdout": holdout, "effort": a.effort, "seed": seed, "search": a.search,
+               "op_lag": a.op_lag if a.op_lag == "auto" else int(a.op_lag)}
     path = a.path
     if a.out:
         return _fleet(a, path, jobs, seed, holdout, cands, op_range, say)
@@ -229,6 +235,8 @@ def _fleet(a, path, jobs, seed, holdout, cands, op_range, say) -> int:
     from ..fleet import FleetSettings, run_fleet
     if a.validate:
         raise _UsageError("--validate works with a single recording, not in fleet mode (--out)")
+    if a.op_lag != "0":
+        raise _UsageError("--op-lag works with single recordings and folders, not in fleet mode (--out) yet")
     if not os.path.exists(path):
         raise RecordingError(f"{path}: no such file or folder")
     _check_out(a.out, "--out", True)

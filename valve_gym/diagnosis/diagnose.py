@@ -463,7 +463,7 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
              candidates: Sequence[str] | None = None, holdout: float = 0.3,
              validate: Recording | None = None, rule: SelectionRule = SelectionRule(),
              effort: str = "auto", seed: int = 0, jobs: int = 1, saturation="auto",
-             n_sub: int = 1, coarse: int | str = 1, search: str = "full",
+             n_sub: int = 1, coarse: int | str = 1, search: str = "full", op_lag: int | str = 0,
              progress: Callable[[str], None] | None = None) -> DiagnosisResult:
     """Diagnose one recording: base fit, mismatch location, missing physics, friction verdict.
 
@@ -521,6 +521,18 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
         named the same effects, but its final fits were up to 18 % worse in
         RMSE and it adds a second, spurious effect more often
         (``benchmarks/concealed_suite.py --search fast``).
+    op_lag : 'auto', 0 or 1
+        How the recorder pairs the controller output with the PV.  0: ``pv[k]``
+        was measured after ``op[k]`` had acted for one sample (the model's
+        convention).  1: ``op[k]`` was computed from the ``pv[k]`` logged beside
+        it and acts only after it (a controller's scan logged as it happened);
+        the diagnosis then pairs ``op[k-1]`` with ``pv[k]``
+        (:meth:`Recording.with_op_lag`; one sample shorter).  Default 0.
+        ``'auto'`` fits the base model both ways and takes 1 only when it lowers
+        the information criterion by more than ``rule.ic_margin``; the test is
+        in ``settings['op_lag_test']``.  The two are the same as a dead time of
+        zero or one sample before the valve, so a longer dead time is still
+        found as the ``dead_time`` effect, one sample shorter when 1 is chosen.
     progress : callable(str), optional
 
     Returns
@@ -539,26 +551,24 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     """
     t_all = time.perf_counter()
     cands = _check_arguments(recording, plant, actuator, holdout, candidates)
-    rec = recording
-    T = len(rec)
-    n_fit = T - int(round(float(holdout) * T))
-    if n_fit < 40:
-        raise ValueError(f"{rec.name}: only {n_fit} samples to fit after the holdout; need >= 40")
-    say = progress or (lambda s: None)
-    timing = {}
-    # ---- base fit on the fit part
-    t0 = time.perf_counter()
-    sc = _data_scales(rec, n_fit, saturation)
+    lags = _resolve_op_lag(op_lag)
     if not isinstance(n_sub, (int, np.integer)) or n_sub < 1:
         raise ValueError(f"n_sub must be a positive whole number, got {n_sub!r}")
-    st = ModelStructure(plant, actuator, (), sc, n_sub=int(n_sub))
-    say(f"{rec.name}: fitting the base model ({st.label()}, {st.k} parameters)")
-    effort_asked, effort = effort, resolve_effort(effort, len(rec))
+    say = progress or (lambda s: None)
+    timing = {}
+    # ---- base fit on the fit part (on each OP/PV pairing asked for)
+    t0 = time.perf_counter()
+    effort_asked, effort = effort, resolve_effort(effort, len(recording))
     plan = _EFFORT_PLAN[effort]
-    q = _resolve_coarse(coarse, T)
+    q = _resolve_coarse(coarse, len(recording))
     fast = _resolve_search(search)
-    base_split, _ = fit_with_friction(st, rec.op, rec.pv, n_fit, rng=seed, effort=plan["base"], coarse=q,
-                                      fast=fast)
+    bases = _base_fits(recording, lags, plant, actuator, holdout, saturation, int(n_sub), seed, plan["base"], q,
+                       fast, jobs, say)
+    lag, align = _choose_op_lag(bases, rule, op_lag)
+    rec, base_split, n_fit = bases[lag]
+    st, sc = base_split.structure, base_split.structure.scales
+    if validate is not None:
+        validate = validate.with_op_lag(lag)
     timing["base_fit"] = time.perf_counter() - t0
     # ---- selection
     t0 = time.perf_counter()
@@ -597,7 +607,7 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     timing["total"] = time.perf_counter() - t_all
     settings = {"plant": plant, "actuator": actuator, "candidates": list(cands),
                 "holdout": float(holdout), "effort": effort, "effort_asked": effort_asked,
-                "seed": seed, "coarse_to_fine": q, "search": search,
+                "seed": seed, "coarse_to_fine": q, "search": search, "op_lag": lag, "op_lag_test": align,
                 "rule": dict(rule.__dict__), "n_sub_search": st.n_sub,
                 "sensor_range": {"lo": sc.sat_lo, "hi": sc.sat_hi},
                 "valve_model": ("quasi-static: tau = dt/n_sub, v_max = inf"
@@ -612,6 +622,62 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
         res._validation_series = (validation.pop("_y_base"), validation.pop("_y_final"), validate)
         res.validation = validation
     return res
+
+
+#: Pairings of controller output and PV :func:`diagnose` knows (``op_lag``).
+OP_LAGS = ("auto", 0, 1)
+
+
+def _resolve_op_lag(op_lag) -> tuple[int, ...]:
+    """The OP lags (samples) whose base fits ``op_lag`` asks for."""
+    if isinstance(op_lag, str) and op_lag == "auto":
+        return (0, 1)
+    if isinstance(op_lag, (int, np.integer)) and not isinstance(op_lag, bool) and op_lag in (0, 1):
+        return (int(op_lag),)
+    raise ValueError(f"op_lag must be 'auto', 0 or 1 (samples between the logged OP and the PV it acts on), "
+                     f"got {op_lag!r}")
+
+
+def _base_task(args):
+    rec, plant, actuator, holdout, saturation, n_sub, seed, effort, q, fast = args
+    T = len(rec)
+    n_fit = T - int(round(float(holdout) * T))
+    if n_fit < 40:
+        raise ValueError(f"{rec.name}: only {n_fit} samples to fit after the holdout; need >= 40")
+    st = ModelStructure(plant, actuator, (), _data_scales(rec, n_fit, saturation), n_sub=n_sub)
+    base, _ = fit_with_friction(st, rec.op, rec.pv, n_fit, rng=seed, effort=effort, coarse=q, fast=fast)
+    return rec, base, n_fit
+
+
+def _base_fits(recording: Recording, lags: tuple[int, ...], plant: str, actuator: str, holdout: float,
+               saturation, n_sub: int, seed: int, effort: str, q: int, fast: bool, jobs: int,
+               say: Callable[[str], None]) -> dict[int, tuple[Recording, FitResult, int]]:
+    """Base fit (with friction, fit part) of the record paired at each OP lag: ``{lag: (rec, fit, n_fit)}``."""
+    args = [(recording.with_op_lag(lag), plant, actuator, holdout, saturation, n_sub, seed, effort, q, fast)
+            for lag in lags]
+    say(f"{recording.name}: fitting the base model ({plant} + {actuator}"
+        + ("; OP paired with the same and with the next PV sample)" if len(lags) > 1 else ")"))
+    if jobs > 1 and len(args) > 1:
+        with process_pool(min(jobs, len(args))) as ex:
+            out = list(ex.map(_base_task, args))
+    else:
+        out = [_base_task(a) for a in args]
+    return dict(zip(lags, out))
+
+
+def _choose_op_lag(bases: dict[int, tuple[Recording, FitResult, int]], rule: SelectionRule,
+                   asked) -> tuple[int, dict]:
+    """The OP lag to diagnose with, and the test behind it (JSON-ready)."""
+    if len(bases) == 1:
+        lag = next(iter(bases))
+        return lag, {"asked": asked, "chosen": lag, "tested": False}
+    from .fit import effective_n
+    f0, f1 = bases[0][1], bases[1][1]
+    n_eff = effective_n(f0.residual[:f0.n_fit])
+    d_ic = float(n_eff * np.log(max(f1.rmse, 1e-300) ** 2 / max(f0.rmse, 1e-300) ** 2))
+    lag = 1 if d_ic < -rule.ic_margin else 0
+    return lag, {"asked": asked, "chosen": lag, "tested": True, "delta_ic": d_ic, "n_eff": float(n_eff),
+                 "rmse_fit_part": {"0": float(f0.rmse), "1": float(f1.rmse)}}
 
 
 def _check_arguments(recording: Recording, plant: str, actuator: str, holdout: float,

@@ -218,6 +218,21 @@ def _verdict_basis(s: dict) -> str:
             f"model-based test: {'friction' if s.get('model_based_present') else 'no friction'})")
 
 
+def _md_op_lag(settings: dict) -> list[str]:
+    """How the controller output was paired with the PV (only when it is not the model's own pairing or was tested)."""
+    lag, test = settings.get("op_lag", 0), settings.get("op_lag_test") or {}
+    if lag == 0 and not test.get("tested"):
+        return []
+    how = ("each controller output paired with the PV of the next sample (op[k-1] with pv[k]): the PV of a row "
+           "was measured before that row's output acted (an output logged beside the PV it was computed from, or "
+           "an input sampled with the output and held until the next sample)" if lag == 1 else
+           "each controller output paired with the PV of its own row (pv[k] measured after op[k] acted)")
+    margin = settings.get("rule", {}).get("ic_margin", 2.0)
+    why = (f"chosen by fitting the base model both ways (information criterion {test['delta_ic']:+.1f} for the "
+           f"next-sample pairing; it needs below {-margin:g})" if test.get("tested") else "as asked (--op-lag 1)")
+    return [f"**Pairing of OP and PV:** {how}; {why}.", ""]
+
+
 def _md_summary(res, d: dict) -> list[str]:
     """Title, record, named effects, friction verdict and the explanations."""
     L: list[str] = []
@@ -233,6 +248,7 @@ def _md_summary(res, d: dict) -> list[str]:
         L.append("")
         L.extend(f"- {r}" for r in rec["repairs"])
         L.append("")
+    L += _md_op_lag(d["settings"])
     eff = ", ".join(f"`{e}`" for e in d["effects"]) or "none"
     L.append(f"**Missing physics:** {eff}.  **Valve friction:** "
              + ("present" if d["stiction"].get("present") else

@@ -184,6 +184,43 @@ class Recording:
             notes=self.notes,
         )
 
+    def with_op_lag(self, lag: int) -> Recording:
+        """The record with the controller output paired with the PV ``lag`` samples later.
+
+        ``lag = 1`` pairs ``op[k - 1]`` with ``pv[k]`` (one sample shorter): for a
+        recorder that logs, at each scan, the PV a controller read next to the
+        output it computed from it, so that ``op[k]`` acts only after ``pv[k]``
+        was measured.  The diagnosis' model reads ``pv[k]`` as measured after
+        ``op[k]`` acted for one sample; ``lag = 0`` returns the record as it is.
+        The set point and the stem position stay with the PV (measured, or
+        read, at the same scan).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> r = Recording(t=np.arange(4.0), op=[0.1, 0.2, 0.3, 0.4], pv=[1.0, 2.0, 3.0, 4.0])
+        >>> r1 = r.with_op_lag(1)
+        >>> r1.op.tolist(), r1.pv.tolist()
+        ([0.1, 0.2, 0.3], [2.0, 3.0, 4.0])
+        """
+        if lag not in (0, 1) or isinstance(lag, bool):
+            raise ValueError(f"op lag must be 0 or 1 samples, got {lag!r}")
+        if lag == 0:
+            return self
+        if len(self) < 3:
+            raise ValueError(f"{self.name!r} has {len(self)} samples; pairing OP with the next PV needs at least 3")
+
+        def later(x: np.ndarray | None) -> np.ndarray | None:
+            return None if x is None else x[1:]
+
+        return Recording(
+            t=self.t[1:], op=self.op[:-1], pv=self.pv[1:], sp=later(self.sp), mv=later(self.mv), dt=self.dt,
+            name=self.name, op_range=self.op_range, repairs=self.repairs,
+            columns=self.columns, start=None, notes=self.notes + (
+                "controller output paired with the PV one sample later (op[k-1] with pv[k]): the output "
+                "logged at a scan acts after the PV logged with it",),
+        )
+
     def to_dataframe(self):
         """The signals as a :class:`pandas.DataFrame`.
 

@@ -1,0 +1,51 @@
+"""How the diagnosis pairs the controller output with the PV (``op_lag``)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from valve_gym.diagnosis import diagnose
+from valve_gym.diagnosis.stiction.loops import LoopSpec, simulate_loop
+from valve_gym.diagnosis.synthetic import make_case
+
+# a textbook level loop: its simulator logs op[k] computed from the pv[k] beside it
+SCAN_LOGGED = LoopSpec(process="tank", valve="linear", S=0.0, J=0.0, area=0.25, q_max=0.012, c_out=0.005, Kc=3.0,
+                       Ti=60.0, Ts=1.0, theta=0.0, noise=0.003, tau_v=0.2, n=600, sp_moves=0.3)
+
+
+def test_auto_pairs_a_scan_logged_record_with_the_next_pv():
+    rec = simulate_loop(SCAN_LOGGED, seed=0)
+    res = diagnose(rec, candidates=(), effort="fast", op_lag="auto")
+    test = res.settings["op_lag_test"]
+    assert test["tested"] and test["delta_ic"] < -10 and res.settings["op_lag"] == 1
+    assert test["rmse_fit_part"]["1"] < test["rmse_fit_part"]["0"]
+    assert len(res.recording) == len(rec) - 1
+    np.testing.assert_array_equal(res.recording.op, rec.op[:-1])
+    np.testing.assert_array_equal(res.recording.pv, rec.pv[1:])
+    from valve_gym.diagnosis.report import render_markdown
+    md = render_markdown(res)
+    assert "**Pairing of OP and PV:** each controller output paired with the PV of the next sample" in md
+
+
+def test_auto_keeps_the_models_own_pairing():
+    rec = make_case("none", seed=0, n=600).recording      # the package's generator: pv[k] after op[k] acted
+    res = diagnose(rec, candidates=(), effort="fast", op_lag="auto")
+    assert res.settings["op_lag"] == 0 and res.settings["op_lag_test"]["delta_ic"] > 0
+    assert len(res.recording) == len(rec)
+
+
+def test_fixed_op_lag_is_not_tested():
+    rec = make_case("none", seed=1, n=300).recording
+    res = diagnose(rec, candidates=(), effort="fast", op_lag=1)
+    assert res.settings["op_lag"] == 1 and res.settings["op_lag_test"] == {"asked": 1, "chosen": 1, "tested": False}
+    from valve_gym.diagnosis.report import render_markdown
+    assert "as asked (--op-lag 1)" in render_markdown(res)
+    res0 = diagnose(rec, candidates=(), effort="fast")
+    assert res0.settings["op_lag"] == 0 and "Pairing of OP and PV" not in render_markdown(res0)   # the default
+
+
+@pytest.mark.parametrize("bad", [2, -1, "1", True, None])
+def test_bad_op_lag(bad):
+    rec = make_case("none", seed=1, n=300).recording
+    with pytest.raises(ValueError, match="op_lag must be 'auto', 0 or 1"):
+        diagnose(rec, candidates=(), effort="fast", op_lag=bad)
