@@ -45,16 +45,21 @@ _PARAM = {"dead_time": ("dead_time.theta", "dead_time.theta"),
 
 
 def run_case(args):
-    effect, seed, n, effort, search = args
+    effect, seed, n, effort, search, op_lag = args
     t0 = time.perf_counter()
     case = make_case(effect, seed=seed, n=n)
-    res = diagnose(case.recording, plant="tank", actuator="valve", effort=effort, seed=seed, search=search)
+    res = diagnose(case.recording, plant="tank", actuator="valve", effort=effort, seed=seed, search=search,
+                   op_lag=op_lag)
     d = res.to_dict()
     param = None
     if effect in _PARAM and effect in d["effects"]:
         tk, fk = _PARAM[effect]
-        param = (case.truth.get(tk), d["final"]["params"].get(fk))
-    return {"effect": effect, "seed": seed, "named": d["effects"],
+        fitted = d["final"]["params"].get(fk)
+        if effect == "dead_time" and fitted is not None:
+            # this generator logs pv[k] after op[k] acted (op lag 0): a chosen lag of 1 is a sample of dead time
+            fitted += d["settings"]["op_lag"] * case.recording.dt
+        param = (case.truth.get(tk), fitted)
+    return {"effect": effect, "seed": seed, "named": d["effects"], "op_lag": d["settings"]["op_lag"],
             "base_rmse": d["base"]["rmse"], "final_rmse": d["final"]["rmse"],
             "base_fit": d["base"]["fit_percent"], "final_fit": d["final"]["fit_percent"],
             "hold_base": d["holdout"]["base_rmse"], "hold_final": d["holdout"]["final_rmse"],
@@ -70,7 +75,8 @@ def main(argv=None):
     i = 0
     for e in ("none",) + SUITE_EFFECTS:
         for _ in range(a.none if e == "none" else a.per_effect):
-            tasks.append((e, a.seed * 1000 + i, a.samples, a.effort, a.search))
+            tasks.append((e, a.seed * 1000 + i, a.samples, a.effort, a.search,
+                          a.op_lag if a.op_lag == "auto" else int(a.op_lag)))
             i += 1
     t0 = time.perf_counter()
     out = _run_all(tasks, a.jobs)
@@ -79,8 +85,12 @@ def main(argv=None):
     _print_confusion(out, a)
     _print_fit_table(out)
     secs = [r["seconds"] for r in out]
-    print(f"\n{len(out)} diagnoses (search {a.search}) in {elapsed:.0f} s with {a.jobs} workers "
+    print(f"\n{len(out)} diagnoses (search {a.search}, op lag {a.op_lag}) in {elapsed:.0f} s with {a.jobs} workers "
           f"(median {np.median(secs):.1f} s per recording, kernel threads shared out between the workers).\n")
+    if a.op_lag == "auto":
+        lag1 = Counter(r["effect"] for r in out if r["op_lag"] == 1)
+        print("OP paired with the next PV (op lag 1) by the automatic test: "
+              + (", ".join(f"{e} {k}" for e, k in sorted(lag1.items())) or "none") + " (this generator: 0).\n")
     if a.json:
         from valve_gym.diagnosis.report import write_json
         write_json({"cases": out, "settings": vars(a)}, a.json)
@@ -100,6 +110,8 @@ def _parse_args(argv):
     ap.add_argument("--effort", default="auto", choices=("auto", "fast", "normal", "thorough"))
     ap.add_argument("--search", default="full", choices=("fast", "full"),
                     help="search of the diagnosis (diagnose(search=...)): 'full' (default) or the opt-in 'fast'")
+    ap.add_argument("--op-lag", default="0", choices=("auto", "0", "1"),
+                    help="diagnose(op_lag=...): how the recordings pair OP and PV (this generator: 0)")
     ap.add_argument("--json", help="write every case's outcome as JSON")
     a = ap.parse_args(argv)
     if a.quick:

@@ -76,13 +76,13 @@ def pv_after_op(rec: Recording) -> Recording:
 
 def run_case(args):
     """Diagnose one case; returns (effect, seed, effects named, seconds, stiction present, probability)."""
-    effect, seed, vary, align = args
+    effect, seed, vary, align, op_lag = args
     spec = make_spec(effect, seed, vary)
     rec = simulate_loop(spec, seed=seed, name=f"{effect}_{seed}")
     if align:
         rec = pv_after_op(rec)
     t0 = time.perf_counter()
-    res = diagnose(rec, plant="tank", actuator="valve", jobs=1)
+    res = diagnose(rec, plant="tank", actuator="valve", jobs=1, op_lag=op_lag)
     s = res.stiction
     return (effect, seed, list(res.effects), time.perf_counter() - t0, bool(s["present"]),
             float(s.get("probability", float("nan"))), f"{spec.shape}, Ts {spec.Ts:g} s")
@@ -96,10 +96,14 @@ def main(argv=None):
                     help="every loop a cylindrical tank sampled at 1 s (the set of earlier releases)")
     ap.add_argument("--pv-after-op", action="store_true",
                     help="re-align each recording to the diagnosis' sampling convention (op[k-1], pv[k])")
+    ap.add_argument("--op-lag", default="0", choices=("auto", "0", "1"),
+                    help="diagnose(op_lag=...): 1 pairs op[k-1] with pv[k] inside the diagnosis (this simulator's "
+                         "convention), auto lets the diagnosis test it")
     a = ap.parse_args(argv)
     if a.per_effect < 1:
         raise SystemExit("--per-effect must be at least 1")
-    tasks = [(e, i, not a.fixed_plant, a.pv_after_op) for i, e in enumerate(EFFECTS * a.per_effect)]
+    op_lag = a.op_lag if a.op_lag == "auto" else int(a.op_lag)
+    tasks = [(e, i, not a.fixed_plant, a.pv_after_op, op_lag) for i, e in enumerate(EFFECTS * a.per_effect)]
     t0 = time.perf_counter()
     with process_pool(a.jobs) as ex:
         out = []
@@ -120,7 +124,8 @@ def main(argv=None):
         print(f"| {e} | {len(rows)} | {sum(ok)} | {named} | {pres} of {len(rows)} | {probs} |")
     print(f"\n**{right} of {len(out)} named right** ({time.perf_counter() - t0:.0f} s, {a.jobs} workers). "
           f"Command: `nice -n 10 python benchmarks/naming_other_sim.py --per-effect {a.per_effect}"
-          f"{' --fixed-plant' if a.fixed_plant else ''}{' --pv-after-op' if a.pv_after_op else ''}`.")
+          f"{' --fixed-plant' if a.fixed_plant else ''}{' --pv-after-op' if a.pv_after_op else ''}"
+          f"{' --op-lag ' + a.op_lag if a.op_lag != '0' else ''}`.")
     return 0
 
 

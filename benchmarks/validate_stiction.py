@@ -134,7 +134,8 @@ SIZE_VERSION = 2
 
 
 def _key(item) -> str:
-    return item["name"] + ":" + item.get("key", "") + f":sizes{SIZE_VERSION}"
+    lag = item.get("op_lag", 0)
+    return item["name"] + ":" + item.get("key", "") + f":sizes{SIZE_VERSION}" + (f":lag{lag}" if lag != 0 else "")
 
 
 def _load(item):
@@ -148,9 +149,10 @@ def _run_one(item):
     """The model-based part (slow): diagnose with the base model only; keep its verdict and sizes."""
     t0 = time.perf_counter()
     rec = _load(item)
-    res = diagnose(rec, plant=item["plant"], candidates=(), jobs=1)
+    res = diagnose(rec, plant=item["plant"], candidates=(), jobs=1, op_lag=item.get("op_lag", 0))
     s = res.stiction
     out = {k: v for k, v in item.items() if k != "spec"}
+    out["op_lag_chosen"] = res.settings["op_lag"]
     out.update({"verdict": {k: s.get(k) for k in ("tested", "present", "delta_ic", "band", "band_needed")},
                 "features": s["features"], "sizes": s["sizes"],
                 "model_based_present": s["model_based_present"],
@@ -182,7 +184,7 @@ def refresh(data, items):
     """Model-free evidence, features and sizes of every record with the current code (fast)."""
     by_name = {it["name"]: it for it in items}
     for r in data:
-        rec = _load(by_name[r["name"]])
+        rec = _load(by_name[r["name"]]).with_op_lag(r.get("op_lag_chosen", 0))   # the record as diagnosed
         r["_op"] = rec.op
         ev = model_free_evidence(rec.op, rec.pv, float(rec.dt or 1.0), r["plant"], rec.sp) + [_hammerstein(r)]
         del r["_op"]
@@ -204,13 +206,13 @@ def refresh(data, items):
     return data
 
 
-def collect(n_sim, jobs, cache):
+def collect(n_sim, jobs, cache, op_lag=0):
     """Diagnose every record once (cached in ``cache``); returns the list of feature records."""
     done = {}
     if cache and os.path.exists(cache):
         with open(cache, encoding="utf-8") as f:
             done = {_key(d): d for d in json.load(f)}
-    items = _real_items() + _sim_items(n_sim)
+    items = [dict(it, op_lag=op_lag) if op_lag != 0 else it for it in _real_items() + _sim_items(n_sim)]
     todo = [it for it in items if _key(it) not in done]
     t0 = time.perf_counter()
     if todo:
@@ -561,12 +563,14 @@ def main(argv=None):
     ap.add_argument("--cache", default="stiction_features.json")
     ap.add_argument("--write-model", action="store_true",
                     help="fit on every record and write valve_gym/diagnosis/stiction/_weights.py")
+    ap.add_argument("--op-lag", default="0", choices=("auto", "0", "1"),
+                    help="diagnose(op_lag=...) for every record (the cache keeps each setting apart)")
     ap.add_argument("--docs", default=None, help="markdown file to put the report in (between markers)")
     a = ap.parse_args(argv)
     if a.n_sim < 8:
         raise SystemExit("--n-sim must be at least 8")
     t0 = time.perf_counter()
-    data = collect(a.n_sim, a.jobs, a.cache)
+    data = collect(a.n_sim, a.jobs, a.cache, a.op_lag if a.op_lag == "auto" else int(a.op_lag))
     text = report(data, a.n_sim, time.perf_counter() - t0)
     print(text)
     if a.write_model:
