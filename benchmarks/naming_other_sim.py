@@ -14,6 +14,15 @@ diagnosed with every candidate effect (``plant='tank'``, ``actuator='valve'``, d
 rule); "named right" means the first effect named is the concealed one (none for ``none``).
 Case ``i`` uses seed ``70_000 + i``; nothing here was tuned on these cases.
 
+``--all-effects`` adds five more concealed effects, made by the same simulator's optional plant
+effects (seeds ``70_100`` on, so the three cases above keep theirs): ``dead_time`` (transport delay
+of 3-8 samples between the valve and the flow), ``sensor_lag`` (first-order level sensor,
+4-12 samples), ``overflow`` (the tank spills at a rim 40-70 % of the way from the median level to
+the highest level the same loop reaches without one, so that it does spill in the record),
+``valve_characteristic`` (equal percentage, R 15-50, or quick opening; the maximum flow scaled so
+that half opening gives the same flow) and ``oscillating_disturbance`` (a sinusoidal load of
+6-12 % of the mean inflow, period 60-200 samples).
+
 Sampling convention: the textbook simulator logs ``op[k]`` computed from the ``pv[k]`` logged
 with it, so ``op[k]`` acts only after ``pv[k]``; the diagnosis (like the package's own loop
 generator) reads ``pv[k]`` as measured after ``op[k]`` has acted for one sample. Taken as they
@@ -23,6 +32,7 @@ recording to the diagnosis' convention first (pairs ``op[k-1]``, ``pv[k]``; one 
 Usage::
 
     nice -n 10 python benchmarks/naming_other_sim.py [--per-effect 6] [--jobs 2] [--fixed-plant] [--pv-after-op]
+        [--op-lag 0|1|auto] [--all-effects]
 """
 from __future__ import annotations
 
@@ -39,6 +49,8 @@ from valve_gym.diagnosis.recording import Recording
 from valve_gym.diagnosis.stiction.loops import TANK_SHAPES, LoopSpec, _tuning, simulate_loop
 
 EFFECTS = ("none", "slip_jump", "leak")
+#: Effects of ``--all-effects`` beyond :data:`EFFECTS` (the simulator's optional plant effects).
+MORE_EFFECTS = ("dead_time", "sensor_lag", "overflow", "valve_characteristic", "oscillating_disturbance")
 
 
 def make_spec(effect: str, seed: int, vary: bool = True) -> LoopSpec:
@@ -64,8 +76,45 @@ def make_spec(effect: str, seed: int, vary: bool = True) -> LoopSpec:
         shape = str(rng.choice(TANK_SHAPES))
     else:
         shape = "cylinder"
+    extra = _more_effect(effect, rng, p, y0)     # drawn last: the cases of EFFECTS keep their values
     return LoopSpec(process="tank", valve=valve, S=S, J=J, Kc=Kc, Ti=Ti, n=1800, leak=leak, noise=noise,
-                    noise_pole=noise_pole, load=load, sp_moves=float(0.25 * y0), shape=shape, **p)
+                    noise_pole=noise_pole, load=load, sp_moves=float(0.25 * y0), shape=shape, **p, **extra)
+
+
+def make_case(effect: str, seed: int, vary: bool = True) -> tuple[LoopSpec, Recording]:
+    """The spec of case ``seed`` and its recording; an overflow rim is placed where the level reaches it."""
+    spec = make_spec(effect, seed, vary)
+    name = f"{effect}_{seed}"
+    if effect == "overflow":
+        free = simulate_loop(replace(spec, level_max=0.0), seed=seed, name=name).pv
+        lo, hi = float(np.median(free)), float(np.quantile(free, 0.99))
+        spec = replace(spec, level_max=lo + spec.level_max * (hi - lo))
+    return spec, simulate_loop(spec, seed=seed, name=name)
+
+
+def _more_effect(effect: str, rng, p: dict, y0: float) -> dict:
+    """Parameters of an effect of :data:`MORE_EFFECTS` (``p`` is changed in place where the plant changes)."""
+    extra: dict = {}
+    if effect == "dead_time":
+        p["theta"] = float(rng.uniform(3.0, 8.0) * p["Ts"])
+    elif effect == "sensor_lag":
+        extra["sensor_tau"] = float(rng.uniform(4.0, 12.0) * p["Ts"])
+    elif effect == "overflow":
+        # a fraction of the way from the median level to the highest level the loop reaches without a rim;
+        # :func:`make_case` turns it into the rim's height (so that the tank does spill in the record)
+        extra["level_max"] = float(rng.uniform(0.4, 0.7))
+    elif effect == "valve_characteristic":
+        if rng.random() < 0.6:
+            R = float(rng.uniform(15.0, 50.0))
+            extra.update(characteristic="equal_percentage", rangeability=R)
+            f0 = R ** -0.5
+        else:
+            extra["characteristic"] = "quick_opening"
+            f0 = 0.5 ** 0.5
+        p["q_max"] = p["q_max"] * 0.5 / f0        # the same flow (and level) at half opening
+    elif effect == "oscillating_disturbance":
+        extra.update(dist_amp=float(rng.uniform(0.03, 0.06)), dist_period=float(rng.uniform(60.0, 200.0) * p["Ts"]))
+    return extra
 
 
 def pv_after_op(rec: Recording) -> Recording:
@@ -77,8 +126,7 @@ def pv_after_op(rec: Recording) -> Recording:
 def run_case(args):
     """Diagnose one case; returns (effect, seed, effects named, seconds, stiction present, probability)."""
     effect, seed, vary, align, op_lag = args
-    spec = make_spec(effect, seed, vary)
-    rec = simulate_loop(spec, seed=seed, name=f"{effect}_{seed}")
+    spec, rec = make_case(effect, seed, vary)
     if align:
         rec = pv_after_op(rec)
     t0 = time.perf_counter()
@@ -99,11 +147,17 @@ def main(argv=None):
     ap.add_argument("--op-lag", default="0", choices=("auto", "0", "1"),
                     help="diagnose(op_lag=...): 1 pairs op[k-1] with pv[k] inside the diagnosis (this simulator's "
                          "convention), auto lets the diagnosis test it")
+    ap.add_argument("--all-effects", action="store_true",
+                    help=f"also conceal {', '.join(MORE_EFFECTS)} (seeds 70100 on)")
     a = ap.parse_args(argv)
     if a.per_effect < 1:
         raise SystemExit("--per-effect must be at least 1")
     op_lag = a.op_lag if a.op_lag == "auto" else int(a.op_lag)
     tasks = [(e, i, not a.fixed_plant, a.pv_after_op, op_lag) for i, e in enumerate(EFFECTS * a.per_effect)]
+    effects = EFFECTS + (MORE_EFFECTS if a.all_effects else ())
+    if a.all_effects:
+        tasks += [(e, 100 + i, not a.fixed_plant, a.pv_after_op, op_lag)
+                  for i, e in enumerate(MORE_EFFECTS * a.per_effect)]
     t0 = time.perf_counter()
     with process_pool(a.jobs) as ex:
         out = []
@@ -114,7 +168,7 @@ def main(argv=None):
     print("| concealed | cases | named right | what was named | `stiction.present` | "
           "combined probability |\n|---|---|---|---|---|---|")
     right = 0
-    for e in EFFECTS:
+    for e in effects:
         rows = [r for r in out if r[0] == e]
         ok = [(r[2][:1] == [e]) if e != "none" else (not r[2]) for r in rows]
         right += sum(ok)
@@ -125,7 +179,7 @@ def main(argv=None):
     print(f"\n**{right} of {len(out)} named right** ({time.perf_counter() - t0:.0f} s, {a.jobs} workers). "
           f"Command: `nice -n 10 python benchmarks/naming_other_sim.py --per-effect {a.per_effect}"
           f"{' --fixed-plant' if a.fixed_plant else ''}{' --pv-after-op' if a.pv_after_op else ''}"
-          f"{' --op-lag ' + a.op_lag if a.op_lag != '0' else ''}`.")
+          f"{' --op-lag ' + a.op_lag if a.op_lag != '0' else ''}{' --all-effects' if a.all_effects else ''}`.")
     return 0
 
 
