@@ -203,8 +203,6 @@ def test_op_lag(rec_dir, tmp_path, capsys):
     assert (d["settings"]["op_lag"] == 1) == (t["delta_ic"] < -2.0)
     code, _, err = run([rec_dir / "loop.csv", "--op-lag", "2"], capsys)
     assert code == 2 and "invalid choice" in err
-    code, _, err = run([rec_dir, "--op-range", "0,100", "--op-lag", "1", "--out", tmp_path / "fleet", *FAST], capsys)
-    assert code == 2 and "fleet mode" in err
 
 
 def test_seed(rec_dir, tmp_path, capsys):
@@ -230,7 +228,7 @@ def test_fleet_only_flags_need_out(rec_dir, capsys):
 
 @pytest.mark.slow
 def test_fleet_flags(tmp_path):
-    """--out, --max-loops, --full, --top (and --address's local default) in one fleet run on Ray."""
+    """--out, --max-loops, --full, --top, --op-lag (and --address's local default) in one fleet run on Ray."""
     pytest.importorskip("ray")
     src = tmp_path / "loops"
     src.mkdir()
@@ -241,7 +239,7 @@ def test_fleet_flags(tmp_path):
     cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "valve_gym.cli"]
     r = subprocess.run(cmd + ["diagnose", str(src), "--out", str(out), "--op-range", "0,100", "--effects", "none",
                               "--effort", "fast", "--jobs", "1", "--full", "--top", "1", "--max-loops", "1",
-                              "--quiet"], capture_output=True, text=True, timeout=300)
+                              "--op-lag", "1", "--quiet"], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
     assert len(os.listdir(out / "loops")) == 1  # --max-loops 1
     assert {"loops.csv", "loops.parquet", "worklist.md", "worklist.html"} <= set(os.listdir(out))

@@ -81,7 +81,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="how the recorder pairs OP and PV: 0 (default) PV[k] measured after OP[k] acted for one "
                         "sample; 1 OP[k] computed from the PV[k] beside it (a scan logged as it happened, or a "
                         "zero-order-hold input sampled with the output): OP[k-1] is paired with PV[k]; auto "
-                        "fits both and keeps 1 only when it is clearly better")
+                        "fits both and keeps 1 only when it is clearly better; in fleet mode it applies to the "
+                        "full diagnoses")
     p.add_argument("--seed", default="0", help="seed of the search (default 0)")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     g = p.add_argument_group("fleet mode (a folder or a wide export, on Ray; see docs/fleet.md)")
@@ -235,8 +236,6 @@ def _fleet(a, path, jobs, seed, holdout, cands, op_range, say) -> int:
     from ..fleet import FleetSettings, run_fleet
     if a.validate:
         raise _UsageError("--validate works with a single recording, not in fleet mode (--out)")
-    if a.op_lag != "0":
-        raise _UsageError("--op-lag works with single recordings and folders, not in fleet mode (--out) yet")
     if not os.path.exists(path):
         raise RecordingError(f"{path}: no such file or folder")
     _check_out(a.out, "--out", True)
@@ -245,6 +244,7 @@ def _fleet(a, path, jobs, seed, holdout, cands, op_range, say) -> int:
     cols = parse_columns(a.columns) if a.columns else None
     settings = FleetSettings(plant=a.plant, actuator=a.actuator, candidates=tuple(cands), holdout=holdout,
                              effort=a.effort, search=a.search, seed=seed, full=bool(a.full),
+                             op_lag=a.op_lag if a.op_lag == "auto" else int(a.op_lag),
                              columns=tuple(sorted(cols.items())) if cols else None, op_range=op_range,
                              report_dir=a.report)
 

@@ -99,7 +99,7 @@ def _full(rec, settings: FleetSettings, loop: str):
     from ..diagnosis.diagnose import diagnose
     res = diagnose(rec, plant=settings.plant, actuator=settings.actuator, candidates=settings.candidates,
                    holdout=settings.holdout, effort=settings.effort, seed=settings.seed, jobs=1,
-                   search=settings.search)
+                   search=settings.search, op_lag=settings.op_lag)
     if settings.report_dir:
         from ..diagnosis.report import write_report
         write_report(res, os.path.join(settings.report_dir, loop))

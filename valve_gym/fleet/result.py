@@ -31,6 +31,7 @@ class FleetSettings:
     holdout : float, fraction held out of the selection fits
     effort : str, search budget of the full diagnosis
     search : str, ``'full'`` or ``'fast'`` (the opt-in fast search of :func:`valve_gym.diagnosis.diagnose`)
+    op_lag : 0, 1 or 'auto', how the recorder pairs OP and PV (``op_lag`` of :func:`valve_gym.diagnosis.diagnose`)
     seed : int, seed of the full diagnosis
     full : bool, run the full diagnosis on every loop (default: only on oscillating loops)
     columns : tuple of (role, column) pairs, optional, for one-recording CSV files
@@ -45,6 +46,7 @@ class FleetSettings:
     holdout: float = 0.3
     effort: str = "auto"
     search: str = "full"
+    op_lag: int | str = 0
     seed: int = 0
     full: bool = False
     columns: tuple[tuple[str, Any], ...] | None = None
@@ -58,6 +60,8 @@ class FleetSettings:
         d.pop("report_dir")
         if d["search"] == "full":           # the default: keys of runs made before it existed stay valid
             d.pop("search")
+        if d["op_lag"] == 0:                # likewise
+            d.pop("op_lag")
         d["version"] = RESULT_VERSION
         return json.dumps(d, sort_keys=True, default=list)
 
