@@ -32,6 +32,7 @@ from concurrent.futures import as_completed
 import numpy as np
 
 from valve_gym.diagnosis import diagnose
+from valve_gym.diagnosis.cli import OP_LAG_CHOICES, op_lag_value
 from valve_gym.diagnosis.model import process_pool
 from valve_gym.diagnosis.synthetic import SUITE_EFFECTS, make_case
 
@@ -76,7 +77,7 @@ def main(argv=None):
     for e in ("none",) + SUITE_EFFECTS:
         for _ in range(a.none if e == "none" else a.per_effect):
             tasks.append((e, a.seed * 1000 + i, a.samples, a.effort, a.search,
-                          a.op_lag if a.op_lag == "auto" else int(a.op_lag)))
+                          op_lag_value(a.op_lag)))
             i += 1
     t0 = time.perf_counter()
     out = _run_all(tasks, a.jobs)
@@ -110,7 +111,7 @@ def _parse_args(argv):
     ap.add_argument("--effort", default="auto", choices=("auto", "fast", "normal", "thorough"))
     ap.add_argument("--search", default="full", choices=("fast", "full"),
                     help="search of the diagnosis (diagnose(search=...)): 'full' (default) or the opt-in 'fast'")
-    ap.add_argument("--op-lag", default="0", choices=("auto", "0", "1"),
+    ap.add_argument("--op-lag", default="0", choices=OP_LAG_CHOICES,
                     help="diagnose(op_lag=...): how the recordings pair OP and PV (this generator: 0)")
     ap.add_argument("--json", help="write every case's outcome as JSON")
     a = ap.parse_args(argv)

@@ -44,6 +44,7 @@ from dataclasses import replace
 import numpy as np
 
 from valve_gym.diagnosis import diagnose
+from valve_gym.diagnosis.cli import OP_LAG_CHOICES, op_lag_value
 from valve_gym.diagnosis.model import process_pool
 from valve_gym.diagnosis.recording import Recording
 from valve_gym.diagnosis.stiction.loops import TANK_SHAPES, LoopSpec, _tuning, simulate_loop
@@ -117,18 +118,12 @@ def _more_effect(effect: str, rng, p: dict, y0: float) -> dict:
     return extra
 
 
-def pv_after_op(rec: Recording) -> Recording:
-    """``rec`` re-aligned so that ``pv[k]`` is measured after ``op[k]`` acted (``op[k-1]`` with ``pv[k]``)."""
-    return replace(rec, t=rec.t[1:], op=rec.op[:-1], pv=rec.pv[1:], sp=None if rec.sp is None else rec.sp[1:],
-                   mv=None if rec.mv is None else rec.mv[1:])
-
-
 def run_case(args):
     """Diagnose one case; returns (effect, seed, effects named, seconds, stiction present, probability)."""
     effect, seed, vary, align, op_lag = args
     spec, rec = make_case(effect, seed, vary)
     if align:
-        rec = pv_after_op(rec)
+        rec = rec.with_op_lag(1)                 # op[k-1] with pv[k], before the diagnosis sees it
     t0 = time.perf_counter()
     res = diagnose(rec, plant="tank", actuator="valve", jobs=1, op_lag=op_lag)
     s = res.stiction
@@ -144,7 +139,7 @@ def main(argv=None):
                     help="every loop a cylindrical tank sampled at 1 s (the set of earlier releases)")
     ap.add_argument("--pv-after-op", action="store_true",
                     help="re-align each recording to the diagnosis' sampling convention (op[k-1], pv[k])")
-    ap.add_argument("--op-lag", default="0", choices=("auto", "0", "1"),
+    ap.add_argument("--op-lag", default="0", choices=OP_LAG_CHOICES,
                     help="diagnose(op_lag=...): 1 pairs op[k-1] with pv[k] inside the diagnosis (this simulator's "
                          "convention), auto lets the diagnosis test it")
     ap.add_argument("--all-effects", action="store_true",
@@ -152,7 +147,7 @@ def main(argv=None):
     a = ap.parse_args(argv)
     if a.per_effect < 1:
         raise SystemExit("--per-effect must be at least 1")
-    op_lag = a.op_lag if a.op_lag == "auto" else int(a.op_lag)
+    op_lag = op_lag_value(a.op_lag)
     tasks = [(e, i, not a.fixed_plant, a.pv_after_op, op_lag) for i, e in enumerate(EFFECTS * a.per_effect)]
     effects = EFFECTS + (MORE_EFFECTS if a.all_effects else ())
     if a.all_effects:

@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import dataclasses
 import hashlib
 import json
 import os
@@ -55,6 +56,7 @@ import numpy as np
 
 from valve_gym._io import write_atomic
 from valve_gym.diagnosis import data_path, diagnose, load_recording
+from valve_gym.diagnosis.cli import OP_LAG_CHOICES, op_lag_value
 from valve_gym.diagnosis.model import process_pool
 from valve_gym.diagnosis.select import SelectionRule
 from valve_gym.diagnosis.stiction import (
@@ -67,7 +69,7 @@ from valve_gym.diagnosis.stiction import (
 from valve_gym.diagnosis.stiction.assess import combine_size_estimates
 from valve_gym.diagnosis.stiction.combine import features, verdict_of
 from valve_gym.diagnosis.stiction.hammerstein import hammerstein_evidence
-from valve_gym.diagnosis.stiction.loops import random_spec, simulate_loop
+from valve_gym.diagnosis.stiction.loops import LoopSpec, random_spec, simulate_loop
 
 REAL_TAG_WEIGHT = 3.0
 #: Feature sets the combination may use (the model-based pair; plus the stick-episode index; all).
@@ -115,8 +117,9 @@ def _sim_items(n_sim):
     return out
 
 
-#: LoopSpec fields added after caches were written, with the values those loops had.
-_LATER_FIELDS = {"characteristic": "linear", "rangeability": 30.0, "level_max": 0.0, "sensor_tau": 0.0}
+#: LoopSpec fields added after caches were written, with the values those loops had (their defaults).
+_LATER_FIELDS = {f.name: f.default for f in dataclasses.fields(LoopSpec)
+                 if f.name in ("characteristic", "rangeability", "level_max", "sensor_tau")}
 
 
 def _spec_key(spec: dict) -> str:
@@ -139,7 +142,6 @@ def _key(item) -> str:
 
 
 def _load(item):
-    from valve_gym.diagnosis.stiction.loops import LoopSpec
     if item["kind"] == "real":
         return load_recording(item["path"], op_range=(0, 100))
     return simulate_loop(LoopSpec(**item["spec"]), seed=item["seed"], name=item["name"])
@@ -563,14 +565,14 @@ def main(argv=None):
     ap.add_argument("--cache", default="stiction_features.json")
     ap.add_argument("--write-model", action="store_true",
                     help="fit on every record and write valve_gym/diagnosis/stiction/_weights.py")
-    ap.add_argument("--op-lag", default="0", choices=("auto", "0", "1"),
+    ap.add_argument("--op-lag", default="0", choices=OP_LAG_CHOICES,
                     help="diagnose(op_lag=...) for every record (the cache keeps each setting apart)")
     ap.add_argument("--docs", default=None, help="markdown file to put the report in (between markers)")
     a = ap.parse_args(argv)
     if a.n_sim < 8:
         raise SystemExit("--n-sim must be at least 8")
     t0 = time.perf_counter()
-    data = collect(a.n_sim, a.jobs, a.cache, a.op_lag if a.op_lag == "auto" else int(a.op_lag))
+    data = collect(a.n_sim, a.jobs, a.cache, op_lag_value(a.op_lag))
     text = report(data, a.n_sim, time.perf_counter() - t0)
     print(text)
     if a.write_model:

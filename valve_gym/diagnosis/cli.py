@@ -46,6 +46,15 @@ class _Parser(argparse.ArgumentParser):
         raise _UsageError(message)
 
 
+#: Values of ``--op-lag`` (the command line's spelling of ``diagnose(op_lag=...)``).
+OP_LAG_CHOICES = ("auto", "0", "1")
+
+
+def op_lag_value(text: str) -> int | str:
+    """``diagnose``'s ``op_lag`` for a ``--op-lag`` value: ``'auto'``, or the lag as a whole number."""
+    return text if text == "auto" else int(text)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``valve-gym diagnose``."""
     p = _Parser(prog="valve-gym diagnose",
@@ -77,7 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--search", default="full", choices=("full", "fast"),
                    help="full (default) or fast: warm-start clouds and early stops, about 1.15x less CPU, "
                         "fits up to 18 %% worse; in fleet mode it applies to the full diagnoses")
-    p.add_argument("--op-lag", default="0", choices=("auto", "0", "1"),
+    p.add_argument("--op-lag", default="0", choices=OP_LAG_CHOICES,
                    help="how the recorder pairs OP and PV: 0 (default) PV[k] measured after OP[k] acted for one "
                         "sample; 1 OP[k] computed from the PV[k] beside it (a scan logged as it happened, or a "
                         "zero-order-hold input sampled with the output): OP[k-1] is paired with PV[k]; auto "
@@ -183,7 +192,7 @@ def _main(argv: list[str]) -> int:
     load_kw = {"columns": columns, "op_range": op_range}
     diag_kw = {"plant": a.plant, "actuator": a.actuator, "candidates": cands,
                "holdout": holdout, "effort": a.effort, "seed": seed, "search": a.search,
-               "op_lag": a.op_lag if a.op_lag == "auto" else int(a.op_lag)}
+               "op_lag": op_lag_value(a.op_lag)}
     path = a.path
     if a.out:
         return _fleet(a, path, jobs, seed, holdout, cands, op_range, say)
@@ -244,7 +253,7 @@ def _fleet(a, path, jobs, seed, holdout, cands, op_range, say) -> int:
     cols = parse_columns(a.columns) if a.columns else None
     settings = FleetSettings(plant=a.plant, actuator=a.actuator, candidates=tuple(cands), holdout=holdout,
                              effort=a.effort, search=a.search, seed=seed, full=bool(a.full),
-                             op_lag=a.op_lag if a.op_lag == "auto" else int(a.op_lag),
+                             op_lag=op_lag_value(a.op_lag),
                              columns=tuple(sorted(cols.items())) if cols else None, op_range=op_range,
                              report_dir=a.report)
 

@@ -624,10 +624,6 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     return res
 
 
-#: Pairings of controller output and PV :func:`diagnose` knows (``op_lag``).
-OP_LAGS = ("auto", 0, 1)
-
-
 def _resolve_op_lag(op_lag) -> tuple[int, ...]:
     """The OP lags (samples) whose base fits ``op_lag`` asks for."""
     if isinstance(op_lag, str) and op_lag == "auto":
