@@ -814,3 +814,82 @@ def test_decimation_coarser_to_fit_the_budget():
     assert cond is not None and cond.window is None
     assert cond.factor == -(-n // 12_000) and len(t2) <= 12_000
     assert scale / cond.dt_out >= 8
+
+
+# --------------------------------------------------------------------------
+# DCS "PROCESSDATA" text exports (the format the labelled plant loops were exported in)
+# --------------------------------------------------------------------------
+
+
+def write_dcs_export(path, csv_path, tag="2411AIC90201", eol="\r\n", columns_engine=False):
+    """The shipped CSV record ``csv_path`` written as the plant's DCS export: a title line, the sampling
+    line, the ``tagname`` line, a description line (UTF-8 Chinese text) and a parameter line, then
+    tab-separated rows ``time stamp, TAG.MV, TAG.PV, TAG.SV, TAG.MODE, flags``."""
+    import pandas as pd
+
+    d = pd.read_csv(csv_path)
+    cols = [f"{tag}.MV", f"{tag}.PV", f"{tag}.SV", f"{tag}.MODE", "bOpOFL", "bPvOFL", "bSpOFL", "bAutOFL"]
+    lines = [f"PROCESSDATA\t{tag} Data\tyyyy-MM-dd HH:mm:ss",
+             f"8\t10\t{d.timestamp.iloc[0]}\t{len(d)}",
+             "tagname\t" + "\t".join(cols),
+             "desc\t" + "\t".join(["分析仪_OP", "分析仪_PV", "分析仪_SP", "Aut", "bOpOFL", "bPvOFL", "bSpOFL",
+                                   "bAutOFL"]),
+             "fsMax=1.3\tfsMin=0\tfsGridNum=10\tL=24"]
+    for r in d.itertuples():
+        lines.append("\t".join([r.timestamp] + [repr(float(v)) for v in (r.OP, r.PV, r.SP)] + ["1", "0", "0", "0", "0"]))
+    path.write_bytes((eol.join(lines) + eol).encode("utf-8"))
+    return path
+
+
+def test_dcs_export_reads_like_its_csv(tmp_path):
+    """A PROCESSDATA export is read as it comes: TAG.MV is the controller output, TAG.SV the set point, the
+    description and parameter lines are skipped; same samples as the tidy CSV of the same record."""
+    src = data_path("stictiongpt_plant_loops/csv/stiction__2411AIC90201_1002_0004.csv")
+    txt = write_dcs_export(tmp_path / "stic_2411AIC90201.txt", src)
+    sn = recmod.sniff.sniff(txt)
+    assert sn.form == "dcs-export" and sn.header_line == 3 and sn.data_line == 6
+    rec = load_recording(txt, op_range=(0, 100))
+    ref = load_recording(src, op_range=(0, 100))
+    assert rec.columns == {"t": "tagname", "op": "2411AIC90201.MV", "pv": "2411AIC90201.PV",
+                           "sp": "2411AIC90201.SV"}
+    assert len(rec) == len(ref) == 751 and rec.dt == ref.dt == 10.0 and rec.start == "2024-10-01 21:55:00"
+    np.testing.assert_array_equal(rec.op, ref.op)
+    np.testing.assert_array_equal(rec.pv, ref.pv)
+    np.testing.assert_array_equal(rec.sp, ref.sp)
+    # the column-wise reader of large files skips the same lines
+    big = load_recording(txt, op_range=(0, 100), engine="columns")
+    np.testing.assert_array_equal(big.op, ref.op)
+    np.testing.assert_array_equal(big.pv, ref.pv)
+    # the user's mapping wins over the format's
+    own = load_recording(txt, op_range=(0, 100), columns={"sp": None})
+    assert own.sp is None
+
+
+def test_dcs_export_errors_name_the_problem(tmp_path):
+    bad = tmp_path / "no_header.txt"
+    bad.write_text("PROCESSDATA\tX Data\n8\t10\t2024-01-01 00:00:00\t3\n2024-01-01 00:00:00\t1\t2\t3\n")
+    with pytest.raises(RecordingError, match="without its 'tagname' line"):
+        load_recording(bad, op_range=(0, 100))
+    empty = tmp_path / "no_rows.txt"
+    empty.write_text("PROCESSDATA\tX Data\ntagname\tX.MV\tX.PV\ndesc\ta\tb\n")
+    with pytest.raises(RecordingError, match="no data rows"):
+        load_recording(empty, op_range=(0, 100))
+    # two loops in one export: the roles cannot be guessed, the message says how to name them
+    two = tmp_path / "two.txt"
+    two.write_text("PROCESSDATA\tX Data\ntagname\tA.MV\tA.PV\tB.MV\tB.PV\n"
+                   + "".join(f"2024-01-01 00:{k // 60:02d}:{k % 60:02d}\t{k % 7}\t{k % 5}\t1\t2\n" for k in range(80)))
+    with pytest.raises(RecordingError, match="--columns"):
+        load_recording(two, op_range=(0, 100))
+
+
+def test_folders_pick_dcs_exports_not_other_text(tmp_path):
+    from valve_gym.diagnosis.recording.sniff import is_dcs_export, recording_files
+    from valve_gym.fleet.sources import discover_loops
+
+    src = data_path("stictiongpt_plant_loops/csv/stiction__2411AIC90201_1002_0004.csv")
+    write_dcs_export(tmp_path / "a.txt", src, eol="\n")
+    (tmp_path / "README.txt").write_text("notes about these loops\n")
+    write_loop(tmp_path, name="b.csv")
+    assert is_dcs_export(tmp_path / "a.txt") and not is_dcs_export(tmp_path / "README.txt")
+    assert [p.rsplit("/", 1)[-1] for p in recording_files(str(tmp_path))] == ["a.txt", "b.csv"]
+    assert [s.name for s in discover_loops(str(tmp_path))] == ["a", "b"]

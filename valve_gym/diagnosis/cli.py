@@ -10,7 +10,7 @@ Usage::
     valve-gym diagnose DIR|EXPORT --out OUTDIR [--jobs N] [--address ADDR] [--full]
         [--max-loops N] [--top N] [same options as above]
 
-A folder is diagnosed file by file (``*.csv``, sorted) in ``--jobs`` worker
+A folder is diagnosed file by file (``*.csv`` and ``*.txt`` DCS exports, sorted) in ``--jobs`` worker
 processes, with a progress line per file on stderr and a summary table on
 stdout.  With ``--out`` a folder (or a historian's wide export) is run as a
 fleet on Ray (:mod:`valve_gym.fleet`): each loop's result is written to
@@ -24,7 +24,6 @@ run was interrupted (finished loops are kept).
 from __future__ import annotations
 
 import argparse
-import glob
 import os
 import sys
 import time
@@ -201,9 +200,10 @@ def _main(argv: list[str]) -> int:
     if os.path.isdir(path):
         if a.validate:
             raise _UsageError("--validate works with a single recording, not a folder")
-        files = sorted(glob.glob(os.path.join(path, "*.csv")))
+        from .recording.sniff import recording_files
+        files = recording_files(path)
         if not files:
-            raise _UsageError(f"folder {path!r} holds no .csv files")
+            raise _UsageError(f"folder {path!r} holds no .csv files (nor .txt DCS exports)")
         say(f"diagnosing {len(files)} recordings with {jobs} worker(s)")
         t0 = time.perf_counter()
         rep_dir = a.report

@@ -43,6 +43,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..diagnosis.recording import MIN_SAMPLES, Recording, RecordingError, load_recording
+from ..diagnosis.recording.sniff import recording_files
 
 __all__ = ["LoopSource", "LoadedLoop", "Gap", "discover_loops", "load_loop", "resample_loop",
            "file_fingerprint", "safe_name", "WIDE_SUFFIXES", "TIME_COLUMN_NAMES"]
@@ -204,7 +205,7 @@ def _file_sources(path: str, fp: str) -> list[LoopSource]:
 
 
 def discover_loops(path: str) -> list[LoopSource]:
-    """The loops of a file or a folder (``*.csv``, ``*.parquet``, sorted; not recursive).
+    """The loops of a file or a folder (``*.csv``, ``*.parquet``, ``*.txt`` DCS exports, sorted; not recursive).
 
     Parameters
     ----------
@@ -222,10 +223,9 @@ def discover_loops(path: str) -> list[LoopSource]:
         ``path`` does not exist, or a folder holds no ``.csv``/``.parquet`` file.
     """
     if os.path.isdir(path):
-        files = sorted(os.path.join(path, f) for f in os.listdir(path)
-                       if f.lower().endswith((".csv", ".parquet")) and not f.startswith("."))
+        files = recording_files(path, extra=(".parquet",))
         if not files:
-            raise RecordingError(f"folder {path!r} holds no .csv or .parquet files")
+            raise RecordingError(f"folder {path!r} holds no .csv or .parquet files (nor .txt DCS exports)")
     elif os.path.isfile(path):
         files = [path]
     else:

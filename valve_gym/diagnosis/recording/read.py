@@ -70,15 +70,23 @@ def _read_text(sn: Sniffed) -> str:
     return decode(raw)[0]
 
 
-def _rows(text: str, src: str) -> tuple[list[str] | None, list[list[str]], list[int]]:
-    """Header, data rows (as strings) and their file line numbers; blank rows skipped."""
-    reader = csv.reader(io.StringIO(text, newline=""), sniff_dialect(text))
+def _rows(text: str, src: str, sn: Sniffed | None = None) -> tuple[list[str] | None, list[list[str]], list[int]]:
+    """Header, data rows (as strings) and their file line numbers; blank rows skipped.
+
+    With ``sn.data_line`` set (a DCS export), the lines before the header line and those
+    between it and the first data line (title, descriptions, parameters) are skipped.
+    """
+    preamble = sn is not None and sn.data_line > 0
+    reader = csv.reader(io.StringIO(text, newline=""), sn.dialect if preamble else sniff_dialect(text))
     header: list[str] | None = None
     rows: list[list[str]] = []
     lines: list[int] = []
     try:
         for rec in reader:
             if not rec or all(not c.strip() for c in rec):
+                continue
+            if preamble and (reader.line_num < sn.header_line or
+                             sn.header_line < reader.line_num < sn.data_line):
                 continue
             if header is None:
                 header = [c.strip() for c in rec]
@@ -142,7 +150,7 @@ def read_rows(sn: Sniffed, columns: Mapping[str, str | None] | None) -> RawColum
         Invalid CSV, no header, one column only, rows with a different number
         of fields than the header, no data rows, or a column mapping problem.
     """
-    header, rows, lines = _rows(_read_text(sn), sn.src)
+    header, rows, lines = _rows(_read_text(sn), sn.src, sn)
     header = _check_shape(header, rows, lines, sn.src)
     cmap = resolve_columns(header, columns, sn.src)
     data = {}
@@ -210,7 +218,7 @@ def read_csv_columns(sn: Sniffed, columns: Mapping[str, str | None] | None) -> R
     d = sn.dialect
     try:
         reader = pd.read_csv(
-            sn.path, sep=d.delimiter, quotechar=d.quotechar or '"', header=None, skiprows=sn.header_line,
+            sn.path, sep=d.delimiter, quotechar=d.quotechar or '"', header=None, skiprows=_first_data(sn) - 1,
             usecols=pos, na_values=_NA_VALUES, keep_default_na=False, skip_blank_lines=False,
             encoding=sn.encoding, chunksize=CHUNK_ROWS, engine="c", low_memory=True,
         )
@@ -228,8 +236,13 @@ def read_csv_columns(sn: Sniffed, columns: Mapping[str, str | None] | None) -> R
     n = len(data["t"])
     if n == 0:
         raise RecordingError(f"{sn.src}: no data rows under the header; the file holds no samples")
-    lines = sn.header_line + 1 + np.arange(n, dtype=np.int64)
+    lines = _first_data(sn) + np.arange(n, dtype=np.int64)
     return RawColumns(cmap, data, lines, "line", drop_blank=True)
+
+
+def _first_data(sn: Sniffed) -> int:
+    """1-based line of the first data row of a CSV file."""
+    return sn.data_line if sn.data_line > 0 else sn.header_line + 1
 
 
 def _arrow_to_numpy(col, name: str, src: str) -> np.ndarray:
@@ -318,6 +331,8 @@ def read_columns(sn: Sniffed, columns: Mapping[str, str | None] | None) -> RawCo
     -------
     RawColumns
     """
+    if sn.roles:                  # the columns the format assigns; the user's mapping wins
+        columns = {**dict(sn.roles), **dict(columns or {})}
     if sn.kind == "parquet":
         return read_parquet(sn, columns)
     if sn.engine == "columns":

@@ -11,13 +11,15 @@ from __future__ import annotations
 import csv
 import io
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from ._base import RecordingError
 
-__all__ = ["COLUMNWISE_BYTES", "ENGINES", "Sniffed", "sniff"]
+__all__ = ["COLUMNWISE_BYTES", "DCS_EXPORT_SUFFIXES", "ENGINES", "Sniffed", "is_dcs_export", "recording_files",
+           "sniff"]
 
 #: CSV files larger than this (bytes) are read column-wise (``engine='auto'``).
 COLUMNWISE_BYTES = 8 * 1024 * 1024
@@ -27,6 +29,13 @@ COLUMNWISE_BYTES = 8 * 1024 * 1024
 #: reads only the mapped columns in chunks with pandas' C parser.
 ENGINES = ("auto", "rows", "columns")
 
+#: Tag-name suffixes of a DCS ``PROCESSDATA`` text export and the signal role of each: in this
+#: naming (``MV`` manipulated variable, ``SV`` set value) ``MV`` is the controller output, not the
+#: valve position.
+DCS_EXPORT_SUFFIXES = {"MV": "op", "PV": "pv", "SV": "sp"}
+
+_DCS_MAGIC = "PROCESSDATA"
+_DATA_ROW = re.compile(r"^\s*(\d{4}-\d{2}-\d{2}|[-+]?\d)")
 _PREFIX = 65536
 _MAX_HEADER = 16 * 1024 * 1024
 _PARQUET_MAGIC = b"PAR1"
@@ -57,6 +66,16 @@ class Sniffed:
         1-based line number of the CSV header row (0 for Parquet).
     engine : {'rows', 'columns'}
         The reader to use (see :data:`ENGINES`).
+    data_line : int
+        1-based line of the first data row when lines between the header and
+        the data are not data (a DCS export's description and parameter lines);
+        0: the data follow the header.
+    roles : tuple of (role, column) pairs
+        Columns the file format itself assigns to signal roles (a DCS export:
+        the time stamps and ``TAG.MV``, ``TAG.PV``, ``TAG.SV``); a mapping the
+        user gives wins.
+    form : str
+        ``'csv'``, ``'parquet'`` or ``'dcs-export'`` (a ``PROCESSDATA`` text export).
     """
 
     path: Path
@@ -68,6 +87,9 @@ class Sniffed:
     header: tuple[str, ...]
     header_line: int
     engine: str
+    data_line: int = 0
+    roles: tuple[tuple[str, str], ...] = ()
+    form: str = "csv"
 
 
 def _open_prefix(path: Path, src: str) -> tuple[bytes, int]:
@@ -133,6 +155,57 @@ def _csv_header(text: str, dialect: Any) -> tuple[tuple[str, ...], int]:
     return (), 0
 
 
+def _dcs_export(text: str, src: str) -> tuple[tuple[str, ...], int, int, tuple[tuple[str, str], ...]] | None:
+    """Header, header line, first data line and role columns of a DCS ``PROCESSDATA`` export, else None.
+
+    The export (tab-separated) starts with a ``PROCESSDATA <tag> Data <time format>`` line and
+    a line with the sampling period and start time; the line starting with ``tagname`` names
+    the columns (time stamps first, then ``<tag>.MV``, ``<tag>.PV``, ``<tag>.SV``,
+    ``<tag>.MODE``, ...), followed by description and parameter lines, then the data rows.
+    """
+    lines = text.splitlines()
+    first = next((ln for ln in lines if ln.strip()), "")
+    if first.split("\t")[0].strip().upper() != _DCS_MAGIC:
+        return None
+    head = next((i for i, ln in enumerate(lines) if ln.split("\t")[0].strip().lower() == "tagname"), None)
+    if head is None:
+        raise RecordingError(f"{src}: a {_DCS_MAGIC} export without its 'tagname' line naming the columns; "
+                             f"export the file again with the column names")
+    header = tuple(c.strip() for c in lines[head].split("\t"))
+    data = next((i for i in range(head + 1, len(lines)) if _DATA_ROW.match(lines[i])), None)
+    if data is None:
+        raise RecordingError(f"{src}: a {_DCS_MAGIC} export with no data rows after its header (line {head + 1})")
+    roles = [("t", header[0])]
+    for suffix, role in DCS_EXPORT_SUFFIXES.items():
+        hits = [h for h in header[1:] if h.upper().endswith("." + suffix)]
+        if len(hits) == 1:
+            roles.append((role, hits[0]))
+    return header, head + 1, data + 1, tuple(roles)
+
+
+def is_dcs_export(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is a readable file whose first non-blank line starts with ``PROCESSDATA``."""
+    try:
+        with open(path, "rb") as f:
+            head = f.read(4096)
+    except OSError:
+        return False
+    text = decode(head, partial=True)[0].lstrip()
+    return text.split("\t", 1)[0].strip().upper() == _DCS_MAGIC
+
+
+def recording_files(folder: str, extra: tuple[str, ...] = ()) -> list[str]:
+    """The recordings of a folder, sorted, not recursive.
+
+    ``*.csv`` (and the suffixes in ``extra``), plus ``*.txt`` files that are DCS
+    ``PROCESSDATA`` exports (other text files are left alone).
+    """
+    names = sorted(f for f in os.listdir(folder) if not f.startswith("."))
+    paths = [os.path.join(folder, f) for f in names]
+    return [p for p, f in zip(paths, names) if os.path.isfile(p) and (
+        f.lower().endswith((".csv",) + extra) or (f.lower().endswith(".txt") and is_dcs_export(p)))]
+
+
 def sniff(path: str | os.PathLike, engine: str = "auto") -> Sniffed:
     """Find the format of a recording file from its first bytes.
 
@@ -167,8 +240,13 @@ def sniff(path: str | os.PathLike, engine: str = "auto") -> Sniffed:
             f"(or save the table as Parquet)"
         )
     text, encoding = decode(raw, partial=size > len(raw))
-    dialect = sniff_dialect(text)
-    header, line = _csv_header(text, dialect)
     if engine == "auto":
         engine = "columns" if size > COLUMNWISE_BYTES else "rows"
+    dcs = _dcs_export(text, src)
+    if dcs is not None:
+        header, line, data_line, roles = dcs
+        return Sniffed(p, src, "csv", size, encoding, csv.excel_tab, header, line, engine, data_line, roles,
+                       "dcs-export")
+    dialect = sniff_dialect(text)
+    header, line = _csv_header(text, dialect)
     return Sniffed(p, src, "csv", size, encoding, dialect, header, line, engine)
