@@ -67,8 +67,9 @@ from valve_gym.diagnosis.stiction import (
     oscillation,
 )
 from valve_gym.diagnosis.stiction.assess import combine_size_estimates
-from valve_gym.diagnosis.stiction.combine import features, verdict_of
+from valve_gym.diagnosis.stiction.combine import features, stiction_present, verdict_of
 from valve_gym.diagnosis.stiction.hammerstein import hammerstein_evidence
+from valve_gym.diagnosis.stiction.kstep import kstep_evidence
 from valve_gym.diagnosis.stiction.loops import LoopSpec, random_spec, simulate_loop
 
 REAL_TAG_WEIGHT = 3.0
@@ -88,7 +89,7 @@ FEATURE_SETS = {"model": ("hammerstein", "hammerstein_band"),
 CONFIGS = [{"features": f, "l2": l2, "sim_weight": sw}
            for f in FEATURE_SETS for l2 in (100.0, 10.0, 1.0) for sw in (1.0, 0.25)]
 #: Methods whose own published verdicts are scored on their own ('not applicable' = no alarm).
-METHODS = ("horch", "bicoherence", "ellipse", "waveform", "episodes", "hammerstein")
+METHODS = ("horch", "bicoherence", "ellipse", "waveform", "episodes", "hammerstein", "kstep")
 PLANT_OF = {"foptd": "first_order", "integrating": "integrating", "tank": "tank"}
 MARK_BEGIN = "<!-- validate_stiction:begin -->"
 MARK_END = "<!-- validate_stiction:end -->"
@@ -132,8 +133,9 @@ def _spec_key(spec: dict) -> str:
     return hashlib.sha1(json.dumps(spec, sort_keys=True).encode()).hexdigest()[:12]
 
 
-#: Version of the cached slip-jump sizes (2: profile re-optimising the other parameters, widened).
-SIZE_VERSION = 2
+#: Version of the cached diagnoses (2: profile re-optimising the other parameters, widened; 4: with the
+#: k-step friction test).
+SIZE_VERSION = 4
 
 
 def _key(item) -> str:
@@ -155,7 +157,9 @@ def _run_one(item):
     s = res.stiction
     out = {k: v for k, v in item.items() if k != "spec"}
     out["op_lag_chosen"] = res.settings["op_lag"]
-    out.update({"verdict": {k: s.get(k) for k in ("tested", "present", "delta_ic", "band", "band_needed")},
+    out["version"] = SIZE_VERSION           # a cached record is reused only by the same version
+    out.update({"verdict": {k: s.get(k) for k in ("tested", "present", "delta_ic", "band", "band_needed",
+                                                   "kstep_delta_ic", "kstep_horizon")},
                 "features": s["features"], "sizes": s["sizes"],
                 "model_based_present": s["model_based_present"],
                 "seconds": time.perf_counter() - t0, "n": len(rec)})
@@ -189,6 +193,7 @@ def refresh(data, items):
         rec = _load(by_name[r["name"]]).with_op_lag(r.get("op_lag_chosen", 0))   # the record as diagnosed
         r["_op"] = rec.op
         ev = model_free_evidence(rec.op, rec.pv, float(rec.dt or 1.0), r["plant"], rec.sp) + [_hammerstein(r)]
+        ev.append(kstep_evidence(r["verdict"]))
         del r["_op"]
         r["features"] = dict(zip(FEATURES, map(float, features(ev, r["plant"]))))
         ell = next(e for e in ev if e.method == "ellipse")
@@ -213,7 +218,7 @@ def collect(n_sim, jobs, cache, op_lag=0):
     done = {}
     if cache and os.path.exists(cache):
         with open(cache, encoding="utf-8") as f:
-            done = {_key(d): d for d in json.load(f)}
+            done = {_key(d): d for d in json.load(f) if d.get("version", 2) == SIZE_VERSION}
     items = [dict(it, op_lag=op_lag) if op_lag != 0 else it for it in _real_items() + _sim_items(n_sim)]
     todo = [it for it in items if _key(it) not in done]
     t0 = time.perf_counter()
@@ -438,7 +443,8 @@ def _method_table(real, sims):
         t = _scores(*per_tag(real, lambda r, m=m: _method_verdict(r, m)))
         rec = _scores([r["label"] for r in real], [_method_verdict(r, m) for r in real])
         sim = _scores([r["label"] for r in sims], [_method_verdict(r, m) for r in sims])
-        name = "hammerstein (model-based verdict)" if m == "hammerstein" else m
+        name = {"hammerstein": "hammerstein (model-based verdict)",
+                "kstep": "kstep (friction test on 60-step predictions)"}.get(m, m)
         rows.append(f"| {name} | {app_r}/{len(real)} / {app_s}/{len(sims)} | {t[2]:.2f} "
                     f"({t[0]:.2f}/{t[1]:.2f}) | {rec[2]:.2f} ({rec[0]:.2f}/{rec[1]:.2f}) | "
                     f"{sim[2]:.2f} ({sim[0]:.2f}/{sim[1]:.2f}) |")
@@ -469,9 +475,11 @@ def _sim_tables(sims, hidden, by_valve):
 
 
 def _public(r):
-    """The public verdict (``stiction.present``): the combination says stiction or the model-based
-    verdict finds friction; otherwise the combination's verdict (undecided stays a miss)."""
-    return "stiction" if (r["model_based_present"] or r["verdict_heldout"] == "stiction") else r["verdict_heldout"]
+    """The public verdict (``stiction.present``, :func:`stiction_present`): the combination says stiction,
+    or the free-run model-based verdict finds friction that the k-step test does not contradict; otherwise
+    the combination's verdict (undecided stays a miss)."""
+    present = stiction_present(r["verdict_heldout"], r["model_based_present"], r["verdict"].get("kstep_delta_ic"))
+    return "stiction" if present else r["verdict_heldout"]
 
 
 def _model_based(r):
@@ -504,8 +512,9 @@ def report(data, n_sim, seconds):
                f"{k} ({v} of {sum(chosen_real.values())} real folds)"
                for k, v in sorted(chosen_real.items(), key=lambda kv: -kv[1])) + "; simulated folds: "
            + "; ".join(f"{k} ({v})" for k, v in chosen_sim.items()) + ".\n",
-           "**Public verdict** (`stiction.present`: the methods combined say stiction, or the model-based "
-           "verdict finds friction), held out (real loops leave-one-tag-out, simulated loops two-fold):\n"]
+           "**Public verdict** (`stiction.present`: the methods combined say stiction, or the free-run "
+           "model-based verdict finds friction that the k-step test does not contradict), held out (real loops "
+           "leave-one-tag-out, simulated loops two-fold):\n"]
     out += _verdict_tables(real, sims, "Public verdict", _public)
     out.append("**Methods combined** (`stiction.verdict`, the logistic model alone), held out:\n")
     out += _verdict_tables(real, sims, "Combined", lambda r: r["verdict_heldout"])

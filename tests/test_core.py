@@ -1042,3 +1042,35 @@ def test_friction_model_name():
     assert ModelParams(slip_jump=SlipJump()).friction_model == "choudhury"
     assert ModelParams(slip_jump=SlipJump(law="kano")).friction_model == "kano"
     assert ModelParams(actuator=PUMP).friction_model == "none"
+
+
+def test_reset_run_restarts_the_level_from_the_measurement():
+    """run_packed_reset: reset to the system's own levels changes nothing; to other levels, each block
+    starts from them; a block as long as the record is the free run."""
+    p = BATCH["paper+effects"]
+    u, d = batch_inputs(T=300)
+    m = p.batch_size()
+    pk = cmod.pack(p, m)
+    st = initial_state(p, m, buf_len=pk.buf_len)
+    U, D = np.ascontiguousarray(u), np.ascontiguousarray(d)
+
+    def run(reset=None, every=0):
+        S, buf = cmod.state_to_array(st), np.array(st.delay_buf, float, copy=True)
+        Y, H, LV = (np.empty((300, m)) for _ in range(3))
+        if reset is None:
+            cmod.run_packed(pk, S, buf, U, D, 5, Y, H, LV)
+        else:
+            cmod.run_packed_reset(pk, S, buf, U, D, 5, Y, H, LV, reset, every)
+        return Y, LV
+
+    Y0, L0 = run()
+    Yb, _ = run(np.ascontiguousarray(L0), 300)
+    np.testing.assert_array_equal(Yb, Y0)
+    # the sensor lag block reads the reset level too, so compare on the measured tank level
+    _, L1 = run(np.ascontiguousarray(L0), 40)
+    np.testing.assert_array_equal(L1, L0)
+    other = np.ascontiguousarray(L0 + 0.1)
+    _, L2 = run(other, 40)
+    np.testing.assert_array_equal(L2[:40], L0[:40])
+    assert np.all(np.abs(L2[40:] - L0[40:]) > 0)        # every later block started elsewhere
+    np.testing.assert_allclose(L2[40], L0[40], atol=0.2)

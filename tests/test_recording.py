@@ -836,7 +836,8 @@ def write_dcs_export(path, csv_path, tag="2411AIC90201", eol="\r\n", columns_eng
                                    "bAutOFL"]),
              "fsMax=1.3\tfsMin=0\tfsGridNum=10\tL=24"]
     for r in d.itertuples():
-        lines.append("\t".join([r.timestamp] + [repr(float(v)) for v in (r.OP, r.PV, r.SP)] + ["1", "0", "0", "0", "0"]))
+        values = [repr(float(v)) for v in (r.OP, r.PV, r.SP)]
+        lines.append("\t".join([r.timestamp] + values + ["1", "0", "0", "0", "0"]))
     path.write_bytes((eol.join(lines) + eol).encode("utf-8"))
     return path
 

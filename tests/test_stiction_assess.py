@@ -23,10 +23,17 @@ def test_diagnosis_reports_probability_and_sizes(sticky_result):
         assert k in s
     assert 0.0 <= s["probability"] <= 1.0
     assert s["verdict"] in ("stiction", "no stiction", "undecided")
-    # the public verdict: the combination says stiction or the model-based verdict finds friction
-    assert s["present"] is (s["verdict"] == "stiction" or s["model_based_present"])
+    # the public verdict: the combination says stiction, or the free-run model-based verdict finds friction
+    # that the k-step test does not contradict
+    k = s["kstep_delta_ic"]
+    assert s["present"] is (s["verdict"] == "stiction" or (s["model_based_present"] and k < 0))
     assert {e["method"] for e in s["evidence"]} == {"horch", "bicoherence", "ellipse", "waveform", "episodes",
-                                                   "hammerstein"}
+                                                   "hammerstein", "kstep"}
+    # the k-step friction test ran beside the free-run one (integrating loop, valve, no measurement effect)
+    assert s["kstep_horizon"] == 60 and np.isfinite(s["kstep_delta_ic"])
+    ks = next(e for e in s["evidence"] if e["method"] == "kstep")
+    assert ks["applicable"] and ks["value"] == pytest.approx(np.arcsinh(-k / 2))
+    assert "kstep" not in s["features"]            # read by the public verdict, not by the logistic model
     lo, hi = s["S_interval"]
     assert lo <= s["S"] <= hi
     jlo, jhi = s["J_interval"]
@@ -123,3 +130,27 @@ def test_two_size_methods_combine_on_the_log_scale_with_the_union_interval():
     s, agree = combine_size_estimates([ham, far])
     assert agree is False and (s.S_lo, s.S_hi) == (0.02, 0.4)                  # disagreeing: the union, flagged
     assert combine_size_estimates([ham]) == (ham, None)
+
+
+def test_kstep_test_finds_a_sticky_valve_under_a_drifting_load():
+    """The compensator benchmark's cycling Choudhury valve (S 9.3 %) under its Ornstein-Uhlenbeck load: the
+    free-run friction test is blind to it (the load's error outweighs the friction's), the k-step one is not
+    (docs/diagnosis.md, 'The k-step friction test')."""
+    import importlib.util
+    from pathlib import Path
+
+    from valve_gym.diagnosis import Recording
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "sizes_on_benchmark_loops.py"
+    spec = importlib.util.spec_from_file_location("sizes_on_benchmark_loops", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    loop = mod.benchmark_loops(36, None)[25]
+    assert loop["name"] == "choudhury_severe_25" and loop["S_true"] > 0.09
+    rec = Recording(t=loop["t"], op=loop["op"], pv=loop["pv"], sp=loop["sp"], dt=loop["dt"], name=loop["name"])
+    s = diagnose(rec, plant="tank", candidates=(), effort="fast").stiction
+    assert s["delta_ic"] > 0 and not s["model_based_present"]
+    assert s["kstep_delta_ic"] < -2
+    assert s["kstep_rmse"]["friction"] < 0.95 * s["kstep_rmse"]["frictionless"]
+    ks = next(e for e in s["evidence"] if e["method"] == "kstep")
+    assert ks["verdict"] == "stiction"              # its own verdict; the public one reads it as a check only

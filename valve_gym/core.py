@@ -286,6 +286,42 @@ def _kernel(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV):  # pragma: no cover - 
         S[S_BIDX, i] = bidx
 
 
+@njit(cache=True, nogil=True)
+def _kernel_reset(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV, L_meas, every):  # pragma: no cover - compiled
+    """:func:`_kernel` with the measured level state set to ``L_meas`` (T, n) every ``every`` samples.
+
+    Before sample ``a`` (``a`` a positive multiple of ``every``) the level of the measured tank
+    (and the sensor's output state) of each system is set to ``L_meas[a - 1]``, the level read
+    at the end of the previous sample; the valve, the other states and the buffers run on.
+    """
+    T = U.shape[0]
+    n = S.shape[1]
+    low = S_L2 if flags[F_PROC] == 3 else S_L1
+    for a in range(0, T, every):
+        b = min(T, a + every)
+        if a > 0:
+            for i in range(n):
+                lv = L_meas[a - 1, i]
+                if lv < 0.0:
+                    lv = 0.0
+                S[low, i] = lv
+                S[S_Y, i] = lv
+        _kernel(S, P, U[a:b], D[a:b], flags, buf, n_sub, dt, Y[a:b], H[a:b], LV[a:b])
+
+
+def run_packed_reset(pk: Packed, S: np.ndarray, buf: np.ndarray, U: np.ndarray, D: np.ndarray, n_sub: int,
+                     Y: np.ndarray, H: np.ndarray, LV: np.ndarray, L_meas: np.ndarray, every: int) -> None:
+    """:func:`run_packed` (one thread) with the measured level reset to ``L_meas`` every ``every`` samples.
+
+    A ``every``-step-ahead prediction instead of a free run: the states the
+    record measures are taken from it at the start of each block of
+    ``every`` samples, so a slow unmeasured load does not add up over the
+    record.  ``L_meas`` (T, n): the level (lower tank of a cascade) that the
+    measurement implies after each sample, per system.  No checks are made.
+    """
+    _kernel_reset(S, pk.P, U, D, pk.flags, buf, n_sub, pk.dt, Y, H, LV, L_meas, int(every))
+
+
 def _flush_stale_kernel_cache() -> None:
     """Drop numba's on-disk cache of `_kernel` when a block module is newer than it.
 

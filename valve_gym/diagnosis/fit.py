@@ -120,6 +120,9 @@ class FitResult:
     n_sub : int, Euler steps per controller sample of ``y_sim``
     n_evals : int, simulated parameter sets
     seconds : float, wall time
+    horizon : int or None, samples: ``y_sim`` (and the cost) is an ``horizon``-step-ahead
+        prediction, the measured level restarting from the record every ``horizon`` samples
+        (:func:`fit_structure`, ``horizon``); None for the free run
     """
 
     structure: ModelStructure
@@ -141,6 +144,7 @@ class FitResult:
     n_sub: int
     n_evals: int
     seconds: float
+    horizon: int | None = None
 
     @property
     def residual(self) -> np.ndarray:
@@ -172,13 +176,14 @@ def _nan_none(x):
 class _Objective:
     """Batched SSE of unit coordinates over a subset of free coordinates."""
 
-    def __init__(self, structure: ModelStructure, u, y, n_fit, free_idx, w_fixed):
+    def __init__(self, structure: ModelStructure, u, y, n_fit, free_idx, w_fixed, horizon: int | None = None):
         self.s = structure
         self.u = np.ascontiguousarray(u[:n_fit])
         self.y = np.asarray(y[:n_fit], float)
         self.free = np.asarray(free_idx, int)
         self.w_fixed = np.asarray(w_fixed, float)
         self.n_evals = 0
+        self.reset = None if horizon is None else (self.y, int(horizon))
 
     def full(self, X):
         X = np.atleast_2d(X)
@@ -189,7 +194,7 @@ class _Objective:
     def sim(self, X):
         self.n_evals += np.atleast_2d(X).shape[0]
         try:
-            return self.s.simulate(self.full(X), self.u)
+            return self.s.simulate(self.full(X), self.u, reset=self.reset)
         except (ValueError, ZeroDivisionError, FloatingPointError):
             return np.full((len(self.u), np.atleast_2d(X).shape[0]), np.nan)
 
@@ -500,7 +505,8 @@ def fit_structure(structure: ModelStructure, u, y, n_fit: int | None = None, *,
                   seeds=None, spread=None, free: Sequence[str] | None = None,
                   w_fixed=None, rng=None, popsize: int | None = None,
                   maxiter: int | None = None, local: bool = True, effort: str = "normal",
-                  final_n_sub: bool = True, coarse: int = 1, early_stop: bool = False) -> FitResult:
+                  final_n_sub: bool = True, coarse: int = 1, early_stop: bool = False,
+                  horizon: int | None = None) -> FitResult:
     """Fit ``structure`` to ``y`` (T,) driven by ``u`` (T,), free-run, on the first ``n_fit`` samples.
 
     Parameters
@@ -543,12 +549,21 @@ def fit_structure(structure: ModelStructure, u, y, n_fit: int | None = None, *,
         always spending the whole budget.  Meant for warm starts with a
         ``spread`` (a cloud around the seed): without one the population spends
         its first generations catching up with the seed, and would stop there.
+    horizon : int, optional
+        Fit the ``horizon``-step-ahead prediction instead of the free run: every
+        ``horizon`` samples the measured level restarts from the recorded PV
+        (:meth:`ModelStructure.simulate`, ``reset``), so that a slow unmeasured
+        load does not accumulate into the error (a prediction-error fit; Ljung,
+        *System Identification*, 2nd ed., 1999, ch. 7).  No coarse-to-fine search;
+        the result keeps the search's ``n_sub``.
 
     Returns
     -------
     FitResult
     """
     t0 = time.perf_counter()
+    if horizon is not None:
+        coarse, final_n_sub = 1, False
     if coarse > 1 and free is None and (len(y) if n_fit is None else int(n_fit)) // coarse >= 300:
         return _coarse_to_fine(structure, u, y, n_fit, seeds=seeds, spread=spread, rng=rng,
                                popsize=popsize, maxiter=maxiter, local=local, effort=effort,
@@ -565,7 +580,7 @@ def fit_structure(structure: ModelStructure, u, y, n_fit: int | None = None, *,
     free_idx = [names.index(n) for n in (free if free is not None else names)]
     if early_stop and _new_friction(structure, spread):
         early_stop, spread = False, None        # a new friction law: the whole global search
-    obj = _Objective(structure, u, y, n_fit, free_idx, w_fixed)
+    obj = _Objective(structure, u, y, n_fit, free_idx, w_fixed, horizon)
     kf = len(free_idx)
     pf, gf = _EFFORT[resolve_effort(effort, len(u))]
     if kf == 0:
@@ -586,8 +601,10 @@ def fit_structure(structure: ModelStructure, u, y, n_fit: int | None = None, *,
                     break
         w = obj.full(x[None, :])[0]
     ns = structure.stable_n_sub(w) if final_n_sub else structure.n_sub
-    y_sim = structure.simulate(w[None, :], u, n_sub=ns)[:, 0]
+    y_sim = structure.simulate(w[None, :], u, n_sub=ns, reset=None if horizon is None else (y, horizon))[:, 0]
     res = _make_result(structure, w, y, y_sim, n_fit, ns, obj.n_evals, time.perf_counter() - t0)
+    if horizon is not None:
+        res = replace(res, horizon=int(horizon))
     structure.__dict__.pop("_scratch", None)     # the search's scratch arrays: not kept with the result
     return res
 

@@ -544,11 +544,14 @@ class ModelStructure:
         return Y
 
     # ---------------------------------------------------------------- simulate
-    def simulate(self, W, u, n_sub: int | None = None, coords: bool = True) -> np.ndarray:
+    def simulate(self, W, u, n_sub: int | None = None, coords: bool = True, reset=None) -> np.ndarray:
         """Simulated PV ``(T, n)`` for unit coordinates ``W`` (n, k) over input ``u`` (T,).
 
         ``coords=False`` takes internal values ``{name: (n,)}`` instead of ``W``.
-        Unstable or invalid parameter rows give ``nan`` columns.
+        Unstable or invalid parameter rows give ``nan`` columns.  ``reset = (y, N)``:
+        an ``N``-step-ahead prediction instead of a free run: every ``N`` samples the
+        measured level restarts from the recorded PV ``y`` (T,) of the sample before
+        (:func:`valve_gym.core.run_packed_reset`; only without measurement effects).
         """
         values = self.decode(W) if coords else W
         mp, init, sign, offset = self.build(values, n_sub=n_sub)
@@ -558,7 +561,11 @@ class ModelStructure:
         Y = np.empty((T, n))
         H, LV, Dz = self._work(T, n)
         threads = kernel_threads() if T * n * ns >= _MIN_THREADED_STEPS else 1
-        self._plant(mp, init, n, threads).run(u, Dz, out=(Y, H, LV))
+        plant = self._plant(mp, init, n, threads)
+        if reset is not None and int(reset[1]) < T:
+            self._run_reset(plant, u, Dz, (Y, H, LV), reset, sign, offset)
+        else:
+            plant.run(u, Dz, out=(Y, H, LV))
         if np.any(sign != 1.0):
             Y *= sign[None, :]
         if np.any(offset != 0.0):
@@ -573,6 +580,22 @@ class ModelStructure:
         if bad.any():
             Y[:, bad] = np.nan
         return Y
+
+    def _run_reset(self, plant: Plant, u, D, out, reset, sign, offset) -> None:
+        """Run ``plant`` over ``u`` with the measured level reset from the recorded PV (see :meth:`simulate`)."""
+        from ..core import run_packed_reset
+
+        if any(effect_spec(e).measure is not None for e in self.effects) or plant.sample_law is not None:
+            raise ValueError("a k-step prediction needs the PV to be the simulated level (no measurement "
+                             "effect, no per-scan friction law)")
+        y, every = np.asarray(reset[0], float), int(reset[1])
+        T, n = len(u), plant.n
+        U = np.ascontiguousarray(np.asarray(u, float)).reshape(T, 1)
+        sign = np.broadcast_to(np.asarray(sign, float), (n,))
+        offset = np.broadcast_to(np.asarray(offset, float), (n,))
+        L = np.ascontiguousarray((y[:T, None] - offset[None, :]) / sign[None, :])
+        pk, S, buf = plant.scan_args(U[:1], D[:1], tuple(a[:1] for a in out))[:3]
+        run_packed_reset(pk, S, buf, U, D, plant.n_sub, *out, L, every)
 
     def _work(self, T: int, n: int):
         """Scratch arrays of the kernel (stem, level, zero load), reused between calls."""

@@ -21,6 +21,7 @@ from .ellipse import ellipse_evidence
 from .episodes import episodes_evidence
 from .hammerstein import NAN_SIZE, SizeEstimate, hammerstein_evidence, slip_jump_profile
 from .horch import horch_evidence
+from .kstep import kstep_evidence
 from .waveform import waveform_evidence
 
 __all__ = ["assess_stiction", "combine_size_estimates", "default_model", "model_free_evidence"]
@@ -105,6 +106,7 @@ def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None
         # the band feature reads the slip-jump fit's own S (what the combination was fitted and
         # validated on), not the profile's re-optimised estimate
         ev.append(hammerstein_evidence(verdict, _fitted_band(slip_fit)))
+        ev.append(kstep_evidence(verdict))
     model = model or default_model()
     x = features(ev, plant)
     p = float(model.probability(x)[0])

@@ -31,7 +31,7 @@ from ._base import Evidence
 from .hammerstein import NAN_SIZE, SizeEstimate
 
 __all__ = ["FEATURES", "features", "LogisticModel", "fit_logistic", "StictionAssessment",
-           "combine_sizes", "MARGIN"]
+           "combine_sizes", "MARGIN", "stiction_present"]
 
 #: Names of the features, in the order of :func:`features`.
 FEATURES = ("horch_ccf", "horch_int", "bicoherence", "ellipse", "waveform", "episodes", "hammerstein",
@@ -182,6 +182,36 @@ def verdict_of(p: float, margin: float = MARGIN) -> str:
     if p <= 0.5 - margin:
         return "no stiction"
     return "undecided"
+
+
+def stiction_present(verdict: str, model_based_present: bool, kstep_delta_ic: float | None) -> bool:
+    """The public verdict ``stiction.present`` of a diagnosis.
+
+    True when the methods combined say ``'stiction'``, or when the free-run model-based verdict
+    finds friction and the k-step test (:mod:`.kstep`) does not contradict it: friction also lowers
+    the information criterion of the k-step-ahead predictions (``kstep_delta_ic < 0``).  Without a
+    k-step test (``None``: a pump, a measurement effect in the model) the free-run verdict counts
+    alone.  ``'undecided'`` alone is not stiction.
+
+    A friction that the free run needs but the k-step predictions do not is most often a slow
+    unmeasured load that the free run cannot follow: the k-step test restarts the level from the
+    record every few samples, so a load does not accumulate there, while a sticking valve still
+    shows after each controller move.
+
+    Examples
+    --------
+    >>> stiction_present("stiction", False, None), stiction_present("no stiction", True, -11.5)
+    (True, True)
+    >>> stiction_present("no stiction", True, 4.0), stiction_present("undecided", True, None)
+    (False, True)
+    >>> stiction_present("no stiction", False, -13.5)
+    False
+    """
+    if verdict == "stiction":
+        return True
+    if kstep_delta_ic is None or not np.isfinite(kstep_delta_ic):
+        return bool(model_based_present)
+    return bool(model_based_present and float(kstep_delta_ic) < 0.0)
 
 
 def combine_sizes(sizes: Sequence[SizeEstimate]) -> tuple[SizeEstimate, bool | None]:
