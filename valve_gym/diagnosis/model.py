@@ -595,7 +595,8 @@ class ModelStructure:
         offset = np.broadcast_to(np.asarray(offset, float), (n,))
         L = np.ascontiguousarray((y[:T, None] - offset[None, :]) / sign[None, :])
         pk, S, buf = plant.scan_args(U[:1], D[:1], tuple(a[:1] for a in out))[:3]
-        run_packed_reset(pk, S, buf, U, D, plant.n_sub, *out, L, every)
+        Y, H, LV = out
+        run_packed_reset(pk, S, buf, U, D, plant.n_sub, Y, H, LV, L, every)
 
     def _work(self, T: int, n: int):
         """Scratch arrays of the kernel (stem, level, zero load), reused between calls."""

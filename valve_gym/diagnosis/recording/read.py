@@ -76,8 +76,10 @@ def _rows(text: str, src: str, sn: Sniffed | None = None) -> tuple[list[str] | N
     With ``sn.data_line`` set (a DCS export), the lines before the header line and those
     between it and the first data line (title, descriptions, parameters) are skipped.
     """
-    preamble = sn is not None and sn.data_line > 0
-    reader = csv.reader(io.StringIO(text, newline=""), sn.dialect if preamble else sniff_dialect(text))
+    head, first = (sn.header_line, sn.data_line) if sn is not None and sn.data_line > 0 else (0, 0)
+    preamble = first > 0
+    reader = csv.reader(io.StringIO(text, newline=""),
+                        sn.dialect if sn is not None and preamble else sniff_dialect(text))
     header: list[str] | None = None
     rows: list[list[str]] = []
     lines: list[int] = []
@@ -85,8 +87,7 @@ def _rows(text: str, src: str, sn: Sniffed | None = None) -> tuple[list[str] | N
         for rec in reader:
             if not rec or all(not c.strip() for c in rec):
                 continue
-            if preamble and (reader.line_num < sn.header_line or
-                             sn.header_line < reader.line_num < sn.data_line):
+            if preamble and (reader.line_num < head or head < reader.line_num < first):
                 continue
             if header is None:
                 header = [c.strip() for c in rec]
