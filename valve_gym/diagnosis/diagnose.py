@@ -270,7 +270,7 @@ def _kstep_tasks(tasks: list[tuple[ModelStructure, np.ndarray]], n_frictionless:
     forms (the paper's valve and the slip-jump valve); none when a measurement effect is in the model.
     """
     st0 = tasks[0][0]
-    if any(effect_spec(e).measure is not None for e in st0.effects):
+    if not st0.pv_is_simulated_level:
         return []
     pick = [0] + [i for i in range(1, n_frictionless) if "dead_time" in tasks[i][0].effects
                   and "dead_time" not in st0.effects]

@@ -312,6 +312,15 @@ class ModelStructure:
         return len(self.params) + extra
 
     @property
+    def pv_is_simulated_level(self) -> bool:
+        """Whether the PV is the core's level through ``sign`` and ``offset`` only.
+
+        True when no measurement effect maps it outside the core: then a measured PV can
+        restart the level (``simulate(reset=...)``).
+        """
+        return all(effect_spec(e).measure is None for e in self.effects)
+
+    @property
     def dt_euler(self) -> float:
         """Euler step of the simulation: sample time over ``n_sub`` [s]."""
         return self.scales.dt / self.n_sub
@@ -585,7 +594,7 @@ class ModelStructure:
         """Run ``plant`` over ``u`` with the measured level reset from the recorded PV (see :meth:`simulate`)."""
         from ..core import run_packed_reset
 
-        if any(effect_spec(e).measure is not None for e in self.effects) or plant.sample_law is not None:
+        if not self.pv_is_simulated_level or plant.sample_law is not None:
             raise ValueError("a k-step prediction needs the PV to be the simulated level (no measurement "
                              "effect, no per-scan friction law)")
         y, every = np.asarray(reset[0], float), int(reset[1])

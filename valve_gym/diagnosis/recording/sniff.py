@@ -155,6 +155,12 @@ def _csv_header(text: str, dialect: Any) -> tuple[tuple[str, ...], int]:
     return (), 0
 
 
+def _starts_dcs_export(text: str) -> bool:
+    """Whether the first non-blank line of ``text`` starts with the ``PROCESSDATA`` cell."""
+    first = next((ln for ln in text.splitlines() if ln.strip()), "")
+    return first.split("\t", 1)[0].strip().upper() == _DCS_MAGIC
+
+
 def _dcs_export(text: str, src: str) -> tuple[tuple[str, ...], int, int, tuple[tuple[str, str], ...]] | None:
     """Header, header line, first data line and role columns of a DCS ``PROCESSDATA`` export, else None.
 
@@ -163,10 +169,9 @@ def _dcs_export(text: str, src: str) -> tuple[tuple[str, ...], int, int, tuple[t
     the columns (time stamps first, then ``<tag>.MV``, ``<tag>.PV``, ``<tag>.SV``,
     ``<tag>.MODE``, ...), followed by description and parameter lines, then the data rows.
     """
-    lines = text.splitlines()
-    first = next((ln for ln in lines if ln.strip()), "")
-    if first.split("\t")[0].strip().upper() != _DCS_MAGIC:
+    if not _starts_dcs_export(text):
         return None
+    lines = text.splitlines()
     head = next((i for i, ln in enumerate(lines) if ln.split("\t")[0].strip().lower() == "tagname"), None)
     if head is None:
         raise RecordingError(f"{src}: a {_DCS_MAGIC} export without its 'tagname' line naming the columns; "
@@ -190,8 +195,7 @@ def is_dcs_export(path: str | os.PathLike) -> bool:
             head = f.read(4096)
     except OSError:
         return False
-    text = decode(head, partial=True)[0].lstrip()
-    return text.split("\t", 1)[0].strip().upper() == _DCS_MAGIC
+    return _starts_dcs_export(decode(head, partial=True)[0])
 
 
 def recording_files(folder: str, extra: tuple[str, ...] = ()) -> list[str]:
