@@ -102,6 +102,12 @@ def test_profile_reoptimises_the_other_parameters(slip_fit):
     assert np.any(pr.sse < 0.9 * fixed)                         # and away from the optimum it does better
     est, s_err = profile_interval(fit, rec.op, rec.pv, 9, 5)
     assert est.S_lo <= est.S <= est.S_hi and est.J_lo <= est.J <= est.J_hi and s_err >= 0.0
+    # the two sides of the optimum run side by side in worker processes: the same profile
+    from valve_gym.diagnosis.model import process_pool
+
+    with process_pool(2) as ex:
+        pr2 = _profile(fit, rec.op, rec.pv, 9, 5, map_fn=ex.map)
+    assert np.array_equal(pr2.s, pr.s) and np.array_equal(pr2.w, pr.w) and np.array_equal(pr2.sse, pr.sse)
 
 
 def test_widen_adds_window_error_and_discrepancy():

@@ -293,7 +293,8 @@ def coarse_factor(n_samples: int) -> int:
 
 
 def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, seed: int,
-                      effort: str, mm: MismatchReport, jobs: int = 1, coarse: int = 1, fast: bool = False):
+                      effort: str, mm: MismatchReport, jobs: int = 1, coarse: int = 1, fast: bool = False,
+                      executor=None):
     """Does the valve stick?  Friction models against frictionless ones, whole record.
 
     Friction (the paper's valve and the slip-jump valve, each with the final
@@ -323,8 +324,11 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
     ks = _kstep_tasks(tasks, n_frictionless)
     horizon = kstep_horizon(len(y))
     args += [(tasks[i][0], u, y, tasks[i][1], None, seed + 41 + i, "fast", 1, horizon) for i in ks]
-    if jobs > 1:
-        with process_pool(jobs) as ex:     # the friction fits (the longest) first, so that none runs alone last
+    # the friction fits (the longest) first, so that none runs alone last
+    if executor is not None:
+        fits = list(executor.map(_fit_task, args[::-1]))[::-1]
+    elif jobs > 1:
+        with process_pool(jobs) as ex:
             fits = list(ex.map(_fit_task, args[::-1]))[::-1]
     else:
         fits = [_fit_task(a) for a in args]
@@ -459,7 +463,8 @@ def _verdict_dict(best0: FitResult, best1: FitResult, d_ic: float, n_eff: float,
     return verdict
 
 
-def _combine_verdict(stiction: dict, rec: Recording, plant: str, slip: FitResult | None) -> None:
+def _combine_verdict(stiction: dict, rec: Recording, plant: str, slip: FitResult | None,
+                     executor=None) -> None:
     """Add the combined assessment of the stiction methods to the friction verdict.
 
     Adds ``probability`` and ``verdict`` (``'stiction'``, ``'no stiction'``,
@@ -472,7 +477,8 @@ def _combine_verdict(stiction: dict, rec: Recording, plant: str, slip: FitResult
     ``'undecided'`` alone is False.  Held out, this beats the model-based verdict alone
     (``docs/diagnosis.md``, section 4).
     """
-    a = assess_stiction(rec.op, rec.pv, float(rec.dt or 1.0), plant, sp=rec.sp, verdict=stiction, slip_fit=slip)
+    a = assess_stiction(rec.op, rec.pv, float(rec.dt or 1.0), plant, sp=rec.sp, verdict=stiction, slip_fit=slip,
+                        map_fn=None if executor is None else executor.map)
     d = a.to_dict()
     stiction["model_based_present"] = bool(stiction["present"])
     stiction["present"] = stiction_present(a.verdict, stiction["present"], stiction.get("kstep_delta_ic"))
@@ -615,47 +621,24 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     if not isinstance(n_sub, (int, np.integer)) or n_sub < 1:
         raise ValueError(f"n_sub must be a positive whole number, got {n_sub!r}")
     say = progress or (lambda s: None)
-    timing = {}
-    # ---- base fit on the fit part (on each OP/PV pairing asked for)
-    t0 = time.perf_counter()
+    timing: dict = {}
     effort_asked, effort = effort, resolve_effort(effort, len(recording))
     plan = _EFFORT_PLAN[effort]
     q = _resolve_coarse(coarse, len(recording))
     fast = _resolve_search(search)
-    bases = _base_fits(recording, lags, plant, actuator, holdout, saturation, int(n_sub), seed, plan["base"], q,
-                       fast, jobs, say)
-    lag, align = _choose_op_lag(bases, rule, op_lag)
-    rec, base_split, n_fit = bases[lag]
+    ex = process_pool(jobs) if jobs > 1 else None      # one pool for every stage
+    try:
+        stages = _fit_stages(recording, lags, plant, actuator, holdout, saturation, int(n_sub), seed, plan,
+                             q, fast, ex, say, rule, op_lag, cands, jobs, timing)
+    finally:
+        if ex is not None:
+            ex.shutdown()
+    rec, base_split, sel, fv, lag, align = stages
     st, sc = base_split.structure, base_split.structure.scales
+    final_split = sel.final
+    base, final, mm, mm_final = fv.base, fv.final, fv.mismatch, fv.mismatch_final
     if validate is not None:
         validate = validate.with_op_lag(lag)
-    timing["base_fit"] = time.perf_counter() - t0
-    # ---- selection
-    t0 = time.perf_counter()
-    sel = select_effects(base_split, rec.op, rec.pv, cands, rule=rule, seed=seed,
-                         effort=plan["confirm"], screen_effort=plan["screen"],
-                         n_confirm=plan["n_confirm"], jobs=jobs, coarse=q, fast=fast,
-                         progress=lambda s: say(f"{rec.name}: {s}"))
-    timing["selection"] = time.perf_counter() - t0
-    n_cand = max(len(sel.candidates), 1)
-    timing["per_candidate"] = timing["selection"] / n_cand
-    timing["candidate_fits"] = len(sel.candidates)
-    final_split = sel.final
-    # ---- whole-record refits
-    t0 = time.perf_counter()
-    base = _refit_full(base_split, rec, seed + 1, "fast", fast)
-    final = base if final_split is base_split else _refit_full(final_split, rec, seed + 2, "fast", fast)
-    timing["full_refit"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    mm = _locate(rec, base)
-    mm_final = mm if final is base else _locate(rec, final)
-    timing["locate"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    say(f"{rec.name}: friction verdict")
-    fv = _friction_stage(rec, plant, actuator, base, final, mm, mm_final, rule, seed, plan["verdict"], jobs, q,
-                         fast)
-    base, final, mm, mm_final = fv.base, fv.final, fv.mismatch, fv.mismatch_final
-    timing["friction_verdict"] = time.perf_counter() - t0
     expl = _explanations(rec, sel, base, final, mm)
     # ---- validation
     validation = None
@@ -684,6 +667,50 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     return res
 
 
+def _refit_task(args):
+    return _refit_full(*args)
+
+
+def _fit_stages(recording: Recording, lags, plant, actuator, holdout, saturation, n_sub: int, seed: int,
+                plan: dict, q: int, fast: bool, ex, say, rule: SelectionRule, op_lag, cands, jobs: int,
+                timing: dict):
+    """Base fit, selection, whole-record refits and friction verdict, on the process pool ``ex`` (or none)."""
+    t0 = time.perf_counter()       # ---- base fit on the fit part (on each OP/PV pairing asked for)
+    bases = _base_fits(recording, lags, plant, actuator, holdout, saturation, n_sub, seed, plan["base"], q,
+                       fast, ex, say)
+    lag, align = _choose_op_lag(bases, rule, op_lag)
+    rec, base_split, n_fit = bases[lag]
+    timing["base_fit"] = time.perf_counter() - t0
+    # ---- selection
+    t0 = time.perf_counter()
+    sel = select_effects(base_split, rec.op, rec.pv, cands, rule=rule, seed=seed,
+                         effort=plan["confirm"], screen_effort=plan["screen"],
+                         n_confirm=plan["n_confirm"], jobs=jobs, coarse=q, fast=fast,
+                         progress=lambda s: say(f"{rec.name}: {s}"), executor=ex)
+    timing["selection"] = time.perf_counter() - t0
+    timing["per_candidate"] = timing["selection"] / max(len(sel.candidates), 1)
+    timing["candidate_fits"] = len(sel.candidates)
+    final_split = sel.final
+    # ---- whole-record refits (the base and the final model side by side)
+    t0 = time.perf_counter()
+    todo = [(base_split, rec, seed + 1, "fast", fast)]
+    if final_split is not base_split:
+        todo.append((final_split, rec, seed + 2, "fast", fast))
+    refits = list(ex.map(_refit_task, todo)) if ex is not None and len(todo) > 1 else [_refit_full(*t) for t in todo]
+    base, final = refits[0], refits[-1]
+    timing["full_refit"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    mm = _locate(rec, base)
+    mm_final = mm if final is base else _locate(rec, final)
+    timing["locate"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    say(f"{rec.name}: friction verdict")
+    fv = _friction_stage(rec, plant, actuator, base, final, mm, mm_final, rule, seed, plan["verdict"], jobs, q,
+                         fast, executor=ex)
+    timing["friction_verdict"] = time.perf_counter() - t0
+    return rec, base_split, sel, fv, lag, align
+
+
 def _resolve_op_lag(op_lag) -> tuple[int, ...]:
     """The OP lags (samples) whose base fits ``op_lag`` asks for."""
     if isinstance(op_lag, str) and op_lag == "auto":
@@ -706,16 +733,15 @@ def _base_task(args):
 
 
 def _base_fits(recording: Recording, lags: tuple[int, ...], plant: str, actuator: str, holdout: float,
-               saturation, n_sub: int, seed: int, effort: str, q: int, fast: bool, jobs: int,
+               saturation, n_sub: int, seed: int, effort: str, q: int, fast: bool, executor,
                say: Callable[[str], None]) -> dict[int, tuple[Recording, FitResult, int]]:
     """Base fit (with friction, fit part) of the record paired at each OP lag: ``{lag: (rec, fit, n_fit)}``."""
     args = [(recording.with_op_lag(lag), plant, actuator, holdout, saturation, n_sub, seed, effort, q, fast)
             for lag in lags]
     say(f"{recording.name}: fitting the base model ({plant} + {actuator}"
         + ("; OP paired with the same and with the next PV sample)" if len(lags) > 1 else ")"))
-    if jobs > 1 and len(args) > 1:
-        with process_pool(min(jobs, len(args))) as ex:
-            out = list(ex.map(_base_task, args))
+    if executor is not None and len(args) > 1:
+        out = list(executor.map(_base_task, args))
     else:
         out = [_base_task(a) for a in args]
     return dict(zip(lags, out))
@@ -783,13 +809,13 @@ class _FrictionStage(NamedTuple):
 
 def _friction_stage(rec: Recording, plant: str, actuator: str, base: FitResult, final: FitResult,
                     mm: MismatchReport, mm_final: MismatchReport, rule: SelectionRule, seed: int,
-                    effort: str, jobs: int, coarse: int, fast: bool = False) -> _FrictionStage:
+                    effort: str, jobs: int, coarse: int, fast: bool = False, executor=None) -> _FrictionStage:
     """Friction verdict, Horch's test and the combined assessment; the final model it keeps."""
     stiction, fr0, final_v, slip = _friction_verdict(final, rec, rule, seed, effort, mm,
-                                                     jobs=jobs, coarse=coarse, fast=fast)
+                                                     jobs=jobs, coarse=coarse, fast=fast, executor=executor)
     if actuator == "valve":
         stiction["horch"] = horch_ccf(rec.op, rec.pv, _dt(rec), plant)
-        _combine_verdict(stiction, rec, plant, slip)
+        _combine_verdict(stiction, rec, plant, slip, executor)
     if final_v is not final:
         same = final is base
         final = final_v

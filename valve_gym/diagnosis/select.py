@@ -208,7 +208,7 @@ def _run(tasks, jobs, executor=None):
 def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_EFFECTS,
                    rule: SelectionRule = SelectionRule(), seed: int = 0, effort: str = "thorough",
                    jobs: int = 1, progress=None, screen_effort: str = "fast",
-                   n_confirm: int = 3, coarse: int = 1, fast: bool = False) -> Selection:
+                   n_confirm: int = 3, coarse: int = 1, fast: bool = False, executor=None) -> Selection:
     """Greedy forward selection of candidate effects on top of ``base``.
 
     Parameters
@@ -230,6 +230,8 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
         and stop early (:func:`~valve_gym.diagnosis.fit.fit_structure`,
         ``early_stop``); the screening fits always search in full
     progress : callable(str), optional, told about each round
+    executor : process pool, optional (:func:`~valve_gym.diagnosis.model.process_pool`): runs the
+        fits of a round instead of a pool of ``jobs`` workers made for the selection
 
     Returns
     -------
@@ -251,7 +253,8 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
     effects: list[str] = []
     tried: list[CandidateFit] = []
     rnd = 0
-    ex = process_pool(jobs) if jobs > 1 else None
+    own = executor is None and jobs > 1
+    ex = process_pool(jobs) if own else executor
     try:
         while pool and len(effects) < rule.max_effects:
             rnd += 1
@@ -289,7 +292,7 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
             current = best.fit
             pool.remove(best.effect)
     finally:
-        if ex is not None:
+        if own and ex is not None:
             ex.shutdown()
     return Selection(base=base, final=current, effects=effects, candidates=tried, skipped=skipped,
                      n_eff=n_eff0, seconds=time.perf_counter() - t0)

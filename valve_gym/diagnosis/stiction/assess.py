@@ -80,7 +80,7 @@ def _fitted_band(fit: FitResult | None) -> float:
 
 def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None,
                     verdict: Mapping | None = None, slip_fit: FitResult | None = None,
-                    model: LogisticModel | None = None) -> StictionAssessment:
+                    model: LogisticModel | None = None, map_fn=None) -> StictionAssessment:
     """Combined stiction probability, verdict and size of one record.
 
     Parameters
@@ -94,6 +94,8 @@ def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None
         :func:`valve_gym.diagnosis.diagnose` (``delta_ic``, ``band``, ``band_needed``, ...)
     slip_fit : FitResult, optional, fitted slip-jump model (for S, J with intervals)
     model : LogisticModel, optional (default :func:`default_model`)
+    map_fn : map-like callable, optional (e.g. an executor's ``map``): the S profile of
+        ``slip_fit`` runs its two sides side by side (same result)
 
     Returns
     -------
@@ -101,7 +103,7 @@ def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None
     """
     op, pv = check_signals(op, pv, dt)
     ev = model_free_evidence(op, pv, dt, plant, sp)
-    slip = slip_jump_profile(slip_fit, op, pv) if slip_fit is not None else NAN_SIZE
+    slip = slip_jump_profile(slip_fit, op, pv, map_fn=map_fn) if slip_fit is not None else NAN_SIZE
     if verdict is not None:
         # the band feature reads the slip-jump fit's own S (what the combination was fitted and
         # validated on), not the profile's re-optimised estimate

@@ -155,8 +155,27 @@ def _reoptimise(fit: FitResult, u, y, w, free: list[str], j_coords) -> np.ndarra
     return np.asarray(res.w, float)
 
 
-def _profile(fit: FitResult, u, y, n_s: int, n_j: int) -> _Profile:
-    """SSE profile over S, the other parameters re-optimised at every S (continuation from the optimum)."""
+def _profile_branch(args) -> np.ndarray:
+    """One side of the profile: the other parameters re-optimised at each ``S`` in ``s_path``, in order."""
+    fit, u, y, s_path, free, jc = args
+    st = fit.structure
+    i_s = st.index("S")
+    p_s = st.params[i_s]
+    w = np.asarray(fit.w, float).copy()
+    out = np.empty((len(s_path), len(w)))
+    for k, s_k in enumerate(s_path):
+        w[i_s] = p_s.coord(s_k)
+        w = _reoptimise(fit, u, y, w, free, jc)
+        out[k] = w
+    return out
+
+
+def _profile(fit: FitResult, u, y, n_s: int, n_j: int, map_fn=None) -> _Profile:
+    """SSE profile over S, the other parameters re-optimised at every S (continuation from the optimum).
+
+    The two sides of the optimum are independent continuations; ``map_fn`` (a map-like
+    callable, e.g. an executor's ``map``) runs them side by side (same result).
+    """
     st = fit.structure
     i_s, i_j = st.index("S"), st.index("J_rel")
     p_s, p_j = st.params[i_s], st.params[i_j]
@@ -169,13 +188,11 @@ def _profile(fit: FitResult, u, y, n_s: int, n_j: int) -> _Profile:
     k0 = int(np.argmin(np.abs(s - s_hat)))
     jc = np.unique(np.concatenate([np.linspace(0.0, 1.0, n_j), [fit.w[i_j]]]))
     free = [p.name for i, p in enumerate(st.params) if i != i_s and not p.discrete]
+    up, down = list(range(k0, len(s))), list(range(k0 - 1, -1, -1))
+    tasks = [(fit, u, y, s[order], free, jc) for order in (up, down)]
     ws = np.empty((len(s), len(fit.w)))
-    for order in (range(k0, len(s)), range(k0 - 1, -1, -1)):
-        w = np.asarray(fit.w, float).copy()
-        for k in order:
-            w[i_s] = p_s.coord(s[k])
-            w = _reoptimise(fit, u, y, w, free, jc)
-            ws[k] = w
+    for order, rows in zip((up, down), (map_fn or map)(_profile_branch, tasks)):
+        ws[order] = rows
     sse, Y = _sse(st, ws, u, y, fit.n_fit)
     WJ = np.repeat(ws, len(jc), axis=0)
     WJ[:, i_j] = np.tile(jc, len(s))
@@ -205,7 +222,8 @@ def _window_error(pr: _Profile, y, n_fit: int, n_win: int = 4) -> float:
     return float(np.std(est, ddof=1) / np.sqrt(len(est))) if len(est) >= 2 else 0.0
 
 
-def profile_interval(fit: FitResult, u, y, n_s: int = 13, n_j: int = 9) -> tuple[SizeEstimate, float]:
+def profile_interval(fit: FitResult, u, y, n_s: int = 13, n_j: int = 9,
+                     map_fn=None) -> tuple[SizeEstimate, float]:
     """Statistical part of the S, J estimate of a fitted slip-jump block.
 
     Parameters
@@ -214,6 +232,8 @@ def profile_interval(fit: FitResult, u, y, n_s: int = 13, n_j: int = 9) -> tuple
     u : (T,) controller output 0..1
     y : (T,) measured PV
     n_s, n_j : grid sizes over ``S`` and ``J/S``
+    map_fn : map-like callable, optional (e.g. an executor's ``map``): runs the two sides
+        of the profile side by side
 
     Returns
     -------
@@ -221,7 +241,7 @@ def profile_interval(fit: FitResult, u, y, n_s: int = 13, n_j: int = 9) -> tuple
     model discrepancy), and the window standard error of ``S`` (fraction of stroke)
     """
     y = np.asarray(y, float)
-    pr = _profile(fit, np.asarray(u, float), y, n_s, n_j)
+    pr = _profile(fit, np.asarray(u, float), y, n_s, n_j, map_fn)
     n_eff = effective_n(fit.residual)
     best = max(float(min(pr.sse.min(), pr.sse_j.min())), 1e-300)
     dev = n_eff * np.log(pr.sse / best)
@@ -252,7 +272,7 @@ def widen(est: SizeEstimate, s_err: float, c_s: float | None = None, c_j: float 
     return est._replace(S_lo=lo / gs, S_hi=hi * gs, J_lo=est.J_lo / gj, J_hi=est.J_hi * gj)
 
 
-def slip_jump_profile(fit: FitResult | None, u, y, n_s: int = 13, n_j: int = 9) -> SizeEstimate:
+def slip_jump_profile(fit: FitResult | None, u, y, n_s: int = 13, n_j: int = 9, map_fn=None) -> SizeEstimate:
     """S and J of a fitted slip-jump model with 90 % intervals.
 
     The profile likelihood re-optimises the other parameters at every ``S``
@@ -266,6 +286,7 @@ def slip_jump_profile(fit: FitResult | None, u, y, n_s: int = 13, n_j: int = 9) 
     u : (T,) controller output 0..1
     y : (T,) measured PV
     n_s, n_j : grid sizes over ``S`` and ``J/S``
+    map_fn : map-like callable, optional (see :func:`profile_interval`)
 
     Returns
     -------
@@ -273,5 +294,5 @@ def slip_jump_profile(fit: FitResult | None, u, y, n_s: int = 13, n_j: int = 9) 
     """
     if fit is None or "slip_jump" not in fit.structure.effects:
         return NAN_SIZE
-    est, s_err = profile_interval(fit, u, y, n_s, n_j)
+    est, s_err = profile_interval(fit, u, y, n_s, n_j, map_fn)
     return widen(est, s_err)
