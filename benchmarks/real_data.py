@@ -5,8 +5,8 @@
    base and the final model, the located mismatch regions and the effects named.
 2. Industrial loops with expert stiction labels
    (``valve_gym/data/stictiongpt_plant_loops``): friction verdict of every
-   record (``--plant integrating`` for level loops ``LIC``, ``first_order`` for the
-   others, ``--op-range 0,100``), scored against the labels *by loop tag*: each
+   record (the default ``--plant auto``: integrating for level loops ``LIC``, ``first_order``
+   for the others, from the tag; ``--op-range 0,100``), scored against the labels *by loop tag*: each
    tag's verdict is the majority of its records' verdicts (ties count as
    "stiction"), and the balanced accuracy is the mean of the true-positive rate
    over stiction tags and the true-negative rate over no-stiction tags.  The
@@ -41,6 +41,7 @@ import numpy as np
 from valve_gym.diagnosis import data_path, diagnose, load_recording
 from valve_gym.diagnosis.diagnose import diagnose_many
 from valve_gym.diagnosis.fit import parameter_uncertainty
+from valve_gym.diagnosis.plant_choice import plant_from_name
 
 
 def cascaded_tanks(effort="auto", jobs=2):
@@ -86,7 +87,8 @@ def _p(x):
 
 
 def _plant_for(path):
-    return "integrating" if "LIC" in os.path.basename(path).upper() else "first_order"
+    """The model of a plant loop: from its tag (level loops integrating, the others first order)."""
+    return plant_from_name(os.path.splitext(os.path.basename(path))[0])[0]
 
 
 def _print_records(table):

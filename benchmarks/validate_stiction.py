@@ -58,6 +58,7 @@ from valve_gym._io import write_atomic
 from valve_gym.diagnosis import data_path, diagnose, load_recording
 from valve_gym.diagnosis.cli import OP_LAG_CHOICES, op_lag_value
 from valve_gym.diagnosis.model import process_pool
+from valve_gym.diagnosis.plant_choice import plant_from_name
 from valve_gym.diagnosis.select import SelectionRule
 from valve_gym.diagnosis.stiction import (
     FEATURES,
@@ -100,7 +101,7 @@ def _real_items():
     rows = list(csv.DictReader(open(os.path.join(folder, "index.csv"), encoding="utf-8")))
     return [{"kind": "real", "path": os.path.join(folder, r["csv_file"]), "tag": r["tag"],
              "label": int(r["expert_label"] == "stiction"),
-             "plant": "integrating" if "LIC" in r["csv_file"].upper() else "first_order",
+             "plant": plant_from_name(os.path.splitext(os.path.basename(r["csv_file"]))[0])[0],
              "name": os.path.basename(r["csv_file"])} for r in rows]
 
 

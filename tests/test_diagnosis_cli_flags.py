@@ -106,6 +106,16 @@ def test_plant(rec_dir, tmp_path, capsys):
     assert d["settings"]["plant"] == "first_order" and "plant first_order" in out
     code, _, err = run([rec_dir / "loop.csv", "--plant", "lake", *FAST], capsys)
     assert code == 2 and "invalid choice" in err
+    # default auto: the loop tag in the file name picks the model, and the output says why
+    d, out, _ = run_json(rec_dir, tmp_path, capsys)
+    assert d["settings"]["plant"] == "tank" and d["settings"]["plant_choice"]["asked"] == "auto"
+    tagged = tmp_path / "2411LIC10201_0005.csv"
+    tagged.write_bytes((rec_dir / "loop.csv").read_bytes())
+    d, out, _ = run_json(rec_dir, tmp_path, capsys, path=tagged)
+    assert d["settings"]["plant"] == "integrating" and "loop tag LIC" in out
+    assert "integrates its inflow" in d["settings"]["plant_choice"]["reason"]
+    d, out, _ = run_json(rec_dir, tmp_path, capsys, "--plant", "tank", path=tagged)     # named outright
+    assert d["settings"]["plant"] == "tank" and "reason" not in d["settings"]["plant_choice"]
 
 
 def test_actuator(rec_dir, tmp_path, capsys):

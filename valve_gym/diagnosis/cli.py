@@ -3,7 +3,7 @@
 Usage::
 
     valve-gym diagnose REC.csv|DIR [--columns t=COL,op=COL,pv=COL,sp=COL,mv=COL]
-        [--op-range LO,HI] [--plant tank|integrating|first_order|cascade]
+        [--op-range LO,HI] [--plant auto|tank|integrating|first_order|cascade]
         [--actuator valve|pump] [--validate OTHER.csv] [--holdout FRAC]
         [--json OUT.json] [--report DIR] [--effects LIST] [--jobs N]
         [--effort auto|fast|normal|thorough] [--search full|fast] [--op-lag auto|0|1] [--seed N] [--quiet]
@@ -65,7 +65,9 @@ def build_parser() -> argparse.ArgumentParser:
                                      "(default: common names are recognised)")
     p.add_argument("--op-range", help="raw controller-output range LO,HI that maps to 0..1, "
                                       "e.g. 0,100 for percent")
-    p.add_argument("--plant", default="tank", choices=PLANTS, help="process model (default tank)")
+    p.add_argument("--plant", default="auto", choices=("auto",) + tuple(PLANTS),
+                   help="process model (default auto: from the loop tag in the file name, LIC... integrating, "
+                        "FIC/PIC/TIC/AIC... first_order, no tag: tank)")
     p.add_argument("--actuator", default="valve", choices=ACTUATORS,
                    help="valve (with friction) or pump (default valve)")
     p.add_argument("--validate", metavar="OTHER.csv",
@@ -296,7 +298,9 @@ def _print_fleet(run) -> None:
 
 def _print_summary(res) -> None:
     d = res.to_dict()
-    print(f"{d['recording']['name']}: plant {res.plant}, actuator {res.actuator}")
+    choice = res.settings.get("plant_choice", {})
+    how = f" ({choice['reason']})" if choice.get("asked") == "auto" else ""
+    print(f"{d['recording']['name']}: plant {res.plant}{how}, actuator {res.actuator}")
     print(f"  effects: {', '.join(d['effects']) or 'none'}")
     print(f"  RMSE base {d['base']['rmse']:.4g} -> final {d['final']['rmse']:.4g} "
           f"(fit {d['base']['fit_percent']:.1f} % -> {d['final']['fit_percent']:.1f} %)")

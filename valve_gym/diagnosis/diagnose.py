@@ -33,6 +33,7 @@ from .fit import (
 from .indices import horch_ccf
 from .locate import MismatchReport, condition_masks, locate_mismatch
 from .model import ACTUATORS, PLANTS, DataScales, ModelStructure, process_pool
+from .plant_choice import resolve_plant
 from .recording import Recording, RecordingError
 from .select import Selection, SelectionRule, select_effects
 from .stiction import assess_stiction
@@ -525,7 +526,7 @@ def _validate_other(base: FitResult, final: FitResult, validate: Recording, seed
 
 
 # --------------------------------------------------------------------------- main API
-def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve", *,
+def diagnose(recording: Recording, plant: str = "auto", actuator: str = "valve", *,
              candidates: Sequence[str] | None = None, holdout: float = 0.3,
              validate: Recording | None = None, rule: SelectionRule = SelectionRule(),
              effort: str = "auto", seed: int = 0, jobs: int = 1, saturation="auto",
@@ -537,7 +538,11 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     ----------
     recording : Recording
         From :func:`~valve_gym.diagnosis.recording.load_recording`.
-    plant : {'tank', 'integrating', 'first_order', 'cascade'}
+    plant : {'auto', 'tank', 'integrating', 'first_order', 'cascade'}
+        ``'auto'`` (default): from the loop tag in the recording's name
+        (:func:`~valve_gym.diagnosis.plant_choice.plant_from_name`: ``LIC...`` integrating,
+        ``FIC``/``PIC``/``TIC``/``AIC...`` first order, no tag: ``'tank'``); the choice and
+        its reason are in ``settings['plant_choice']``.
     actuator : {'valve', 'pump'}
     candidates : sequence of str, optional
         Candidate effects (default all of
@@ -616,6 +621,9 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
     1.35
     """
     t_all = time.perf_counter()
+    if not isinstance(recording, Recording):
+        raise TypeError("diagnose() needs a Recording (see load_recording)")
+    plant, plant_choice = resolve_plant(plant, recording.name)
     cands = _check_arguments(recording, plant, actuator, holdout, candidates)
     lags = _resolve_op_lag(op_lag)
     if not isinstance(n_sub, (int, np.integer)) or n_sub < 1:
@@ -648,7 +656,7 @@ def diagnose(recording: Recording, plant: str = "tank", actuator: str = "valve",
         validation = _validate_other(base, final, validate, seed)
         timing["validation"] = time.perf_counter() - t0
     timing["total"] = time.perf_counter() - t_all
-    settings = {"plant": plant, "actuator": actuator, "candidates": list(cands),
+    settings = {"plant": plant, "plant_choice": plant_choice, "actuator": actuator, "candidates": list(cands),
                 "holdout": float(holdout), "effort": effort, "effort_asked": effort_asked,
                 "seed": seed, "coarse_to_fine": q, "search": search, "op_lag": lag, "op_lag_test": align,
                 "rule": dict(rule.__dict__), "n_sub_search": st.n_sub,
@@ -768,7 +776,7 @@ def _check_arguments(recording: Recording, plant: str, actuator: str, holdout: f
     if not isinstance(recording, Recording):
         raise TypeError("diagnose() needs a Recording (see load_recording)")
     if plant not in PLANTS:
-        raise ValueError(f"unknown plant {plant!r}; choose one of {', '.join(PLANTS)}")
+        raise ValueError(f"unknown plant {plant!r}; choose 'auto' or one of {', '.join(PLANTS)}")
     if actuator not in ACTUATORS:
         raise ValueError(f"unknown actuator {actuator!r}; choose 'valve' or 'pump'")
     if not 0.0 <= float(holdout) <= 0.6:

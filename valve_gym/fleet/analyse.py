@@ -14,6 +14,7 @@ import os
 import time
 from typing import Any, NamedTuple
 
+from ..diagnosis.plant_choice import resolve_plant
 from .actions import evidence_weight, recommend, score
 from .result import FleetSettings, LoopResult
 from .screen import Screen, screen_recording
@@ -174,7 +175,7 @@ def analyse_loop(src: LoopSource, settings: FleetSettings, key: str = "") -> Loo
     try:
         loaded = load_loop(src, columns=dict(settings.columns) if settings.columns else None,
                            op_range=settings.op_range, max_gap=settings.max_gap)
-        sc = screen_recording(loaded.recording, settings.plant)
+        sc = screen_recording(loaded.recording, resolve_plant(settings.plant, loaded.recording.name)[0])
         res = None
         if settings.full or sc.oscillation.oscillating:
             res = _full(loaded.recording, settings, src.name)

@@ -27,6 +27,7 @@ class FleetSettings:
     Attributes
     ----------
     plant, actuator : str, process model and actuator of :func:`valve_gym.diagnosis.diagnose`
+        (``plant='auto'``: each loop's from its tag, :func:`valve_gym.diagnosis.plant_choice.plant_from_name`)
     candidates : tuple of str, candidate effects of the full diagnosis
     holdout : float, fraction held out of the selection fits
     effort : str, search budget of the full diagnosis
@@ -40,7 +41,7 @@ class FleetSettings:
     report_dir : str, optional, folder for a full report per fully diagnosed loop
     """
 
-    plant: str = "tank"
+    plant: str = "auto"
     actuator: str = "valve"
     candidates: tuple[str, ...] = ()
     holdout: float = 0.3

@@ -62,7 +62,8 @@ def _md(results: Sequence[LoopResult], settings: FleetSettings, max_rows: int) -
     ranked = [r for r in rank(results) if r.oscillating or r.stiction == "yes"]
     lines = ["# Worklist: which valve to fix first", "", *_summary(results), "",
              f"Ranked by score = w x OP oscillation amplitude [% of stroke] (w: stiction evidence weight; "
-             f"see 'How the ranking works'). Plant model {settings.plant}, actuator {settings.actuator}.", "",
+             f"see 'How the ranking works'). Plant model {_plant_words(settings.plant)}, "
+             f"actuator {settings.actuator}.", "",
              "| # | loop | score | action | S | J | w | PV amplitude | period [s] | evidence |",
              "|---:|---|---:|---|---:|---:|---:|---:|---:|---|"]
     for i, r in enumerate(ranked[:max_rows], 1):
@@ -199,3 +200,9 @@ def write_worklist(results: Sequence[LoopResult], sources: Sequence[LoopSource],
     md = write_atomic(os.path.join(out_dir, "worklist.md"), lambda f: f.write(md_text.encode("utf-8")))
     ht = write_atomic(os.path.join(out_dir, "worklist.html"), lambda f: f.write(page.encode("utf-8")))
     return md, ht
+
+
+def _plant_words(plant: str) -> str:
+    """The plant setting in words (``auto``: chosen per loop from its tag)."""
+    return ("chosen per loop from its tag (LIC... integrating; FIC, PIC, TIC, AIC... first_order; no tag: tank)"
+            if plant == "auto" else plant)
