@@ -157,6 +157,7 @@ def test_report(rec_dir, tmp_path, capsys):
     names = set(os.listdir(rep))
     assert {"report.md", "diagnosis.json", "overlay.png", "residuals.png"} <= names
     assert not [n for n in names if n.endswith(".tmp")]
+    assert "plant `tank`" in (rep / "report.md").read_text() and "no loop tag" in (rep / "report.md").read_text()
 
 
 def test_effects(rec_dir, tmp_path, capsys):

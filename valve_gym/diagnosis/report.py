@@ -245,6 +245,9 @@ def _md_summary(res, d: dict) -> list[str]:
     L.append(f"{rec['n']} samples, dt = {_g(rec['dt'])} s, plant `{res.plant}`, actuator "
              f"`{res.actuator}`; held-out end: {_g(100 * d['holdout']['fraction'], 3)} % of the "
              f"record.")
+    choice = d.get("settings", {}).get("plant_choice", {})
+    if choice.get("reason"):
+        L.append(f"Plant model chosen from the name: {choice['reason']}.")
     L.append("")
     if rec.get("repairs"):
         L.append("**What was done to the data before fitting** (repairs, resampling, decimation):")
