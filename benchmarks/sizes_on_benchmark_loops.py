@@ -40,6 +40,7 @@ import numpy as np
 
 from valve_gym.diagnosis import Recording, diagnose
 from valve_gym.diagnosis.model import process_pool
+from valve_gym.diagnosis.stiction import oscillation
 
 CAL_SEED = 90_000
 GRID = np.round(np.arange(0.0, 3.0001, 0.05), 2)
@@ -96,7 +97,7 @@ def _run_one(args) -> dict:
     out.update({"present": bool(s["present"]), "verdict": s.get("verdict"), "S": s.get("S"),
                 "S_interval": s.get("S_interval"), "J": s.get("J"), "J_interval": s.get("J_interval"),
                 "sizes_agree": s.get("sizes_agree"), "sizes": s.get("sizes") or [],
-                "seconds": time.perf_counter() - t0})
+                "cycles": bool(oscillation(rec.pv).present), "seconds": time.perf_counter() - t0})
     return out
 
 
@@ -213,6 +214,12 @@ def report(rows: list[dict]) -> str:
         vm = verdict_scores(rs)
         out.append(f"  {m}: sticky found {vm['tp']}/{vm['tp'] + vm['fn']}, healthy cleared "
                    f"{vm['tn']}/{vm['tn'] + vm['fp']}\n")
+    for cyc, what in ((True, "cycles regularly"), (False, "does not cycle regularly")):
+        rs = [r for r in rows if r.get("cycles") is cyc]
+        if rs:
+            vc = verdict_scores(rs)
+            out.append(f"  PV {what} (Thornhill's regularity r > 1, at least 3 cycles): {len(rs)} loops, sticky "
+                       f"found {vc['tp']}/{vc['tp'] + vc['fn']}, healthy cleared {vc['tn']}/{vc['tn'] + vc['fp']}\n")
     sticky = [r for r in rows if r["label"]]
     out.append(_size_line("sizes, sticky loops called stiction", size_scores([r for r in sticky if r["present"]])))
     out.append(_size_line("sizes, all sticky loops with an estimate", size_scores(sticky)))

@@ -80,4 +80,4 @@ SPEC = register_effect(EffectSpec(
     conditions=("near_op_reversal",),
     citation="M.A.A.S. Choudhury, N.F. Thornhill, S.L. Shah, Control Engineering Practice 13 (2005) 641-658.",
     applies=_applies, free=_free, neutral={"S": 0.3, "J_rel": 0.5}, build=_build, physical=_physical,
-    units=_units, explain=_explain, seed=_seed))
+    units=_units, explain=_explain, seed=_seed, rugged=True))

@@ -137,6 +137,11 @@ class EffectSpec:
     rivals_friction : bool
         The effect delays the response as valve friction does; the stiction
         verdict pits friction against a frictionless valve with this effect.
+    rugged : bool
+        The fit's cost surface is rugged (stick-slip: the error jumps as a stick
+        band crosses an output move), so a screening search can miss the gain the
+        full search finds; the selection confirms it whenever it is shortlisted,
+        whatever its screening result (:data:`valve_gym.diagnosis.select.CONFIRM_BELOW`).
     """
 
     name: str
@@ -159,6 +164,7 @@ class EffectSpec:
     flow_fraction: Callable[..., np.ndarray] | None = None
     seed: Callable[..., np.ndarray] | None = None
     rivals_friction: bool = False
+    rugged: bool = False
 
     def __post_init__(self):
         if not self.name.isidentifier():
