@@ -112,10 +112,18 @@ def test_plant(rec_dir, tmp_path, capsys):
     tagged = tmp_path / "2411LIC10201_0005.csv"
     tagged.write_bytes((rec_dir / "loop.csv").read_bytes())
     d, out, _ = run_json(rec_dir, tmp_path, capsys, path=tagged)
-    assert d["settings"]["plant"] == "integrating" and "loop tag LIC" in out
+    assert d["settings"]["plant"] == "integrating" and "LIC in the name" in out
     assert "integrates its inflow" in d["settings"]["plant_choice"]["reason"]
     d, out, _ = run_json(rec_dir, tmp_path, capsys, "--plant", "tank", path=tagged)     # named outright
     assert d["settings"]["plant"] == "tank" and "reason" not in d["settings"]["plant_choice"]
+    # the PV column's name is read first: a level loop's file whose PV is the flow through its valve
+    lines = (rec_dir / "loop.csv").read_text().splitlines()
+    head = lines[0].split(",")
+    head[head.index("PV")] = "flow_FT115"
+    flow = tmp_path / "LIC-106.csv"
+    flow.write_text("\n".join([",".join(head)] + lines[1:]) + "\n")
+    d, out, _ = run_json(rec_dir, tmp_path, capsys, "--columns", "pv=flow_FT115", path=flow)
+    assert d["settings"]["plant"] == "first_order" and "PV column 'flow_FT115'" in out
 
 
 def test_actuator(rec_dir, tmp_path, capsys):

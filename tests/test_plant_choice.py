@@ -34,6 +34,22 @@ def test_every_labelled_plant_loop_gets_the_model_it_was_validated_with():
         assert plant_from_name(r["csv_file"].rsplit("/", 1)[-1][:-4])[0] == want, r["csv_file"]
 
 
+@pytest.mark.parametrize("column, plant", [
+    ("flow_FT115", "first_order"),       # a level loop's file whose PV is the flow through its valve
+    ("LT-101", "integrating"), ("2411LIC10201.PV", "integrating"), ("PV_pressure", "first_order"),
+    ("level", "integrating"),            # "level" alone decides nothing: the name's LIC does
+    ("PV", "integrating"),
+])
+def test_the_pv_column_is_read_before_the_name(column, plant):
+    chosen, why = plant_from_name("LIC-106_sorted", pv_column=column)
+    assert chosen == plant
+    assert ("PV column" in why) == (plant == "first_order" or column == "LT-101" or ".PV" in column)
+
+
+def test_a_level_column_keeps_the_tank_model_without_a_tag():
+    assert plant_from_name("rig_run_3", pv_column="level")[0] == "tank"
+
+
 def test_a_named_model_is_kept():
     assert resolve_plant("cascade", "FIC101") == ("cascade", {"asked": "cascade", "chosen": "cascade"})
     assert resolve_plant("auto", "FIC101")[1]["chosen"] == "first_order"

@@ -623,7 +623,7 @@ def diagnose(recording: Recording, plant: str = "auto", actuator: str = "valve",
     t_all = time.perf_counter()
     if not isinstance(recording, Recording):
         raise TypeError("diagnose() needs a Recording (see load_recording)")
-    plant, plant_choice = resolve_plant(plant, recording.name)
+    plant, plant_choice = resolve_plant(plant, recording.name, recording.columns.get("pv"))
     cands = _check_arguments(recording, plant, actuator, holdout, candidates)
     lags = _resolve_op_lag(op_lag)
     if not isinstance(n_sub, (int, np.integer)) or n_sub < 1:

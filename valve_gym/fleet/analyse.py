@@ -175,7 +175,8 @@ def analyse_loop(src: LoopSource, settings: FleetSettings, key: str = "") -> Loo
     try:
         loaded = load_loop(src, columns=dict(settings.columns) if settings.columns else None,
                            op_range=settings.op_range, max_gap=settings.max_gap)
-        sc = screen_recording(loaded.recording, resolve_plant(settings.plant, loaded.recording.name)[0])
+        rec = loaded.recording
+        sc = screen_recording(rec, resolve_plant(settings.plant, rec.name, rec.columns.get("pv"))[0])
         res = None
         if settings.full or sc.oscillation.oscillating:
             res = _full(loaded.recording, settings, src.name)
