@@ -1,0 +1,56 @@
+"""The selection's confirmation rule: a candidate is refitted with the full budget only when its screening
+fit lowered the criterion, or its effect's fit is rugged (slip-jump friction)."""
+from __future__ import annotations
+
+import importlib
+
+from valve_gym.diagnosis.fit import fit_with_friction
+from valve_gym.diagnosis.model import DataScales, ModelStructure
+from valve_gym.diagnosis.synthetic import make_recording
+from valve_gym.effects import effect_spec
+
+select = importlib.import_module("valve_gym.diagnosis.select")
+
+
+def _select(monkeypatch, effect, seed, candidates):
+    """Round-1 screening criterion changes ``{effect: dIC}`` and the selection (every candidate shortlisted)."""
+    rec = make_recording(effect, seed=seed, n=600)
+    n_fit = 420
+    st = ModelStructure("tank", "valve", (), DataScales.from_signals(rec.op[:n_fit], rec.pv[:n_fit], rec.dt))
+    base = fit_with_friction(st, rec.op, rec.pv, n_fit, rng=0, effort="fast")[0]
+    first: dict[str, float] = {}
+    compare = select.compare
+
+    def spy(old, new, rule, n_eff=None):
+        out = compare(old, new, rule, n_eff)
+        if old is base:                                   # round 1; the screening fits are compared first
+            first.setdefault(new.structure.effects[-1], out[0])
+        return out
+
+    monkeypatch.setattr(select, "compare", spy)
+    sel = select.select_effects(base, rec.op, rec.pv, candidates, seed=0, effort="normal",
+                                screen_effort="fast", n_confirm=len(candidates))
+    return first, sel
+
+
+def _check(first, sel):
+    round1 = [c for c in sel.candidates if c.round == 1]
+    assert {c.effect for c in round1} == set(first)
+    for c in round1:
+        assert c.confirmed == (first[c.effect] < select.CONFIRM_BELOW or effect_spec(c.effect).rugged), c.effect
+    return round1
+
+
+def test_a_candidate_is_confirmed_only_when_its_screening_found_a_gain(monkeypatch):
+    first, sel = _select(monkeypatch, "overflow", 32, ("overflow", "leak", "dead_time", "slip_jump"))
+    round1 = _check(first, sel)
+    assert sel.effects[:1] == ["overflow"]
+    assert first["overflow"] < 0 and any(c.confirmed for c in round1)
+
+
+def test_a_clean_record_confirms_only_what_gains_or_is_rugged(monkeypatch):
+    first, sel = _select(monkeypatch, "none", 4, ("leak", "dead_time", "slip_jump"))
+    round1 = _check(first, sel)
+    assert sel.effects == []
+    assert any(not c.confirmed for c in round1)            # a screening without gain is not refitted
+    assert next(c for c in round1 if c.effect == "slip_jump").confirmed
