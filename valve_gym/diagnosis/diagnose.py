@@ -325,7 +325,7 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
     ks = _kstep_tasks(tasks, n_frictionless)
     horizon = kstep_horizon(len(y))
     args += [(tasks[i][0], u, y, tasks[i][1], None, seed + 41 + i, "fast", 1, horizon) for i in ks]
-    # the friction fits (the longest) first, so that none runs alone last
+    # reversed: the k-step fits first, then the friction fits (the longest) and the frictionless ones
     if executor is not None:
         fits = list(executor.map(_fit_task, args[::-1]))[::-1]
     elif jobs > 1:
