@@ -66,8 +66,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--op-range", help="raw controller-output range LO,HI that maps to 0..1, "
                                       "e.g. 0,100 for percent")
     p.add_argument("--plant", default="auto", choices=("auto",) + tuple(PLANTS),
-                   help="process model (default auto: from the loop tag in the file name, LIC... integrating, "
-                        "FIC/PIC/TIC/AIC... first_order, no tag: tank)")
+                   help="process model (default auto: from the ISA tag of the PV column, else of the file name: "
+                        "LIC/LT... integrating, FIC/PIC/TIC/AIC... first_order, no tag: tank)")
     p.add_argument("--actuator", default="valve", choices=ACTUATORS,
                    help="valve (with friction) or pump (default valve)")
     p.add_argument("--validate", metavar="OTHER.csv",

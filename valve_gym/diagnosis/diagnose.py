@@ -294,8 +294,7 @@ def coarse_factor(n_samples: int) -> int:
 
 
 def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, seed: int,
-                      effort: str, mm: MismatchReport, jobs: int = 1, coarse: int = 1, fast: bool = False,
-                      executor=None):
+                      effort: str, mm: MismatchReport, coarse: int = 1, fast: bool = False, executor=None):
     """Does the valve stick?  Friction models against frictionless ones, whole record.
 
     Friction (the paper's valve and the slip-jump valve, each with the final
@@ -326,13 +325,7 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
     horizon = kstep_horizon(len(y))
     args += [(tasks[i][0], u, y, tasks[i][1], None, seed + 41 + i, "fast", 1, horizon) for i in ks]
     # reversed: the k-step fits first, then the friction fits (the longest) and the frictionless ones
-    if executor is not None:
-        fits = list(executor.map(_fit_task, args[::-1]))[::-1]
-    elif jobs > 1:
-        with process_pool(jobs) as ex:
-            fits = list(ex.map(_fit_task, args[::-1]))[::-1]
-    else:
-        fits = [_fit_task(a) for a in args]
+    fits = _pool_map(executor, _fit_task, args[::-1])[::-1]
     fits, kfits = fits[:len(tasks)], fits[len(tasks):]
     frictionless, fric = fits[:n_frictionless], fits[n_frictionless:]
     _nest_on_frictionless(fric, frictionless[0], u, y)
@@ -539,8 +532,8 @@ def diagnose(recording: Recording, plant: str = "auto", actuator: str = "valve",
     recording : Recording
         From :func:`~valve_gym.diagnosis.recording.load_recording`.
     plant : {'auto', 'tank', 'integrating', 'first_order', 'cascade'}
-        ``'auto'`` (default): from the loop tag in the recording's name
-        (:func:`~valve_gym.diagnosis.plant_choice.plant_from_name`: ``LIC...`` integrating,
+        ``'auto'`` (default): from the ISA tag of the PV column, else of the recording's name
+        (:func:`~valve_gym.diagnosis.plant_choice.plant_from_name`: ``LIC...``/``LT`` integrating,
         ``FIC``/``PIC``/``TIC``/``AIC...`` first order, no tag: ``'tank'``); the choice and
         its reason are in ``settings['plant_choice']``.
     actuator : {'valve', 'pump'}
@@ -621,10 +614,7 @@ def diagnose(recording: Recording, plant: str = "auto", actuator: str = "valve",
     1.35
     """
     t_all = time.perf_counter()
-    if not isinstance(recording, Recording):
-        raise TypeError("diagnose() needs a Recording (see load_recording)")
-    plant, plant_choice = resolve_plant(plant, recording.name, recording.columns.get("pv"))
-    cands = _check_arguments(recording, plant, actuator, holdout, candidates)
+    plant, plant_choice, cands = _check_arguments(recording, plant, actuator, holdout, candidates)
     lags = _resolve_op_lag(op_lag)
     if not isinstance(n_sub, (int, np.integer)) or n_sub < 1:
         raise ValueError(f"n_sub must be a positive whole number, got {n_sub!r}")
@@ -679,6 +669,11 @@ def _refit_task(args):
     return _refit_full(*args)
 
 
+def _pool_map(ex, fn, items: list) -> list:
+    """``fn`` over ``items`` on the diagnosis' process pool ``ex``, in this process without one (or for one item)."""
+    return list(ex.map(fn, items)) if ex is not None and len(items) > 1 else [fn(a) for a in items]
+
+
 def _fit_stages(recording: Recording, lags, plant, actuator, holdout, saturation, n_sub: int, seed: int,
                 plan: dict, q: int, fast: bool, ex, say, rule: SelectionRule, op_lag, cands, jobs: int,
                 timing: dict):
@@ -704,7 +699,7 @@ def _fit_stages(recording: Recording, lags, plant, actuator, holdout, saturation
     todo = [(base_split, rec, seed + 1, "fast", fast)]
     if final_split is not base_split:
         todo.append((final_split, rec, seed + 2, "fast", fast))
-    refits = list(ex.map(_refit_task, todo)) if ex is not None and len(todo) > 1 else [_refit_full(*t) for t in todo]
+    refits = _pool_map(ex, _refit_task, todo)
     base, final = refits[0], refits[-1]
     timing["full_refit"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -713,7 +708,7 @@ def _fit_stages(recording: Recording, lags, plant, actuator, holdout, saturation
     timing["locate"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     say(f"{rec.name}: friction verdict")
-    fv = _friction_stage(rec, plant, actuator, base, final, mm, mm_final, rule, seed, plan["verdict"], jobs, q,
+    fv = _friction_stage(rec, plant, actuator, base, final, mm, mm_final, rule, seed, plan["verdict"], q,
                          fast, executor=ex)
     timing["friction_verdict"] = time.perf_counter() - t0
     return rec, base_split, sel, fv, lag, align
@@ -748,11 +743,7 @@ def _base_fits(recording: Recording, lags: tuple[int, ...], plant: str, actuator
             for lag in lags]
     say(f"{recording.name}: fitting the base model ({plant} + {actuator}"
         + ("; OP paired with the same and with the next PV sample)" if len(lags) > 1 else ")"))
-    if executor is not None and len(args) > 1:
-        out = list(executor.map(_base_task, args))
-    else:
-        out = [_base_task(a) for a in args]
-    return dict(zip(lags, out))
+    return dict(zip(lags, _pool_map(executor, _base_task, args)))
 
 
 def _choose_op_lag(bases: dict[int, tuple[Recording, FitResult, int]], rule: SelectionRule,
@@ -771,10 +762,11 @@ def _choose_op_lag(bases: dict[int, tuple[Recording, FitResult, int]], rule: Sel
 
 
 def _check_arguments(recording: Recording, plant: str, actuator: str, holdout: float,
-                     candidates: Sequence[str] | None) -> tuple[str, ...]:
-    """Check the arguments of :func:`diagnose`; the candidate effects as a tuple."""
+                     candidates: Sequence[str] | None) -> tuple[str, dict, tuple[str, ...]]:
+    """Check the arguments of :func:`diagnose`: the plant (``'auto'`` resolved), its choice, the candidates."""
     if not isinstance(recording, Recording):
         raise TypeError("diagnose() needs a Recording (see load_recording)")
+    plant, plant_choice = resolve_plant(plant, recording.name, recording.columns.get("pv"))
     if plant not in PLANTS:
         raise ValueError(f"unknown plant {plant!r}; choose 'auto' or one of {', '.join(PLANTS)}")
     if actuator not in ACTUATORS:
@@ -786,7 +778,7 @@ def _check_arguments(recording: Recording, plant: str, actuator: str, holdout: f
     for c in cands:
         if c not in known:
             raise ValueError(f"unknown effect {c!r}; candidates are {', '.join(known)}")
-    return cands
+    return plant, plant_choice, cands
 
 
 def _dt(rec: Recording) -> float:
@@ -817,10 +809,10 @@ class _FrictionStage(NamedTuple):
 
 def _friction_stage(rec: Recording, plant: str, actuator: str, base: FitResult, final: FitResult,
                     mm: MismatchReport, mm_final: MismatchReport, rule: SelectionRule, seed: int,
-                    effort: str, jobs: int, coarse: int, fast: bool = False, executor=None) -> _FrictionStage:
+                    effort: str, coarse: int, fast: bool = False, executor=None) -> _FrictionStage:
     """Friction verdict, Horch's test and the combined assessment; the final model it keeps."""
     stiction, fr0, final_v, slip = _friction_verdict(final, rec, rule, seed, effort, mm,
-                                                     jobs=jobs, coarse=coarse, fast=fast, executor=executor)
+                                                     coarse=coarse, fast=fast, executor=executor)
     if actuator == "valve":
         stiction["horch"] = horch_ccf(rec.op, rec.pv, _dt(rec), plant)
         _combine_verdict(stiction, rec, plant, slip, executor)
