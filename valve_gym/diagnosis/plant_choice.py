@@ -32,8 +32,8 @@ _LETTER = {"F": ("first_order", "flow"), "P": ("first_order", "pressure"),
            "L": ("integrating", "level")}
 # first letter, optional I or R, C, optional separator, a digit; not inside a word ("STICTION")
 _TAG = re.compile(r"(?<![A-Z])([FPTAL])[IR]?C[-_. ]?\d")
-# in a column name also a transmitter (FT115, LT-101) and the measured variable in words
-_TRANSMITTER = re.compile(r"(?<![A-Z])([FPTAL])T[-_. ]?\d")
+# in a column name also a transmitter (FT115, LT-101), and the measured variable in words
+_COLUMN_TAG = re.compile(r"(?<![A-Z])([FPTAL])(?:[IR]?C|T)[-_. ]?\d")
 # ("level" alone decides nothing: a column so called is as often a tank rig's as a plant loop's)
 _WORDS = {"FLOW": "F", "PRESS": "P", "TEMP": "T"}
 
@@ -41,9 +41,8 @@ _WORDS = {"FLOW": "F", "PRESS": "P", "TEMP": "T"}
 def _codes(text: str, column: bool) -> list[tuple[str, str]]:
     """(code, first letter) of every loop tag in ``text``; in a column name also transmitters and words."""
     up = str(text).upper()
-    found = [(m.group(0).rstrip("0123456789-_. "), m.group(1)) for m in _TAG.finditer(up)]
+    found = [(m.group(0).rstrip("0123456789-_. "), m.group(1)) for m in (_COLUMN_TAG if column else _TAG).finditer(up)]
     if column:
-        found += [(m.group(0).rstrip("0123456789-_. "), m.group(1)) for m in _TRANSMITTER.finditer(up)]
         found += [(w.lower(), letter) for w, letter in _WORDS.items() if w in up]
     return found
 

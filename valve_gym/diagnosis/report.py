@@ -247,7 +247,7 @@ def _md_summary(res, d: dict) -> list[str]:
              f"record.")
     choice = d.get("settings", {}).get("plant_choice", {})
     if choice.get("reason"):
-        L.append(f"Plant model chosen from the name: {choice['reason']}.")
+        L.append(f"Plant model (`--plant auto`): {choice['reason']}.")
     L.append("")
     if rec.get("repairs"):
         L.append("**What was done to the data before fitting** (repairs, resampling, decimation):")
