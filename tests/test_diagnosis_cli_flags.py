@@ -218,8 +218,12 @@ def test_op_lag(rec_dir, tmp_path, capsys):
     assert d["settings"]["op_lag"] == 1 and d["recording"]["n"] == 299     # op[k-1] paired with pv[k]
     d, _, _ = run_json(rec_dir, tmp_path, capsys, "--op-lag", "auto")
     t = d["settings"]["op_lag_test"]
-    assert t["tested"] and d["settings"]["op_lag"] in (0, 1) and set(t["rmse_fit_part"]) == {"0", "1"}
-    assert (d["settings"]["op_lag"] == 1) == (t["delta_ic"] < -2.0)
+    assert t["tested"] and d["settings"]["op_lag"] == t["chosen"] in (0, 1)
+    if t["method"] == "controller reaction":
+        assert t["controller_reaction"]["op_lag"] == t["chosen"]
+    else:
+        assert t["controller_reaction"]["op_lag"] is None and set(t["rmse_fit_part"]) == {"0", "1"}
+        assert (t["chosen"] == 1) == (t["delta_ic"] < -2.0)
     code, _, err = run([rec_dir / "loop.csv", "--op-lag", "2"], capsys)
     assert code == 2 and "invalid choice" in err
 

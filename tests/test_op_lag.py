@@ -17,21 +17,38 @@ def test_auto_pairs_a_scan_logged_record_with_the_next_pv():
     rec = simulate_loop(SCAN_LOGGED, seed=0)
     res = diagnose(rec, candidates=(), effort="fast", op_lag="auto")
     test = res.settings["op_lag_test"]
-    assert test["tested"] and test["delta_ic"] < -10 and res.settings["op_lag"] == 1
-    assert test["rmse_fit_part"]["1"] < test["rmse_fit_part"]["0"]
+    assert test["tested"] and test["method"] == "controller reaction" and res.settings["op_lag"] == 1
+    r = test["controller_reaction"]
+    assert r["reaction"]["0"] - r["reaction"]["1"] > r["margin"] > 0
+    assert "delta_ic" not in test                      # decided before fitting: one base fit only
     assert len(res.recording) == len(rec) - 1
     np.testing.assert_array_equal(res.recording.op, rec.op[:-1])
     np.testing.assert_array_equal(res.recording.pv, rec.pv[1:])
     from valve_gym.diagnosis.report import render_markdown
     md = render_markdown(res)
     assert "**Pairing of OP and PV:** each controller output paired with the PV of the next sample" in md
+    assert "read from the controller's reaction to the PV" in md
 
 
 def test_auto_keeps_the_models_own_pairing():
-    rec = make_case("none", seed=0, n=600).recording      # the package's generator: pv[k] after op[k] acted
+    rec = make_case("none", seed=0, n=1800).recording     # the package's generator: pv[k] after op[k] acted
     res = diagnose(rec, candidates=(), effort="fast", op_lag="auto")
-    assert res.settings["op_lag"] == 0 and res.settings["op_lag_test"]["delta_ic"] > 0
+    test = res.settings["op_lag_test"]
+    assert res.settings["op_lag"] == 0 and test["method"] == "controller reaction"
+    assert test["controller_reaction"]["reaction"]["1"] > test["controller_reaction"]["reaction"]["0"]
     assert len(res.recording) == len(rec)
+
+
+def test_auto_without_a_controller_fits_both_pairings():
+    """The cascaded tanks (open loop, a pump voltage held from each sample on) show no controller
+    reaction: the base model fitted both ways decides."""
+    from valve_gym.diagnosis.recording import data_path, load_recording
+    rec = load_recording(data_path("cascaded_tanks/estimation.csv"), op_range=(0, 10))
+    res = diagnose(rec, plant="cascade", actuator="pump", candidates=(), effort="fast", op_lag="auto")
+    test = res.settings["op_lag_test"]
+    assert test["controller_reaction"]["op_lag"] is None and test["method"] == "model fit"
+    assert set(test["rmse_fit_part"]) == {"0", "1"}
+    assert res.settings["op_lag"] == (1 if test["delta_ic"] < -2.0 else 0)
 
 
 def test_fixed_op_lag_is_not_tested():

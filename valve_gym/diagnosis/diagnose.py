@@ -33,6 +33,7 @@ from .fit import (
 from .indices import horch_ccf
 from .locate import MismatchReport, condition_masks, locate_mismatch
 from .model import ACTUATORS, PLANTS, DataScales, ModelStructure, process_pool
+from .pairing import controller_reaction
 from .plant_choice import resolve_plant
 from .recording import Recording, RecordingError
 from .select import Selection, SelectionRule, select_effects
@@ -679,9 +680,15 @@ def _fit_stages(recording: Recording, lags, plant, actuator, holdout, saturation
                 timing: dict):
     """Base fit, selection, whole-record refits and friction verdict, on the process pool ``ex`` (or none)."""
     t0 = time.perf_counter()       # ---- base fit on the fit part (on each OP/PV pairing asked for)
+    reaction = None
+    if len(lags) > 1 and plant in _SIGN_FIXED:
+        # the process gain's sign is the plant's: read the pairing before fitting, fit only that one
+        reaction = controller_reaction(recording.op, recording.pv, 1.0)
+        if reaction["op_lag"] is not None:
+            lags = (reaction["op_lag"],)
     bases = _base_fits(recording, lags, plant, actuator, holdout, saturation, n_sub, seed, plan["base"], q,
                        fast, ex, say)
-    lag, align = _choose_op_lag(bases, rule, op_lag)
+    lag, align = _choose_op_lag(bases, rule, op_lag, recording, reaction)
     rec, base_split, n_fit = bases[lag]
     timing["base_fit"] = time.perf_counter() - t0
     # ---- selection
@@ -746,19 +753,43 @@ def _base_fits(recording: Recording, lags: tuple[int, ...], plant: str, actuator
     return dict(zip(lags, _pool_map(executor, _base_task, args)))
 
 
+#: Plants whose process gain is positive by construction (more output, higher PV)
+_SIGN_FIXED = ("tank", "cascade")
+
+
+def _process_sign(fit: FitResult) -> float:
+    """Sign of the fitted process gain: +1 when more controller output raises the PV."""
+    ph = fit.physical
+    k = float(ph.get("process.K", 1.0)) * float(ph.get("measurement.sign", 1.0))
+    return 1.0 if k >= 0 else -1.0
+
+
 def _choose_op_lag(bases: dict[int, tuple[Recording, FitResult, int]], rule: SelectionRule,
-                   asked) -> tuple[int, dict]:
-    """The OP lag to diagnose with, and the test behind it (JSON-ready)."""
-    if len(bases) == 1:
+                   asked, recording: Recording, reaction: dict | None) -> tuple[int, dict]:
+    """The OP lag to diagnose with, and the test behind it (JSON-ready).
+
+    ``op_lag='auto'``: the controller's reaction to PV moves (:func:`~.pairing.controller_reaction`)
+    decides when it is clear; otherwise the base model fitted both ways does (the pairing of the lower
+    information criterion, 1 only when it is lower by more than ``rule.ic_margin``).
+    """
+    if asked != "auto":
         lag = next(iter(bases))
         return lag, {"asked": asked, "chosen": lag, "tested": False}
+    if reaction is None:          # the process sign comes from the base model (record paired as logged)
+        reaction = controller_reaction(recording.op, recording.pv, _process_sign(bases[0][1]))
+    test: dict = {"asked": asked, "tested": True, "controller_reaction": reaction}
+    if reaction["op_lag"] is not None:
+        lag = int(reaction["op_lag"])
+        test.update(chosen=lag, method="controller reaction")
+        return lag, test
     from .fit import effective_n
     f0, f1 = bases[0][1], bases[1][1]
     n_eff = effective_n(f0.residual[:f0.n_fit])
     d_ic = float(n_eff * np.log(max(f1.rmse, 1e-300) ** 2 / max(f0.rmse, 1e-300) ** 2))
     lag = 1 if d_ic < -rule.ic_margin else 0
-    return lag, {"asked": asked, "chosen": lag, "tested": True, "delta_ic": d_ic, "n_eff": float(n_eff),
-                 "rmse_fit_part": {"0": float(f0.rmse), "1": float(f1.rmse)}}
+    test.update(chosen=lag, method="model fit", delta_ic=d_ic, n_eff=float(n_eff),
+                rmse_fit_part={"0": float(f0.rmse), "1": float(f1.rmse)})
+    return lag, test
 
 
 def _check_arguments(recording: Recording, plant: str, actuator: str, holdout: float,

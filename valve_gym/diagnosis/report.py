@@ -231,8 +231,15 @@ def _md_op_lag(settings: dict) -> list[str]:
            "an input sampled with the output and held until the next sample)" if lag == 1 else
            "each controller output paired with the PV of its own row (pv[k] measured after op[k] acted)")
     margin = settings.get("rule", {}).get("ic_margin", 2.0)
-    why = (f"chosen by fitting the base model both ways (information criterion {test['delta_ic']:+.1f} for the "
-           f"next-sample pairing; it needs below {-margin:g})" if test.get("tested") else "as asked (--op-lag 1)")
+    reaction = test.get("controller_reaction") or {}
+    if not test.get("tested"):
+        why = "as asked (--op-lag 1)"
+    elif test.get("method") == "controller reaction":
+        why = f"read from the controller's reaction to the PV: {reaction.get('reason', '')}"
+    else:
+        why = (f"{reaction.get('reason', 'no clear controller reaction')}, so chosen by fitting the base model "
+               f"both ways (information criterion {test['delta_ic']:+.1f} for the next-sample pairing; it needs "
+               f"below {-margin:g})")
     return [f"**Pairing of OP and PV:** {how}; {why}.", ""]
 
 
