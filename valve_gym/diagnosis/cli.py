@@ -91,7 +91,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="how the recorder pairs OP and PV: 0 (default) PV[k] measured after OP[k] acted for one "
                         "sample; 1 OP[k] computed from the PV[k] beside it (a scan logged as it happened, or a "
                         "zero-order-hold input sampled with the output): OP[k-1] is paired with PV[k]; auto "
-                        "fits both and keeps 1 only when it is clearly better; in fleet mode it applies to the "
+                        "reads it from the controller's reaction to PV moves (else fits both and keeps 1 only when "
+                        "it is clearly better); in fleet mode it applies to the "
                         "full diagnoses")
     p.add_argument("--seed", default="0", help="seed of the search (default 0)")
     p.add_argument("--quiet", action="store_true", help="no progress messages")

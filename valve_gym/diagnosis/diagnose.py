@@ -593,7 +593,9 @@ def diagnose(recording: Recording, plant: str = "auto", actuator: str = "valve",
         it and acts only after it (a controller's scan logged as it happened);
         the diagnosis then pairs ``op[k-1]`` with ``pv[k]``
         (:meth:`Recording.with_op_lag`; one sample shorter).  Default 0.
-        ``'auto'`` fits the base model both ways and takes 1 only when it lowers
+        ``'auto'`` reads it from the controller's reaction to PV moves
+        (:func:`~valve_gym.diagnosis.pairing.controller_reaction`); when that is
+        unclear it fits the base model both ways and takes 1 only when it lowers
         the information criterion by more than ``rule.ic_margin``; the test is
         in ``settings['op_lag_test']``.  The two are the same as a dead time of
         zero or one sample before the valve, so a longer dead time is still
