@@ -66,3 +66,18 @@ def test_bad_op_lag(bad):
     rec = make_case("none", seed=1, n=300).recording
     with pytest.raises(ValueError, match="op_lag must be 'auto', 0 or 1"):
         diagnose(rec, candidates=(), effort="fast", op_lag=bad)
+
+
+@pytest.mark.parametrize("flip", [False, True])
+def test_auto_takes_the_process_sign_from_the_base_fit(flip):
+    """A first-order loop (its gain's sign is fitted): read the same with the PV's sign flipped."""
+    from dataclasses import replace
+    spec = LoopSpec(process="foptd", valve="linear", S=0.0, J=0.0, Kc=1.0, Ti=30.0, Ts=1.0, noise=0.003,
+                    tau_v=0.2, n=600, sp_moves=0.3)
+    rec = simulate_loop(spec, seed=0)
+    if flip:
+        rec = replace(rec, pv=-rec.pv)
+    res = diagnose(rec, plant="first_order", candidates=(), effort="fast", op_lag="auto")
+    test = res.settings["op_lag_test"]
+    assert test["controller_reaction"]["process_sign"] == (-1.0 if flip else 1.0)
+    assert test["method"] == "controller reaction" and res.settings["op_lag"] == 1
