@@ -32,7 +32,15 @@ from .fit import (
 )
 from .indices import horch_ccf
 from .locate import MismatchReport, condition_masks, locate_mismatch
-from .model import ACTUATORS, PLANTS, DataScales, ModelStructure, process_pool
+from .model import (
+    ACTUATORS,
+    PLANTS,
+    POSITIVE_GAIN_PLANTS,
+    DataScales,
+    ModelStructure,
+    process_gain_sign,
+    process_pool,
+)
 from .pairing import controller_reaction
 from .plant_choice import resolve_plant
 from .recording import Recording, RecordingError
@@ -683,7 +691,7 @@ def _fit_stages(recording: Recording, lags, plant, actuator, holdout, saturation
     """Base fit, selection, whole-record refits and friction verdict, on the process pool ``ex`` (or none)."""
     t0 = time.perf_counter()       # ---- base fit on the fit part (on each OP/PV pairing asked for)
     reaction = None
-    if len(lags) > 1 and plant in _SIGN_FIXED:
+    if len(lags) > 1 and plant in POSITIVE_GAIN_PLANTS:
         # the process gain's sign is the plant's: read the pairing before fitting, fit only that one
         reaction = controller_reaction(recording.op, recording.pv, 1.0)
         if reaction["op_lag"] is not None:
@@ -755,17 +763,6 @@ def _base_fits(recording: Recording, lags: tuple[int, ...], plant: str, actuator
     return dict(zip(lags, _pool_map(executor, _base_task, args)))
 
 
-#: Plants whose process gain is positive by construction (more output, higher PV)
-_SIGN_FIXED = ("tank", "cascade")
-
-
-def _process_sign(fit: FitResult) -> float:
-    """Sign of the fitted process gain: +1 when more controller output raises the PV."""
-    ph = fit.physical
-    k = float(ph.get("process.K", 1.0)) * float(ph.get("measurement.sign", 1.0))
-    return 1.0 if k >= 0 else -1.0
-
-
 def _choose_op_lag(bases: dict[int, tuple[Recording, FitResult, int]], rule: SelectionRule,
                    asked, recording: Recording, reaction: dict | None) -> tuple[int, dict]:
     """The OP lag to diagnose with, and the test behind it (JSON-ready).
@@ -778,7 +775,7 @@ def _choose_op_lag(bases: dict[int, tuple[Recording, FitResult, int]], rule: Sel
         lag = next(iter(bases))
         return lag, {"asked": asked, "chosen": lag, "tested": False}
     if reaction is None:          # the process sign comes from the base model (record paired as logged)
-        reaction = controller_reaction(recording.op, recording.pv, _process_sign(bases[0][1]))
+        reaction = controller_reaction(recording.op, recording.pv, process_gain_sign(bases[0][1].physical))
     test: dict = {"asked": asked, "tested": True, "controller_reaction": reaction}
     if reaction["op_lag"] is not None:
         lag = int(reaction["op_lag"])

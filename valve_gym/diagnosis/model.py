@@ -90,7 +90,7 @@ from ..plant import Plant
 
 __all__ = ["PLANTS", "ACTUATORS", "CANDIDATE_EFFECTS", "FreeParam", "DataScales",
            "ModelStructure", "effect_applicability", "kernel_threads", "set_kernel_threads",
-           "process_pool"]
+           "process_pool", "POSITIVE_GAIN_PLANTS", "process_gain_sign"]
 
 # batched simulations of at least this many Euler steps run in kernel threads
 _MIN_THREADED_STEPS = 100_000
@@ -114,6 +114,12 @@ def set_kernel_threads(n: int) -> None:
     _THREADS[0] = n
 
 
+def process_gain_sign(physical) -> float:
+    """Sign of a fitted model's process gain from its ``physical`` values: +1 when more output raises the PV."""
+    k = float(physical.get("process.K", 1.0)) * float(physical.get("measurement.sign", 1.0))
+    return 1.0 if k >= 0 else -1.0
+
+
 def process_pool(jobs: int):
     """Worker processes for ``jobs`` fits or recordings at once, the kernel threads shared out.
 
@@ -127,6 +133,9 @@ def process_pool(jobs: int):
 
 #: Process models the fitter knows.
 PLANTS = ("tank", "integrating", "first_order", "cascade")
+#: Plants whose process gain is positive by construction (more output, higher PV); the others fit
+#: its sign (``first_order``: the sign of ``K``; ``integrating``: ``sign``).
+POSITIVE_GAIN_PLANTS = ("tank", "cascade")
 #: Actuators the fitter knows.
 ACTUATORS = ("valve", "pump")
 # CANDIDATE_EFFECTS (the built-in effects, in the order they are tried) comes from valve_gym.effects
