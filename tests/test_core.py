@@ -1074,3 +1074,43 @@ def test_reset_run_restarts_the_level_from_the_measurement():
     np.testing.assert_array_equal(L2[:40], L0[:40])
     assert np.all(np.abs(L2[40:] - L0[40:]) > 0)        # every later block started elsewhere
     np.testing.assert_allclose(L2[40], L0[40], atol=0.2)
+
+
+@pytest.mark.parametrize("threads, every", [(1, None), (3, None), (1, 40)])
+def test_bounded_run_stops_rows_past_their_bound_and_keeps_the_others_bit_for_bit(threads, every):
+    """run_packed / run_packed_reset with a Bound: a system whose squared error to the target
+    passes its limit stops (its error is then above the limit, and so is its full error); every
+    other system gives the unbounded run's outputs bit for bit and sums its full error."""
+    p = BATCH["paper+effects"]
+    u, d = batch_inputs(T=300)
+    m = p.batch_size()
+    pk = cmod.pack(p, m)
+    st = initial_state(p, m, buf_len=pk.buf_len)
+    U, D = np.ascontiguousarray(u), np.ascontiguousarray(d)
+    read = np.zeros((4, m))
+    read[0], read[1], read[2], read[3] = 2.0, 0.1, np.inf, -np.inf
+
+    def run(bound=None, reset=None):
+        S, buf = cmod.state_to_array(st), np.array(st.delay_buf, float, copy=True)
+        Y, H, LV = (np.empty((300, m)) for _ in range(3))
+        if every is None:
+            cmod.run_packed(pk, S, buf, U, D, 5, Y, H, LV, threads=threads, bound=bound)
+        else:
+            cmod.run_packed_reset(pk, S, buf, U, D, 5, Y, H, LV, reset, every, bound=bound)
+        return Y, LV
+
+    reset = None if every is None else np.ascontiguousarray(np.full((300, m), 0.3))
+    Y0, _ = run(reset=reset)
+    target = np.ascontiguousarray(Y0[:, 0] * 2.0 + 0.1 + 0.01)
+    sse = np.sum((Y0 * 2.0 + 0.1 - target[:, None]) ** 2, axis=0)
+    limit = np.median(sse) * np.ones(m)
+    limit[1] = np.inf                                   # never stopped
+    bd = cmod.Bound(target, read, limit, np.zeros(m))
+    Y1, _ = run(bd, reset)
+    stopped = bd.acc > bd.limit
+    assert stopped.any() and (~stopped).any()
+    assert not stopped[1]
+    np.testing.assert_array_equal(Y1[:, ~stopped], Y0[:, ~stopped])
+    assert np.all(sse[stopped] > limit[stopped])
+    np.testing.assert_allclose(bd.acc[~stopped], sse[~stopped], rtol=1e-12)
+    assert np.all(sse[~stopped] <= limit[~stopped] * (1 + 1e-12))

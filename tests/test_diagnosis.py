@@ -328,3 +328,37 @@ def test_search_is_checked():
         diagnose(rec, candidates=(), search="quick")
     assert diagnose(rec, candidates=(), effort="fast").to_dict()["settings"]["search"] == "full"
     assert diagnose(rec, candidates=(), effort="fast", search="fast").to_dict()["settings"]["search"] == "fast"
+
+
+@pytest.mark.parametrize("plant, effects, horizon, saturation", [
+    ("tank", ("leak", "slip_jump"), None, None),
+    ("tank", ("dead_time",), 60, None),
+    ("cascade", ("overflow",), None, (0.0, 10.0)),
+    ("cascade", ("overflow", "sensor_curve"), None, (0.0, 10.0)),    # read outside the core: never stopped
+])
+def test_bounded_costs_are_the_costs_of_the_rows_that_can_win(plant, effects, horizon, saturation):
+    """The fitter's early stop: a candidate whose error passes its bound costs inf (its true
+    cost is above the bound); every other candidate's cost is bit for bit the unbounded one."""
+    from valve_gym.diagnosis.diagnose import _data_scales
+    from valve_gym.diagnosis.fit import _Objective
+
+    r = make_case("leak", seed=3, n=900).recording
+    pv = r.pv if plant != "cascade" else 10.0 * (r.pv - r.pv.min()) / np.ptp(r.pv)
+    rec = Recording(t=r.t, op=r.op, pv=pv, dt=r.dt)
+    st = ModelStructure(plant, "valve", effects, _data_scales(rec, 600, saturation))
+    rng = np.random.default_rng(2)
+    W = rng.random((48, len(st.names)))
+    k = len(st.names)
+    obj = _Objective(st, r.op, pv, 600, np.arange(k), np.zeros(k), horizon)
+    c = obj(W)
+    bound = np.quantile(c, 0.4) * rng.uniform(0.5, 1.5, len(c))
+    bound[:3] = np.inf
+    cb = obj(W, bound=bound)
+    kept = np.isfinite(cb)
+    np.testing.assert_array_equal(cb[kept], c[kept])
+    assert np.all(c[~kept] > bound[~kept])
+    assert kept[:3].all()
+    if "sensor_curve" in effects:
+        assert kept.all()
+    else:
+        assert (~kept).sum() >= 0.8 * (c > bound).sum() > 0

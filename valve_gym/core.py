@@ -217,10 +217,31 @@ def _valve_step(fric, u, h, z, x, V, dt):  # pragma: no cover - compiled
     return h, z, x
 
 
-@njit(cache=True, nogil=True)
-def _kernel(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV):  # pragma: no cover - compiled
-    """Advance the packed state ``S`` (NS, n) over the inputs ``U`` (T, n|1); see :func:`run_packed`."""
+@njit(inline="always")
+def _read_error(y, M, n, i, target):  # pragma: no cover - compiled
+    """Squared error to ``target`` of system ``i``'s output ``y`` as read: ``M`` (4 n,) of :func:`_kernel_core`."""
+    v = y * M[i] + M[n + i]
+    if v > M[2 * n + i]:
+        v = M[2 * n + i]
+    if v < M[3 * n + i]:
+        v = M[3 * n + i]
+    e = v - target
+    return e * e
+
+
+@njit(inline="always")
+def _kernel_core(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV, E, M, lim, acc):  # noqa: C901  # pragma: no cover
+    """Advance the packed state ``S`` (NS, n) over the inputs ``U`` (T, n|1); see :func:`run_packed`.
+
+    With a non-empty ``lim`` (n,), each system also sums the squared error of its PV as read
+    (``M`` (4 n,): the rows sign, offset, upper and lower limit of the reading, one after the
+    other) to the target ``E`` (T,)
+    onto ``acc[i]``, and stops once the sum exceeds ``lim[i]`` (the rest of its outputs are
+    not written, its state stays where it stopped); a system whose ``acc`` already exceeds
+    its ``lim`` is not run.
+    """
     T = U.shape[0]
+    track = lim.shape[0] > 0
     n = S.shape[1]
     pb = P.shape[1] > 1
     ub = U.shape[1] > 1
@@ -229,6 +250,9 @@ def _kernel(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV):  # pragma: no cover - 
     dead, over, leak, sens, dist = flags[F_DEAD], flags[F_OVER], flags[F_LEAK], flags[F_SENS], flags[F_DIST]
     B = buf.shape[1]
     for i in range(n):
+        err = acc[i] if track else 0.0
+        if track and err > lim[i]:              # stopped in an earlier call
+            continue
         j = i if pb else 0
         # valve: tau, vmax, e_dead, z_max, S, J, tau_p, omega_n^2, 2 zeta omega_n, dv, sub-steps
         V = (P[TAU, j], P[VMAX, j], P[EDEAD, j], P[ZMAX, j], P[SJ_S, j], P[SJ_J, j], P[SJ_TAU, j],
@@ -280,63 +304,121 @@ def _kernel(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV):  # pragma: no cover - 
             Y[k, i] = y
             H[k, i] = hc if act == 0 else u
             LV[k, i] = lm
+            if track:
+                err += _read_error(y, M, n, i, E[k])
+                if err > lim[i]:                # its whole error can only be larger: stop here
+                    break
         S[S_Z, i], S[S_H, i], S[S_X, i], S[S_US, i] = z, h, x, us
         S[S_STUCK, i], S[S_SDIR, i], S[S_UPREV, i] = stuck, sdir, uprev
         S[S_L1, i], S[S_L2, i], S[S_Y, i], S[S_T, i] = L1, L2, y, t
         S[S_BIDX, i] = bidx
+        if track:
+            acc[i] = err
 
 
 @njit(cache=True, nogil=True)
-def _kernel_reset(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV, L_meas, every):  # pragma: no cover - compiled
+def _kernel(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV):  # pragma: no cover - compiled
+    """Advance the packed state ``S`` (NS, n) over the inputs ``U`` (T, n|1); see :func:`run_packed`."""
+    e = S[0, :0]                        # empty: no tracking (a view, so nothing is allocated per call)
+    _kernel_core(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV, e, e, e, e)
+
+
+@njit(cache=True, nogil=True)
+def _kernel_bounded(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV, E, M, lim, acc):  # pragma: no cover
+    """:func:`_kernel` that sums each system's squared error onto ``acc`` and stops it past ``lim``."""
+    _kernel_core(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV, E, M, lim, acc)
+
+
+@njit(cache=True, nogil=True)
+def _kernel_reset(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV, L_meas, every, E, M, lim, acc):  # pragma: no cover
     """:func:`_kernel` with the measured level state set to ``L_meas`` (T, n) every ``every`` samples.
 
     Before sample ``a`` (``a`` a positive multiple of ``every``) the level of the measured tank
     (and the sensor's output state) of each system is set to ``L_meas[a - 1]``, the level read
     at the end of the previous sample; the valve, the other states and the buffers run on.
+    With a non-empty ``lim``, the systems run as in :func:`_kernel_bounded`.
     """
     T = U.shape[0]
-    n = S.shape[1]
-    low = S_L2 if flags[F_PROC] == 3 else S_L1
+    track = lim.shape[0] > 0
     for a in range(0, T, every):
         b = min(T, a + every)
         if a > 0:
-            for i in range(n):
-                lv = L_meas[a - 1, i]
-                if lv < 0.0:
-                    lv = 0.0
-                S[low, i] = lv
-                S[S_Y, i] = lv
-        _kernel(S, P, U[a:b], D[a:b], flags, buf, n_sub, dt, Y[a:b], H[a:b], LV[a:b])
+            _restart_level(S, flags, L_meas[a - 1])
+        if track:
+            _kernel_bounded(S, P, U[a:b], D[a:b], flags, buf, n_sub, dt, Y[a:b], H[a:b], LV[a:b], E[a:b], M,
+                            lim, acc)
+        else:
+            _kernel(S, P, U[a:b], D[a:b], flags, buf, n_sub, dt, Y[a:b], H[a:b], LV[a:b])
+
+
+@njit(cache=True, nogil=True)
+def _restart_level(S, flags, L_row):  # pragma: no cover - compiled
+    """Set the measured tank's level (the lower one of a cascade) and the sensor output to ``L_row`` (n,)."""
+    low = S_L2 if flags[F_PROC] == 3 else S_L1
+    for i in range(S.shape[1]):
+        lv = L_row[i]
+        if lv < 0.0:
+            lv = 0.0
+        S[low, i] = lv
+        S[S_Y, i] = lv
+
+
+class Bound(NamedTuple):
+    """Early stop of :func:`run_packed` and :func:`run_packed_reset`: the error of each system's reading.
+
+    ``target`` (T,): the record the PV is compared with; ``read`` (4, n): per system the sign,
+    offset, upper and lower limit of the reading ``PV = clip(sign * y + offset, lower, upper)``;
+    ``limit`` (n,): a system stops once its sum of squared errors exceeds it; ``acc`` (n,): the
+    sums, updated in place (start at 0). A stopped system's later outputs are not written
+    and its state stays where it stopped: its ``acc`` exceeds its ``limit``.
+    """
+
+    target: np.ndarray
+    read: np.ndarray
+    limit: np.ndarray
+    acc: np.ndarray
+
+
+#: The empty bound the unbounded runs pass to the kernels (never written).
+_NO_BOUND = Bound(np.empty(0), np.empty((4, 0)), np.empty(0), np.empty(0))
+
+
+def _bound_args(bound: Bound, a: int = 0, b: int | None = None) -> tuple:
+    """The kernel's arguments of ``bound`` for its systems ``a:b``."""
+    b = len(bound.limit) if b is None else b
+    return (bound.target, np.ascontiguousarray(bound.read[:, a:b]).ravel(), bound.limit[a:b], bound.acc[a:b])
 
 
 def run_packed_reset(pk: Packed, S: np.ndarray, buf: np.ndarray, U: np.ndarray, D: np.ndarray, n_sub: int,
-                     Y: np.ndarray, H: np.ndarray, LV: np.ndarray, L_meas: np.ndarray, every: int) -> None:
+                     Y: np.ndarray, H: np.ndarray, LV: np.ndarray, L_meas: np.ndarray, every: int,
+                     bound: Bound | None = None) -> None:
     """:func:`run_packed` (one thread) with the measured level reset to ``L_meas`` every ``every`` samples.
 
     A ``every``-step-ahead prediction instead of a free run: the states the
     record measures are taken from it at the start of each block of
     ``every`` samples, so a slow unmeasured load does not add up over the
     record.  ``L_meas`` (T, n): the level (lower tank of a cascade) that the
-    measurement implies after each sample, per system.  No checks are made.
+    measurement implies after each sample, per system.  ``bound``: stop each
+    system early (see :class:`Bound`).  No checks are made.
     """
-    _kernel_reset(S, pk.P, U, D, pk.flags, buf, n_sub, pk.dt, Y, H, LV, L_meas, int(every))
+    _kernel_reset(S, pk.P, U, D, pk.flags, buf, n_sub, pk.dt, Y, H, LV, L_meas, int(every),
+                  *_bound_args(_NO_BOUND if bound is None else bound))
 
 
 def _flush_stale_kernel_cache() -> None:
-    """Drop numba's on-disk cache of `_kernel` when a block module is newer than it.
+    """Drop numba's on-disk cache of the kernels when a block module is newer than it.
 
     numba keys the cache on this file only; the inlined friction blocks live in
     other modules, so an edit there would otherwise run a stale kernel.
     """
     try:
         from .friction import choudhury, kano, karnopp, riihilahti
-        idx = _kernel._cache._cache_file._index_path  # type: ignore[attr-defined]
-        if not os.path.exists(idx):
-            return
         newest = max(os.path.getmtime(m.__file__) for m in (choudhury, kano, karnopp, riihilahti)
                      if m.__file__)
-        if newest > os.path.getmtime(idx):
-            _kernel._cache.flush()  # type: ignore[attr-defined]
+        for kern in (_kernel, _kernel_bounded, _kernel_reset):
+            idx = kern._cache._cache_file._index_path  # type: ignore[attr-defined]
+            if os.path.exists(idx) and newest > os.path.getmtime(idx):
+                kern._cache.flush()  # type: ignore[attr-defined]
     except Exception:  # pragma: no cover - numba internals moved: keep the cache as numba decides
         pass
 
@@ -610,7 +692,8 @@ def _as_2d(a, T_expected=None, name="u"):
 
 
 def run_packed(pk: Packed, S: np.ndarray, buf: np.ndarray, U: np.ndarray, D: np.ndarray,
-               n_sub: int, Y: np.ndarray, H: np.ndarray, LV: np.ndarray, threads: int = 1) -> None:
+               n_sub: int, Y: np.ndarray, H: np.ndarray, LV: np.ndarray, threads: int = 1,
+               bound: Bound | None = None) -> None:
     """Advance the packed state ``S`` in place over the inputs ``U`` (T, n|1).
 
     The low-overhead path used by the environments. ``U`` and ``D`` must be
@@ -624,19 +707,31 @@ def run_packed(pk: Packed, S: np.ndarray, buf: np.ndarray, U: np.ndarray, D: np.
     are independent, so the result is bit-for-bit the one of ``threads=1``;
     it pays from about a hundred thousand Euler steps per call
     (``benchmarks/bench_env_speed.py`` measures it).
+
+    ``bound``: each system also sums the squared error of its reading to a
+    target and stops once it passes a limit (:class:`Bound`; the fitter's
+    early rejection of candidates that cannot beat their rivals).  The
+    systems that run to the end are bit for bit those of a run without it.
     """
     n = S.shape[1]
     threads = min(int(threads), n) if HAVE_NUMBA else 1
     if threads <= 1:
-        _kernel(S, pk.P, U, D, pk.flags, buf, n_sub, pk.dt, Y, H, LV)
+        if bound is None:
+            _kernel(S, pk.P, U, D, pk.flags, buf, n_sub, pk.dt, Y, H, LV)
+        else:
+            _kernel_bounded(S, pk.P, U, D, pk.flags, buf, n_sub, pk.dt, Y, H, LV, *_bound_args(bound))
         return
     edges = np.linspace(0, n, threads + 1).astype(int)
 
     def block(a, b):
         def cols(A):
             return A[:, a:b] if A.shape[1] > 1 else A
-        _kernel(S[:, a:b], cols(pk.P), cols(U), cols(D), pk.flags, buf[a:b] if buf.shape[0] > 1 else buf,
+        args = (S[:, a:b], cols(pk.P), cols(U), cols(D), pk.flags, buf[a:b] if buf.shape[0] > 1 else buf,
                 n_sub, pk.dt, Y[:, a:b], H[:, a:b], LV[:, a:b])
+        if bound is None:
+            _kernel(*args)
+        else:
+            _kernel_bounded(*args, *_bound_args(bound, a, b))
 
     pool = _thread_pool(threads - 1)
     futures = [pool.submit(block, a, b) for a, b in zip(edges[1:-1], edges[2:])]

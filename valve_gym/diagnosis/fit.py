@@ -198,12 +198,29 @@ class _Objective:
         except (ValueError, ZeroDivisionError, FloatingPointError):
             return np.full((len(self.u), np.atleast_2d(X).shape[0]), np.nan)
 
-    def __call__(self, X):
-        Y = self.sim(X)                      # a fresh array: squared in place
+    def __call__(self, X, bound=None):
+        """Costs of the rows ``X`` (n, k).
+
+        With ``bound`` (n,), a row whose cost exceeds its bound may be stopped early and cost
+        ``inf``: its true cost is larger than the bound, so a comparison with the bound comes out
+        the same (:meth:`~valve_gym.diagnosis.model.ModelStructure.simulate_bounded`).
+        """
+        dropped = None
+        if bound is None:
+            Y = self.sim(X)                  # a fresh array: squared in place
+        else:
+            X = np.atleast_2d(X)
+            self.n_evals += X.shape[0]
+            try:
+                Y, dropped = self.s.simulate_bounded(self.full(X), self.u, self.y, bound, reset=self.reset)
+            except (ValueError, ZeroDivisionError, FloatingPointError):
+                Y = np.full((len(self.u), X.shape[0]), np.nan)
         with np.errstate(over="ignore", invalid="ignore"):
             Y -= self.y[:, None]
             c = np.einsum("ij,ij->j", Y, Y)
         c[~np.isfinite(c)] = _BIG
+        if dropped is not None:
+            c[dropped] = np.inf
         return c
 
 
@@ -287,7 +304,8 @@ def _evolve(obj: _Objective, rng, X, fx, budget: int, tol: float, patience: int,
         jr = rng.integers(0, k, (n_isl, pop))
         cross[np.arange(n_isl)[:, None], ar[None, :], jr] = True
         U = np.where(cross, V, X)
-        fu = obj(U.reshape(-1, k)).reshape(n_isl, pop)
+        # a trial that costs more than its parent is rejected: its simulation may stop there
+        fu = obj(U.reshape(-1, k), bound=np.where(fx < _BIG, fx, np.inf).reshape(-1)).reshape(n_isl, pop)
         used += n_isl * pop
         better = fu <= fx
         strict = fu < fx
@@ -384,9 +402,12 @@ def _refine(obj: _Objective, x0, max_nfev=40, step=2e-3):
         x[cont] = z
         return x
 
+    last: list = [None, None]          # the point of the last residual and its simulation
+
     def fun(z):
-        Y = obj.sim(expand(z)[None, :])[:, 0]
-        r = (Y - obj.y) * scale
+        Y = obj.sim(expand(z)[None, :])
+        last[0], last[1] = np.array(z, float, copy=True), Y
+        r = (Y[:, 0] - obj.y) * scale
         if not np.all(np.isfinite(r)):
             r = np.full_like(obj.y, 1e6)
         return r
@@ -399,7 +420,12 @@ def _refine(obj: _Objective, x0, max_nfev=40, step=2e-3):
         X = np.repeat(x[None, :], cont.size + 1, axis=0)
         for j, c in enumerate(cont):
             X[j + 1, c] += h[j]
-        Y = obj.sim(X)
+        if last[0] is not None and np.array_equal(last[0], z):
+            # the solver asks for the Jacobian where it has just evaluated the residual: the
+            # systems of a batch are independent, so that simulation is the batch's first column
+            Y = np.hstack([last[1], obj.sim(X[1:])])
+        else:
+            Y = obj.sim(X)
         if not np.all(np.isfinite(Y)):
             Y = np.where(np.isfinite(Y), Y, Y[:, :1])
         return ((Y[:, 1:] - Y[:, :1]) / h[None, :]) * scale
@@ -419,9 +445,10 @@ def _refine(obj: _Objective, x0, max_nfev=40, step=2e-3):
 
 def _take_best(obj: _Objective, X, x, c):
     """Simulate the candidate rows ``X`` in one batch; keep the best if it lowers the cost ``c``."""
-    f = obj(X)
+    bound = c * (1 - 1e-9)
+    f = obj(X, bound=np.full(len(X), bound if bound < _BIG else np.inf))
     i = int(np.argmin(f))
-    if f[i] < c * (1 - 1e-9):
+    if f[i] < bound:
         return X[i].copy(), float(f[i]), True
     return x, c, False
 
