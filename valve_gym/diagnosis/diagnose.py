@@ -28,6 +28,7 @@ from .fit import (
     fit_with_friction,
     resolve_effort,
     rmse,
+    search_cost,
     transfer,
 )
 from .indices import horch_ccf
@@ -38,6 +39,7 @@ from .model import (
     POSITIVE_GAIN_PLANTS,
     DataScales,
     ModelStructure,
+    pool_map,
     process_gain_sign,
     process_pool,
 )
@@ -333,8 +335,7 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
     ks = _kstep_tasks(tasks, n_frictionless)
     horizon = kstep_horizon(len(y))
     args += [(tasks[i][0], u, y, tasks[i][1], None, seed + 41 + i, "fast", 1, horizon) for i in ks]
-    # reversed: the k-step fits first, then the friction fits (the longest) and the frictionless ones
-    fits = _pool_map(executor, _fit_task, args[::-1])[::-1]
+    fits = pool_map(executor, _fit_task, args, [search_cost(a[0], len(y), a[6], a[7]) for a in args])
     fits, kfits = fits[:len(tasks)], fits[len(tasks):]
     frictionless, fric = fits[:n_frictionless], fits[n_frictionless:]
     _nest_on_frictionless(fric, frictionless[0], u, y)
@@ -680,9 +681,6 @@ def _refit_task(args):
     return _refit_full(*args)
 
 
-def _pool_map(ex, fn, items: list) -> list:
-    """``fn`` over ``items`` on the diagnosis' process pool ``ex``, in this process without one (or for one item)."""
-    return list(ex.map(fn, items)) if ex is not None and len(items) > 1 else [fn(a) for a in items]
 
 
 def _fit_stages(recording: Recording, lags, plant, actuator, holdout, saturation, n_sub: int, seed: int,
@@ -716,7 +714,7 @@ def _fit_stages(recording: Recording, lags, plant, actuator, holdout, saturation
     todo = [(base_split, rec, seed + 1, "fast", fast)]
     if final_split is not base_split:
         todo.append((final_split, rec, seed + 2, "fast", fast))
-    refits = _pool_map(ex, _refit_task, todo)
+    refits = pool_map(ex, _refit_task, todo)
     base, final = refits[0], refits[-1]
     timing["full_refit"] = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -760,7 +758,7 @@ def _base_fits(recording: Recording, lags: tuple[int, ...], plant: str, actuator
             for lag in lags]
     say(f"{recording.name}: fitting the base model ({plant} + {actuator}"
         + ("; OP paired with the same and with the next PV sample)" if len(lags) > 1 else ")"))
-    return dict(zip(lags, _pool_map(executor, _base_task, args)))
+    return dict(zip(lags, pool_map(executor, _base_task, args)))
 
 
 def _choose_op_lag(bases: dict[int, tuple[Recording, FitResult, int]], rule: SelectionRule,

@@ -528,6 +528,18 @@ def resolve_effort(effort: str, n_samples: int) -> str:
     return effort
 
 
+def search_cost(structure: ModelStructure, n_samples: int, effort: str = "normal", coarse: int = 1) -> float:
+    """Estimated work of :func:`fit_structure` on ``n_samples``: its global search's budget of samples.
+
+    Used to hand out the longest fits first; the run time also depends on the cost surface.
+    """
+    k = len(structure.names)
+    pf, gf = _EFFORT[resolve_effort(effort, n_samples)]
+    pop = int(np.clip(round(pf * (10 + 4 * k)), 10, 48))
+    gens = int(round(gf * (40 + 15 * k)))
+    return float(pop * gens * n_samples / max(1, int(coarse)))
+
+
 def fit_structure(structure: ModelStructure, u, y, n_fit: int | None = None, *,
                   seeds=None, spread=None, free: Sequence[str] | None = None,
                   w_fixed=None, rng=None, popsize: int | None = None,

@@ -131,6 +131,22 @@ def process_pool(jobs: int):
     return ProcessPoolExecutor(max_workers=jobs, initializer=set_kernel_threads,
                                initargs=(max(1, kernel_threads() // max(1, int(jobs))),))
 
+def pool_map(executor, fn, items: list, cost: Sequence[float] | None = None) -> list:
+    """``fn`` over ``items`` on the process pool ``executor`` (in this process without one, or for one item).
+
+    Results come in the order of ``items``.  With ``cost`` (an estimate of each item's work),
+    the costliest items are handed out first, so the last to finish is a short one (the results
+    are the same: each item is independent).
+    """
+    if executor is None or len(items) <= 1:
+        return [fn(a) for a in items]
+    order = list(range(len(items))) if cost is None else sorted(range(len(items)), key=lambda i: -cost[i])
+    out: list = [None] * len(items)
+    for i, r in zip(order, executor.map(fn, [items[i] for i in order])):
+        out[i] = r
+    return out
+
+
 #: Process models the fitter knows.
 PLANTS = ("tank", "integrating", "first_order", "cascade")
 #: Plants whose process gain is positive by construction (more output, higher PV); the others fit

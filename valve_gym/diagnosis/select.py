@@ -36,9 +36,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..effects import effect_spec
-from .fit import FitResult, effective_n, fit_structure, information_criterion, transfer
+from .fit import FitResult, effective_n, fit_structure, information_criterion, search_cost, transfer
 from .locate import dominant_period
-from .model import CANDIDATE_EFFECTS, effect_applicability, process_pool
+from .model import CANDIDATE_EFFECTS, effect_applicability, pool_map, process_pool
 
 __all__ = ["SelectionRule", "CandidateFit", "Selection", "select_effects", "compare",
            "candidate_variants"]
@@ -206,13 +206,18 @@ def _fit_candidate(args):
                          coarse=coarse, early_stop=fast)
 
 
+def _task_cost(task) -> float:
+    """Estimated work of a candidate fit (:func:`~valve_gym.diagnosis.fit.search_cost`)."""
+    (current, effect, variant, u, y, n_fit, seed, effort, period_hint, extra, coarse, fast) = task
+    return search_cost(_candidate_structure(current, effect, variant, period_hint), n_fit, effort, coarse)
+
+
 def _run(tasks, jobs, executor=None):
-    if executor is not None and len(tasks) > 1:
-        return list(executor.map(_fit_candidate, tasks))
-    if jobs > 1 and len(tasks) > 1:
+    """The candidate fits ``tasks`` (in order), the longest handed out first, on ``executor`` or ``jobs`` workers."""
+    if executor is None and jobs > 1 and len(tasks) > 1:
         with process_pool(jobs) as ex:
-            return list(ex.map(_fit_candidate, tasks))
-    return [_fit_candidate(t) for t in tasks]
+            return _run(tasks, jobs, ex)
+    return pool_map(executor, _fit_candidate, tasks, [_task_cost(t) for t in tasks] if executor else None)
 
 
 def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_EFFECTS,
