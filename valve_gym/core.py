@@ -218,13 +218,13 @@ def _valve_step(fric, u, h, z, x, V, dt):  # pragma: no cover - compiled
 
 
 @njit(inline="always")
-def _read_error(y, M, n, i, target):  # pragma: no cover - compiled
-    """Squared error to ``target`` of system ``i``'s output ``y`` as read: ``M`` (4 n,) of :func:`_kernel_core`."""
-    v = y * M[i] + M[n + i]
-    if v > M[2 * n + i]:
-        v = M[2 * n + i]
-    if v < M[3 * n + i]:
-        v = M[3 * n + i]
+def _read_error(y, rd, target):  # pragma: no cover - compiled
+    """Squared error to ``target`` of an output ``y`` as read through ``rd`` (sign, offset, upper, lower)."""
+    v = y * rd[0] + rd[1]
+    if v > rd[2]:
+        v = rd[2]
+    if v < rd[3]:
+        v = rd[3]
     e = v - target
     return e * e
 
@@ -251,7 +251,9 @@ def _kernel_core(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV, E, M, lim, acc):  
     B = buf.shape[1]
     for i in range(n):
         err = acc[i] if track else 0.0
-        if track and err > lim[i]:              # stopped in an earlier call
+        lim_i = lim[i] if track else np.inf
+        rd = (M[i], M[n + i], M[2 * n + i], M[3 * n + i]) if track else (1.0, 0.0, np.inf, -np.inf)
+        if err > lim_i:                         # stopped in an earlier call
             continue
         j = i if pb else 0
         # valve: tau, vmax, e_dead, z_max, S, J, tau_p, omega_n^2, 2 zeta omega_n, dv, sub-steps
@@ -305,8 +307,8 @@ def _kernel_core(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV, E, M, lim, acc):  
             H[k, i] = hc if act == 0 else u
             LV[k, i] = lm
             if track:
-                err += _read_error(y, M, n, i, E[k])
-                if err > lim[i]:                # its whole error can only be larger: stop here
+                err += _read_error(y, rd, E[k])
+                if err > lim_i:                # its whole error can only be larger: stop here
                     break
         S[S_Z, i], S[S_H, i], S[S_X, i], S[S_US, i] = z, h, x, us
         S[S_STUCK, i], S[S_SDIR, i], S[S_UPREV, i] = stuck, sdir, uprev

@@ -18,6 +18,8 @@ Optional physics blocks are ``None`` when off. Their names (the keys of
 """
 from __future__ import annotations
 
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
@@ -52,11 +54,31 @@ def _check(obj, name, lo=None, hi=None, lo_open=False, allow_inf=False):
         raise ParameterError(f"{where} must be <= {hi}, got {np.max(v)!r}")
 
 
+#: False inside :func:`unchecked`: blocks skip their range checks on construction.
+_CHECKED: ContextVar[bool] = ContextVar("valve_gym_params_checked", default=True)
+
+
+@contextmanager
+def unchecked():
+    """Build parameter blocks without their range checks, in this context (thread- and task-local).
+
+    For callers that construct many batches from values already inside the ranges (the
+    fitter decodes bounded coordinates thousands of times per fit); a value out of range is
+    then not caught here but gives a non-finite simulation.  Everything else checks.
+    """
+    token = _CHECKED.set(False)
+    try:
+        yield
+    finally:
+        _CHECKED.reset(token)
+
+
 class _Block:
-    """Mixin: validate on construction."""
+    """Mixin: validate on construction (except inside :func:`unchecked`)."""
 
     def __post_init__(self):  # noqa: D105
-        self.validate()
+        if _CHECKED.get():
+            self.validate()
 
     def validate(self):  # pragma: no cover - overridden
         pass

@@ -84,6 +84,7 @@ from ..params import (
     ParameterError,
     TankParams,
     ValveParams,
+    unchecked,
 )
 from ..paramspec import FreeParam
 from ..plant import Plant
@@ -493,12 +494,13 @@ class ModelStructure:
         v = {k: np.broadcast_to(np.asarray(a, float), (n,)).copy() for k, a in values.items()}
         ns = self.n_sub if n_sub is None else int(n_sub)
         dte = sc.dt / ns
-        pp = self._build_process(v, n)
-        blocks = self._build_blocks(v, dte, pp)
         kind = "cascade" if self.plant == "cascade" else self.plant
-        mp = ModelParams(valve=self._build_valve(v, dte), process=pp.process, process_kind=kind, dt=dte,
-                         cascade=pp.cascade, actuator=None if self.actuator == "valve" else _pump(),
-                         **blocks)
+        with unchecked():           # decoded coordinates are inside the ranges by construction
+            pp = self._build_process(v, n)
+            blocks = self._build_blocks(v, dte, pp)
+            mp = ModelParams(valve=self._build_valve(v, dte), process=pp.process, process_kind=kind, dt=dte,
+                             cascade=pp.cascade, actuator=None if self.actuator == "valve" else _pump(),
+                             **blocks)
         h0 = np.clip(sc.u0 + (v["dh0"] if "dh0" in v else 0.0), 0.0, 1.0) * np.ones(n)
         init = dict(level=pp.level, h=h0)
         if pp.level2 is not None:
