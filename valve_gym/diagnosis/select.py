@@ -32,6 +32,7 @@ from __future__ import annotations
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -270,19 +271,28 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
     rnd = 0
     own = executor is None and jobs > 1
     ex = process_pool(jobs) if own else executor
+    ahead: _Ahead | None = None          # the next round's screening, started while a confirmation ran
+
+    def screen_tasks(cur: FitResult, rnd: int, left: list[str]) -> tuple[list, list]:
+        period = dominant_period(cur.residual[:n_fit], st.scales.dt)
+        meta = [(e, v) for e in left for v in candidate_variants(e, st.actuator)]
+        return meta, [(cur, e, v, u, y, n_fit, seed + 7919 * rnd + i, screen_effort, period,
+                       None, coarse, False) for i, (e, v) in enumerate(meta)]
+
     try:
         while pool and len(effects) < rule.max_effects:
             rnd += 1
-            period = dominant_period(current.residual[:n_fit], st.scales.dt)
             n_eff = effective_n(current.residual[:n_fit])
-            meta = [(e, v) for e in pool for v in candidate_variants(e, st.actuator)]
             if progress:
                 progress(f"round {rnd}: screening {', '.join(pool)}")
             # 1) screening: every candidate with a small budget, always the whole search (stopped
             #    early, a leak whose gain needs several coordinates to move together is missed)
-            tasks = [(current, e, v, u, y, n_fit, seed + 7919 * rnd + i, screen_effort, period,
-                      None, coarse, False) for i, (e, v) in enumerate(meta)]
-            screened = _run(tasks, jobs, ex)
+            meta, stasks = screen_tasks(current, rnd, pool)
+            if ahead is not None and ahead.current is current:
+                screened = [f.result() for f in ahead.futures]
+            else:
+                screened = _run(stasks, jobs, ex)
+            ahead = None
             scores = [compare(current, r, rule, n_eff)[0] for r in screened]
             # 2) confirmation: the most promising with the full budget
             short = [i for i in _shortlist(meta, scores, n_confirm)
@@ -290,28 +300,87 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
             if progress and short:
                 progress(f"round {rnd}: confirming {', '.join(meta[i][0] for i in short)}")
             tasks = [(current, meta[i][0], meta[i][1], u, y, n_fit, seed + 104729 * rnd + i,
-                      effort, period, _coords_in(screened[i]), coarse, fast) for i in short]
-            confirmed = _run(tasks, jobs, ex) if tasks else []
-            results = list(screened)
-            for i, r in zip(short, confirmed):
-                if r.cost <= screened[i].cost:
-                    results[i] = r
-            round_fits = _round_fits(current, meta, results, short, rnd, rule, n_eff)
+                      effort, stasks[i][8], _coords_in(screened[i]), coarse, fast) for i in short]
+
+            def judge(confirmed: dict[int, FitResult], cur=current, meta=meta, screened=screened,
+                      short=short, rnd=rnd, n_eff=n_eff) -> tuple[list[CandidateFit], CandidateFit | None]:
+                results = list(screened)
+                for i, r in confirmed.items():
+                    if r.cost <= screened[i].cost:
+                        results[i] = r
+                fits = _round_fits(cur, meta, results, short, rnd, rule, n_eff)
+                paying = [cf for cf in fits if cf.pays]
+                return fits, (min(paying, key=lambda c: c.delta_ic) if paying else None)
+
+            confirmed, ahead = _confirm(tasks, short, [meta[i][0] for i in short], jobs, ex, judge,
+                                        screen_tasks, rnd, pool, len(effects) + 1 < rule.max_effects)
+            round_fits, best = judge(confirmed)
             tried.extend(round_fits)
-            paying = [cf for cf in round_fits if cf.pays]
-            if not paying:
+            if best is None:
                 break
-            best = min(paying, key=lambda c: c.delta_ic)
             best.accepted = True
             best.reason = "added: " + best.reason
             effects.append(best.effect)
             current = best.fit
             pool.remove(best.effect)
     finally:
+        if ahead is not None:
+            for f in ahead.futures:
+                f.cancel()
         if own and ex is not None:
             ex.shutdown()
     return Selection(base=base, final=current, effects=effects, candidates=tried, skipped=skipped,
                      n_eff=n_eff0, seconds=time.perf_counter() - t0)
+
+
+class _Ahead(NamedTuple):
+    """The next round's screening fits, started on a guess of this round's winner."""
+
+    current: FitResult
+    futures: list
+
+
+def _confirm(tasks, short: list[int], names: list[str], jobs: int, ex, judge, screen_tasks, rnd: int,
+             pool: list[str], more: bool) -> tuple[dict[int, FitResult], _Ahead | None]:
+    """The confirmation fits ``tasks`` (of the candidates ``short``), and the next round's screening if started.
+
+    With a process pool and several confirmations, the shorter ones finish first and leave
+    workers idle.  Once one has finished, the round is judged on what is known (``judge``: the
+    confirmed fits, the screening fits of the others); when that names a winner whose own fit
+    is settled (not waiting for a confirmation), the next round's screening fits on it
+    (``screen_tasks``) are handed out at once.  They are used only if the winner, judged on all
+    the confirmations, is that same fit: the same tasks, so the same results as a screening
+    started afterwards.
+    """
+    if ex is None or len(tasks) < 2:
+        return dict(zip(short, _run(tasks, jobs, ex))), None
+    from concurrent.futures import FIRST_COMPLETED, wait
+
+    order = sorted(range(len(tasks)), key=lambda j: -_task_cost(tasks[j]))
+    futs = {ex.submit(_fit_candidate, tasks[j]): j for j in order}
+    done: dict[int, FitResult] = {}
+    ahead = None
+    pending = set(futs)
+    while pending:
+        finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+        for f in finished:
+            done[short[futs[f]]] = f.result()
+        if ahead is None and pending and more:
+            _, guess = judge(done)
+            if guess is not None and guess.effect not in {names[futs[f]] for f in pending}:
+                left = [e for e in pool if e != guess.effect]
+                if left:
+                    _, nxt = screen_tasks(guess.fit, rnd + 1, left)
+                    order2 = sorted(range(len(nxt)), key=lambda j: -_task_cost(nxt[j]))
+                    fut2 = {j: ex.submit(_fit_candidate, nxt[j]) for j in order2}
+                    ahead = _Ahead(guess.fit, [fut2[j] for j in range(len(nxt))])
+    if ahead is not None:
+        _, best = judge(done)
+        if best is None or best.fit is not ahead.current:
+            for f in ahead.futures:
+                f.cancel()
+            ahead = None
+    return done, ahead
 
 
 def _shortlist(meta: list[tuple[str, str | None]], scores: list[float], n_confirm: int) -> list[int]:
