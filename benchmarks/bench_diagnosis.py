@@ -11,7 +11,12 @@ Usage::
 
     python benchmarks/bench_diagnosis.py [--samples 3600] [--jobs 2] [--repeat 1]
         [--effects none,overflow] [--effort auto] [--search full|fast] [--reference]
-        [--before REV] [--old] [--coarse auto]
+        [--before REV] [--old] [--coarse auto] [--early-stop-ab]
+
+``--early-stop-ab`` also diagnoses every recording twice in this process (one worker, one kernel
+thread), with the fitter's early stop (:data:`valve_gym.diagnosis.fit.EARLY_STOP`: a candidate stops
+simulating once it cannot beat its rival) on and off, and reports both CPU times and whether the
+effects and the final RMSE are the same.
 
 ``--before REV`` also diagnoses every recording, right after the timed run, with the
 package as it was at git revision ``REV`` (extracted with ``git archive`` into a temporary
@@ -114,6 +119,31 @@ print(json.dumps({"wall": wall, "cpu": cpu, "effects": list(res.effects), "prese
 """
 
 
+AB_CPU: list[tuple[float, float]] = []
+
+
+def _early_stop_ab(case, a) -> str:
+    """The recording diagnosed serially with the fitter's early stop on, then off: CPU and equality."""
+    from valve_gym.diagnosis import fit as fit_mod
+
+    threads = kernel_threads()
+    set_kernel_threads(1)
+    out = []
+    try:
+        for on in (True, False):
+            fit_mod.EARLY_STOP = on
+            c0 = time.process_time()
+            r = diagnose(case.recording, plant="tank", actuator="valve", jobs=1, effort=a.effort, search=a.search)
+            out.append((time.process_time() - c0, r))
+    finally:
+        fit_mod.EARLY_STOP = True
+        set_kernel_threads(threads)
+    (c_on, r_on), (c_off, r_off) = out
+    AB_CPU.append((c_on, c_off))
+    same = r_on.effects == r_off.effects and r_on.final.rmse_all == r_off.final.rmse_all
+    return f" {c_on:.1f} | {c_off:.1f} | {c_off / c_on:.2f}x | {'yes' if same else 'NO'} |"
+
+
 def _export(rev: str, dest: str) -> str:
     """Extract the package of git revision ``rev`` into ``dest``; the folder to put on ``sys.path``."""
     root = subprocess.run(["git", "rev-parse", "--show-toplevel"], capture_output=True, text=True,
@@ -161,6 +191,9 @@ def main(argv=None):
     ap.add_argument("--before", metavar="REV",
                     help="also diagnose each recording with the package of git revision REV "
                          "(subprocess, same jobs), right after the timed run")
+    ap.add_argument("--early-stop-ab", action="store_true",
+                    help="also diagnose every recording in this process (one worker, one kernel thread) with "
+                         "the fitter's early stop on and off, and report the CPU ratio")
     ap.add_argument("--coarse", default="1",
                     help="coarse-to-fine decimation of the timed run: 'auto' or a whole number (default 1)")
     a = ap.parse_args(argv)
@@ -178,11 +211,13 @@ def main(argv=None):
     ref_head += " old path (coarse=1) [s] | speed-up | same effects, same verdict |" if a.old else ""
     ref_head += (f" before ({a.before}) [s] | wall ratio | CPU ratio | before: effects named, same verdict |"
                  if a.before else "")
+    ref_head += (" CPU early stop on [s] | off [s] | ratio | same effects, RMSE |" if a.early_stop_ab else "")
     print("| recording | effects named | total [s] | base fit | selection (screen + confirm) | "
           "candidate fits | per candidate [s] | friction verdict | whole-record refits | locate |"
           + ref_head)
     print("|---|---|---|---|---|---|---|---|---|---|" + ("---|---|" if a.reference else "")
-          + ("---|---|---|" if a.old else "") + ("---|---|---|---|" if a.before else ""))
+          + ("---|---|---|" if a.old else "") + ("---|---|---|---|" if a.before else "")
+          + ("---|---|---|---|" if a.early_stop_ab else ""))
     tree = _export(a.before, tempfile.mkdtemp(prefix="valve_gym_before_")) if a.before else ""
     totals, cpu = [], []
     for eff in a.effects.split(","):
@@ -216,6 +251,8 @@ def main(argv=None):
                 ref += _old_path(case, res, wall, a)
             if a.before:
                 ref += _before_path(tree, case, eff.strip(), 100 + rep, res, wall, cpu[-1], a)
+            if a.early_stop_ab:
+                ref += _early_stop_ab(case, a)
             print(f"| {case.name} | {', '.join(res.effects) or 'none'} | {wall:.1f} | "
                   f"{t['base_fit']:.1f} | {t['selection']:.1f} | {t['candidate_fits']} | "
                   f"{t['per_candidate']:.2f} | {t['friction_verdict']:.1f} | "
@@ -229,6 +266,10 @@ def main(argv=None):
         bw, bc, nw, nc = (np.sum([b[i] for b in BEFORE]) for i in range(4))
         print(f"Before ({a.before}) vs now, same recordings, same run: wall time {bw:.1f} s vs {nw:.1f} s "
               f"({bw / nw:.2f}x), CPU time {bc:.1f} s vs {nc:.1f} s ({bc / nc:.2f}x).\n")
+    if AB_CPU:
+        on, off = np.sum([c[0] for c in AB_CPU]), np.sum([c[1] for c in AB_CPU])
+        print(f"Early stop on vs off (one process, one kernel thread, same recordings): CPU time {on:.1f} s vs "
+              f"{off:.1f} s ({off / on:.2f}x).\n")
     if OLD_CPU:
         print(f"Old path (coarse=1) CPU time per recording: {', '.join(f'{c:.1f}' for c in OLD_CPU)} s; "
               f"CPU-time ratio old/new {np.sum(OLD_CPU) / np.sum(cpu):.2f}x (CPU time is much less "

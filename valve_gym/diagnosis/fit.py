@@ -38,6 +38,9 @@ __all__ = ["ModelFitter", "FitResult", "fit_structure", "fit_with_friction", "fi
            "fit_percent", "effective_n", "information_criterion", "ParamUncertainty", "parameter_uncertainty"]
 
 _BIG = 1e300
+#: Stop simulating a candidate once it cannot beat its rival (the same fits; off only to measure it:
+#: ``benchmarks/bench_diagnosis.py --early-stop-ab``).
+EARLY_STOP = True
 _PBEST = 0.5
 
 
@@ -305,7 +308,8 @@ def _evolve(obj: _Objective, rng, X, fx, budget: int, tol: float, patience: int,
         cross[np.arange(n_isl)[:, None], ar[None, :], jr] = True
         U = np.where(cross, V, X)
         # a trial that costs more than its parent is rejected: its simulation may stop there
-        fu = obj(U.reshape(-1, k), bound=np.where(fx < _BIG, fx, np.inf).reshape(-1)).reshape(n_isl, pop)
+        bound = np.where(fx < _BIG, fx, np.inf).reshape(-1) if EARLY_STOP else None
+        fu = obj(U.reshape(-1, k), bound=bound).reshape(n_isl, pop)
         used += n_isl * pop
         better = fu <= fx
         strict = fu < fx
@@ -446,7 +450,7 @@ def _refine(obj: _Objective, x0, max_nfev=40, step=2e-3):
 def _take_best(obj: _Objective, X, x, c):
     """Simulate the candidate rows ``X`` in one batch; keep the best if it lowers the cost ``c``."""
     bound = c * (1 - 1e-9)
-    f = obj(X, bound=np.full(len(X), bound if bound < _BIG else np.inf))
+    f = obj(X, bound=np.full(len(X), bound if bound < _BIG else np.inf) if EARLY_STOP else None)
     i = int(np.argmin(f))
     if f[i] < bound:
         return X[i].copy(), float(f[i]), True
