@@ -1044,15 +1044,20 @@ def test_friction_model_name():
     assert ModelParams(actuator=PUMP).friction_model == "none"
 
 
-def test_reset_run_restarts_the_level_from_the_measurement():
-    """run_packed_reset: reset to the system's own levels changes nothing; to other levels, each block
-    starts from them; a block as long as the record is the free run."""
+def _packed_batch(T=300):
+    """The 'paper+effects' batch packed, its rest state and inputs of ``T`` samples: ``(pk, st, U, D, m)``."""
     p = BATCH["paper+effects"]
-    u, d = batch_inputs(T=300)
+    u, d = batch_inputs(T=T)
     m = p.batch_size()
     pk = cmod.pack(p, m)
     st = initial_state(p, m, buf_len=pk.buf_len)
-    U, D = np.ascontiguousarray(u), np.ascontiguousarray(d)
+    return pk, st, np.ascontiguousarray(u), np.ascontiguousarray(d), m
+
+
+def test_reset_run_restarts_the_level_from_the_measurement():
+    """run_packed_reset: reset to the system's own levels changes nothing; to other levels, each block
+    starts from them; a block as long as the record is the free run."""
+    pk, st, U, D, m = _packed_batch()
 
     def run(reset=None, every=0):
         S, buf = cmod.state_to_array(st), np.array(st.delay_buf, float, copy=True)
@@ -1081,12 +1086,7 @@ def test_bounded_run_stops_rows_past_their_bound_and_keeps_the_others_bit_for_bi
     """run_packed / run_packed_reset with a Bound: a system whose squared error to the target
     passes its limit stops (its error is then above the limit, and so is its full error); every
     other system gives the unbounded run's outputs bit for bit and sums its full error."""
-    p = BATCH["paper+effects"]
-    u, d = batch_inputs(T=300)
-    m = p.batch_size()
-    pk = cmod.pack(p, m)
-    st = initial_state(p, m, buf_len=pk.buf_len)
-    U, D = np.ascontiguousarray(u), np.ascontiguousarray(d)
+    pk, st, U, D, m = _packed_batch()
     read = np.zeros((4, m))
     read[0], read[1], read[2], read[3] = 2.0, 0.1, np.inf, -np.inf
 
