@@ -569,26 +569,23 @@ class ModelStructure:
                 blocks[e] = build(self, v, dte, pp)
         return blocks
 
-    def _measure(self, values: dict[str, np.ndarray], Y: np.ndarray, start: int = 0) -> np.ndarray:
-        """Apply the measurement effects (those outside the core) to the simulated PV ``Y`` (T, n).
-
-        ``Y`` holds the samples from ``start`` on (a measurement effect acts sample by sample).
-        """
+    def _measure(self, values: dict[str, np.ndarray], Y: np.ndarray) -> np.ndarray:
+        """Apply the measurement effects (those outside the core) to the simulated PV ``Y`` (T, n)."""
         for e in self.effects:
             measure = effect_spec(e).measure
             if measure is not None:
                 n = Y.shape[1]
                 v = {k: np.broadcast_to(np.asarray(a, float), (n,)) for k, a in values.items()}
-                Y = measure(self, v, self.scales.dt * np.arange(start, start + Y.shape[0]), Y)
+                Y = measure(self, v, self.scales.dt * np.arange(Y.shape[0]), Y)
         return Y
 
-    def _read(self, values: dict[str, np.ndarray], Y: np.ndarray, sign, offset, start: int = 0) -> np.ndarray:
-        """The recorded PV from the simulated level ``Y`` (rows from sample ``start``): map, effects, range."""
+    def _read(self, values: dict[str, np.ndarray], Y: np.ndarray, sign, offset) -> np.ndarray:
+        """The recorded PV from the simulated level ``Y`` (T, n): map, measurement effects, sensor range."""
         if np.any(sign != 1.0):
             Y *= sign[None, :]
         if np.any(offset != 0.0):
             Y += offset[None, :]
-        Y = self._measure(values, Y, start)
+        Y = self._measure(values, Y)
         sc = self.scales
         if sc.sat_hi is not None:
             np.minimum(Y, sc.sat_hi, out=Y)
@@ -606,20 +603,7 @@ class ModelStructure:
         measured level restarts from the recorded PV ``y`` (T,) of the sample before
         (:func:`valve_gym.core.run_packed_reset`; only without measurement effects).
         """
-        values = self.decode(W) if coords else W
-        mp, init, sign, offset = self.build(values, n_sub=n_sub)
-        ns = self.n_sub if n_sub is None else int(n_sub)
-        n = max(mp.batch_size(), len(sign))
-        T = len(u)
-        Y = np.empty((T, n))
-        H, LV, Dz = self._work(T, n)
-        threads = kernel_threads() if T * n * ns >= _MIN_THREADED_STEPS else 1
-        plant = self._plant(mp, init, n, threads)
-        if reset is not None and int(reset[1]) < T:
-            self._run_reset(plant, u, Dz, (Y, H, LV), reset, sign, offset)
-        else:
-            plant.run(u, Dz, out=(Y, H, LV))
-        return _nan_bad(self._read(values, Y, sign, offset))
+        return self._simulate(W, u, n_sub, coords, reset)[0]
 
     def simulate_bounded(self, W, u, y, bound, reset=None) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`simulate` that stops each row once its squared error to ``y`` passes ``bound``.
@@ -632,51 +616,54 @@ class ModelStructure:
         row runs to the end where the PV is read through a measurement effect or the
         friction model runs a per-scan law outside the core.
         """
-        from ..core import Bound, run_packed, run_packed_reset
+        return self._simulate(W, u, None, True, reset, (y, bound))
 
-        values = self.decode(W)
-        mp, init, sign, offset = self.build(values)
-        ns = self.n_sub
+    def _simulate(self, W, u, n_sub, coords: bool, reset, bounded=None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`simulate` (``bounded`` None) or :meth:`simulate_bounded` (``bounded = (y, bound)``)."""
+        values = self.decode(W) if coords else W
+        mp, init, sign, offset = self.build(values, n_sub=n_sub)
+        ns = self.n_sub if n_sub is None else int(n_sub)
         n = max(mp.batch_size(), len(sign))
         T = len(u)
-        lim = np.broadcast_to(np.asarray(bound, float), (n,)) * (1.0 + 1e-9)
         Y = np.empty((T, n))
         H, LV, Dz = self._work(T, n)
         threads = kernel_threads() if T * n * ns >= _MIN_THREADED_STEPS else 1
         plant = self._plant(mp, init, n, threads)
-        every = int(reset[1]) if reset is not None and int(reset[1]) < T else None
-        tracked = plant.sample_law is None and self.pv_is_simulated_level and bool(np.isfinite(lim).any())
-        if not tracked:
-            if every is not None:
-                self._run_reset(plant, u, Dz, (Y, H, LV), reset, sign, offset)
-            else:
-                plant.run(u, Dz, out=(Y, H, LV))
-            return _nan_bad(self._read(values, Y, sign, offset)), np.zeros(n, bool)
+        bd = None if bounded is None else self._bound(plant, bounded, sign, offset, n, T)
+        if reset is not None and int(reset[1]) < T:
+            self._run_reset(plant, u, Dz, (Y, H, LV), reset, sign, offset, bd)
+        elif bd is not None:
+            from ..core import run_packed
+
+            U = np.ascontiguousarray(np.asarray(u, float)).reshape(T, 1)
+            pk, S, buf = plant.scan_args(U[:1], Dz[:1], (Y[:1], H[:1], LV[:1]))[:3]
+            run_packed(pk, S, buf, U, Dz, ns, Y, H, LV, threads=threads, bound=bd)
+        else:
+            plant.run(u, Dz, out=(Y, H, LV))
+        dropped = np.zeros(n, bool) if bd is None else bd.acc > bd.limit
+        Y[:, dropped] = 0.0
+        return _nan_bad(self._read(values, Y, sign, offset)), dropped
+
+    def _bound(self, plant: Plant, bounded, sign, offset, n: int, T: int):
+        """The kernel's early stop (:class:`valve_gym.core.Bound`) for ``bounded = (y, bound)``, or None.
+
+        None where the reading is not the core's level through sign, offset and sensor range
+        (a measurement effect), the friction runs outside the kernel, or no bound is finite.
+        """
+        from ..core import Bound
+
+        y, bound = bounded
+        lim = np.broadcast_to(np.asarray(bound, float), (n,)) * (1.0 + 1e-9)
+        if plant.sample_law is not None or not self.pv_is_simulated_level or not np.isfinite(lim).any():
+            return None
         sc = self.scales
         read = np.empty((4, n))
         read[0], read[1] = sign, offset
         read[2] = np.inf if sc.sat_hi is None else sc.sat_hi
         read[3] = -np.inf if sc.sat_lo is None else sc.sat_lo
-        bd = Bound(np.ascontiguousarray(y[:T], dtype=float), read, np.ascontiguousarray(lim), np.zeros(n))
-        U = np.ascontiguousarray(np.asarray(u, float)).reshape(T, 1)
-        pk, S, buf = plant.scan_args(U[:1], Dz[:1], (Y[:1], H[:1], LV[:1]))[:3]
-        if every is not None and reset is not None:
-            run_packed_reset(pk, S, buf, U, Dz, ns, Y, H, LV, self._levels(reset[0], T, n, sign, offset), every,
-                             bound=bd)
-        else:
-            run_packed(pk, S, buf, U, Dz, ns, Y, H, LV, threads=threads, bound=bd)
-        dropped = bd.acc > bd.limit
-        Y[:, dropped] = 0.0
-        return _nan_bad(self._read(values, Y, sign, offset)), dropped
+        return Bound(np.ascontiguousarray(y[:T], dtype=float), read, np.ascontiguousarray(lim), np.zeros(n))
 
-    @staticmethod
-    def _levels(y, T: int, n: int, sign, offset) -> np.ndarray:
-        """The level (T, n) each row's measurement map reads from the recorded PV ``y``."""
-        sign = np.broadcast_to(np.asarray(sign, float), (n,))
-        offset = np.broadcast_to(np.asarray(offset, float), (n,))
-        return np.ascontiguousarray((np.asarray(y, float)[:T, None] - offset[None, :]) / sign[None, :])
-
-    def _run_reset(self, plant: Plant, u, D, out, reset, sign, offset) -> None:
+    def _run_reset(self, plant: Plant, u, D, out, reset, sign, offset, bound=None) -> None:
         """Run ``plant`` over ``u`` with the measured level reset from the recorded PV (see :meth:`simulate`)."""
         from ..core import run_packed_reset
 
@@ -684,11 +671,14 @@ class ModelStructure:
             raise ValueError("a k-step prediction needs the PV to be the simulated level (no measurement "
                              "effect, no per-scan friction law)")
         T, n = len(u), plant.n
+        y, every = np.asarray(reset[0], float), int(reset[1])
+        sign = np.broadcast_to(np.asarray(sign, float), (n,))
+        offset = np.broadcast_to(np.asarray(offset, float), (n,))
+        L = np.ascontiguousarray((y[:T, None] - offset[None, :]) / sign[None, :])
         U = np.ascontiguousarray(np.asarray(u, float)).reshape(T, 1)
         pk, S, buf = plant.scan_args(U[:1], D[:1], tuple(a[:1] for a in out))[:3]
         Y, H, LV = out
-        run_packed_reset(pk, S, buf, U, D, plant.n_sub, Y, H, LV, self._levels(reset[0], T, n, sign, offset),
-                         int(reset[1]))
+        run_packed_reset(pk, S, buf, U, D, plant.n_sub, Y, H, LV, L, every, bound=bound)
 
     def _work(self, T: int, n: int):
         """Scratch arrays of the kernel (stem, level, zero load), reused between calls."""
