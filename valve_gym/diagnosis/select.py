@@ -221,6 +221,19 @@ def _run(tasks, jobs, executor=None):
     return pool_map(executor, _fit_candidate, tasks, [_task_cost(t) for t in tasks] if executor else None)
 
 
+def _applicable(candidates: Sequence[str], st) -> tuple[list[str], dict[str, str]]:
+    """The candidates that can be identified for ``st``'s plant and actuator, and why the others cannot."""
+    pool: list[str] = []
+    skipped: dict[str, str] = {}
+    for e in candidates:
+        ok, why = effect_applicability(e, st.plant, st.actuator)
+        if ok:
+            pool.append(e)
+        else:
+            skipped[e] = why
+    return pool, skipped
+
+
 def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_EFFECTS,
                    rule: SelectionRule = SelectionRule(), seed: int = 0, effort: str = "thorough",
                    jobs: int = 1, progress=None, screen_effort: str = "fast",
@@ -255,14 +268,7 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
     """
     t0 = time.perf_counter()
     st = base.structure
-    skipped: dict[str, str] = {}
-    pool: list[str] = []
-    for e in candidates:
-        ok, why = effect_applicability(e, st.plant, st.actuator)
-        if ok:
-            pool.append(e)
-        else:
-            skipped[e] = why
+    pool, skipped = _applicable(candidates, st)
     n_fit = base.n_fit
     n_eff0 = effective_n(base.residual[:n_fit])
     current = base
