@@ -81,3 +81,19 @@ def test_auto_takes_the_process_sign_from_the_base_fit(flip):
     test = res.settings["op_lag_test"]
     assert test["controller_reaction"]["process_sign"] == (-1.0 if flip else 1.0)
     assert test["method"] == "controller reaction" and res.settings["op_lag"] == 1
+
+
+def test_data_driven_evidence_reads_the_record_as_logged():
+    # the pairing is the model's business: the shape methods (Horch, bicoherence, ellipse, waveform,
+    # stick episodes) read the record as logged, so their features do not move with op_lag
+    spec = LoopSpec(process="tank", valve="choudhury", S=0.04, J=0.01, area=0.25, q_max=0.012, c_out=0.005,
+                    Kc=3.0, Ti=60.0, Ts=1.0, theta=0.0, noise=0.002, tau_v=0.2, n=900, sp_moves=0.0)
+    rec = simulate_loop(spec, seed=3)
+    f = {lag: diagnose(rec, plant="tank", candidates=(), effort="fast", op_lag=lag).stiction
+         for lag in (0, 1)}
+    shape = ("horch_ccf", "horch_int", "bicoherence", "ellipse", "waveform", "episodes", "oscillating")
+    assert any(f[0]["features"][k] != 0.0 for k in shape)          # the loop cycles: the methods read it
+    for k in shape:
+        assert f[1]["features"][k] == f[0]["features"][k], k
+    assert f[1]["horch"] == f[0]["horch"]
+    assert f[1]["features"]["hammerstein"] != f[0]["features"]["hammerstein"]   # the fits see the pairing

@@ -468,7 +468,7 @@ def _verdict_dict(best0: FitResult, best1: FitResult, d_ic: float, n_eff: float,
 
 
 def _combine_verdict(stiction: dict, rec: Recording, plant: str, slip: FitResult | None,
-                     executor=None) -> None:
+                     executor=None, logged: Recording | None = None) -> None:
     """Add the combined assessment of the stiction methods to the friction verdict.
 
     Adds ``probability`` and ``verdict`` (``'stiction'``, ``'no stiction'``,
@@ -481,8 +481,10 @@ def _combine_verdict(stiction: dict, rec: Recording, plant: str, slip: FitResult
     ``'undecided'`` alone is False.  Held out, this beats the model-based verdict alone
     (``docs/diagnosis.md``, section 4).
     """
-    a = assess_stiction(rec.op, rec.pv, float(rec.dt or 1.0), plant, sp=rec.sp, verdict=stiction, slip_fit=slip,
-                        map_fn=None if executor is None else executor.map)
+    logged = rec if logged is None else logged
+    a = assess_stiction(logged.op, logged.pv, float(logged.dt or 1.0), plant, sp=logged.sp, verdict=stiction,
+                        slip_fit=slip, map_fn=None if executor is None else executor.map,
+                        fit_data=None if logged is rec else (rec.op, rec.pv))
     d = a.to_dict()
     stiction["model_based_present"] = bool(stiction["present"])
     stiction["present"] = stiction_present(a.verdict, stiction["present"], stiction.get("kstep_delta_ic"))
@@ -724,7 +726,7 @@ def _fit_stages(recording: Recording, lags, plant, actuator, holdout, saturation
     t0 = time.perf_counter()
     say(f"{rec.name}: friction verdict")
     fv = _friction_stage(rec, plant, actuator, base, final, mm, mm_final, rule, seed, plan["verdict"], q,
-                         fast, executor=ex)
+                         fast, executor=ex, logged=recording)
     timing["friction_verdict"] = time.perf_counter() - t0
     return rec, base_split, sel, fv, lag, align
 
@@ -837,13 +839,20 @@ class _FrictionStage(NamedTuple):
 
 def _friction_stage(rec: Recording, plant: str, actuator: str, base: FitResult, final: FitResult,
                     mm: MismatchReport, mm_final: MismatchReport, rule: SelectionRule, seed: int,
-                    effort: str, coarse: int, fast: bool = False, executor=None) -> _FrictionStage:
-    """Friction verdict, Horch's test and the combined assessment; the final model it keeps."""
+                    effort: str, coarse: int, fast: bool = False, executor=None,
+                    logged: Recording | None = None) -> _FrictionStage:
+    """Friction verdict, Horch's test and the combined assessment; the final model it keeps.
+
+    The model fits read ``rec`` (the record as paired for the model, :meth:`Recording.with_op_lag`);
+    the data-driven methods read ``logged``, the record as it was logged (default ``rec``), so their
+    evidence does not move with the pairing chosen.
+    """
+    logged = rec if logged is None else logged
     stiction, fr0, final_v, slip = _friction_verdict(final, rec, rule, seed, effort, mm,
                                                      coarse=coarse, fast=fast, executor=executor)
     if actuator == "valve":
-        stiction["horch"] = horch_ccf(rec.op, rec.pv, _dt(rec), plant)
-        _combine_verdict(stiction, rec, plant, slip, executor)
+        stiction["horch"] = horch_ccf(logged.op, logged.pv, _dt(logged), plant)
+        _combine_verdict(stiction, rec, plant, slip, executor, logged)
     if final_v is not final:
         same = final is base
         final = final_v

@@ -80,7 +80,7 @@ def _fitted_band(fit: FitResult | None) -> float:
 
 def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None,
                     verdict: Mapping | None = None, slip_fit: FitResult | None = None,
-                    model: LogisticModel | None = None, map_fn=None) -> StictionAssessment:
+                    model: LogisticModel | None = None, map_fn=None, fit_data=None) -> StictionAssessment:
     """Combined stiction probability, verdict and size of one record.
 
     Parameters
@@ -96,6 +96,9 @@ def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None
     model : LogisticModel, optional (default :func:`default_model`)
     map_fn : map-like callable, optional (e.g. an executor's ``map``): the S profile of
         ``slip_fit`` runs its two sides side by side (same result)
+    fit_data : (op, pv), optional, the signals ``slip_fit`` was fitted on when they are not
+        ``op``, ``pv`` (the record re-paired for the model, e.g. each OP with the next PV); the
+        data-driven methods read ``op``, ``pv`` as logged, the S profile reads ``fit_data``
 
     Returns
     -------
@@ -103,7 +106,11 @@ def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None
     """
     op, pv = check_signals(op, pv, dt)
     ev = model_free_evidence(op, pv, dt, plant, sp)
-    slip = slip_jump_profile(slip_fit, op, pv, map_fn=map_fn) if slip_fit is not None else NAN_SIZE
+    if slip_fit is None:
+        slip = NAN_SIZE
+    else:
+        fop, fpv = (op, pv) if fit_data is None else check_signals(fit_data[0], fit_data[1], dt)
+        slip = slip_jump_profile(slip_fit, fop, fpv, map_fn=map_fn)
     if verdict is not None:
         # the band feature reads the slip-jump fit's own S (what the combination was fitted and
         # validated on), not the profile's re-optimised estimate
