@@ -111,7 +111,7 @@ def _parse_args(argv):
     ap.add_argument("--effort", default="auto", choices=("auto", "fast", "normal", "thorough"))
     ap.add_argument("--search", default="full", choices=("fast", "full"),
                     help="search of the diagnosis (diagnose(search=...)): 'full' (default) or the opt-in 'fast'")
-    ap.add_argument("--op-lag", default="0", choices=OP_LAG_CHOICES,
+    ap.add_argument("--op-lag", default="auto", choices=OP_LAG_CHOICES,
                     help="diagnose(op_lag=...): how the recordings pair OP and PV (this generator: 0)")
     ap.add_argument("--json", help="write every case's outcome as JSON")
     a = ap.parse_args(argv)

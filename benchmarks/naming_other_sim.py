@@ -139,7 +139,7 @@ def main(argv=None):
                     help="every loop a cylindrical tank sampled at 1 s (the set of earlier releases)")
     ap.add_argument("--pv-after-op", action="store_true",
                     help="re-align each recording to the diagnosis' sampling convention (op[k-1], pv[k])")
-    ap.add_argument("--op-lag", default="0", choices=OP_LAG_CHOICES,
+    ap.add_argument("--op-lag", default="auto", choices=OP_LAG_CHOICES,
                     help="diagnose(op_lag=...): 1 pairs op[k-1] with pv[k] inside the diagnosis (this simulator's "
                          "convention), auto lets the diagnosis test it")
     ap.add_argument("--all-effects", action="store_true",
@@ -174,7 +174,7 @@ def main(argv=None):
     print(f"\n**{right} of {len(out)} named right** ({time.perf_counter() - t0:.0f} s, {a.jobs} workers). "
           f"Command: `nice -n 10 python benchmarks/naming_other_sim.py --per-effect {a.per_effect}"
           f"{' --fixed-plant' if a.fixed_plant else ''}{' --pv-after-op' if a.pv_after_op else ''}"
-          f"{' --op-lag ' + a.op_lag if a.op_lag != '0' else ''}{' --all-effects' if a.all_effects else ''}`.")
+          f"{' --op-lag ' + a.op_lag if a.op_lag != 'auto' else ''}{' --all-effects' if a.all_effects else ''}`.")
     return 0
 
 

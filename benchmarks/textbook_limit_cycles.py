@@ -104,7 +104,7 @@ def main(argv=None):
     ap.add_argument("--sticky", type=int, default=22)
     ap.add_argument("--healthy", type=int, default=6)
     ap.add_argument("--jobs", type=int, default=2)
-    ap.add_argument("--op-lag", default="0", choices=OP_LAG_CHOICES,
+    ap.add_argument("--op-lag", default="auto", choices=OP_LAG_CHOICES,
                     help="diagnose(op_lag=...): this simulator logs op[k] computed from pv[k] (pairing 1)")
     a = ap.parse_args(argv)
     if a.sticky < 1 or a.healthy < 1 or a.jobs < 1:
@@ -120,7 +120,7 @@ def main(argv=None):
                   f"Ts {r['Ts']:g} s): present {r['present']}, p {r['probability']:.2f}, "
                   f"S_est {100 * r['S_est']:.2g} % ({r['seconds']:.0f} s)", file=sys.stderr, flush=True)
     note = "" if (a.sticky, a.healthy) == (22, 6) else f" --sticky {a.sticky} --healthy {a.healthy}"
-    note += f" --op-lag {a.op_lag}" if a.op_lag != "0" else ""
+    note += f" --op-lag {a.op_lag}" if a.op_lag != "auto" else ""
     report(rows, time.perf_counter() - t0, note)
     if a.op_lag == "auto":
         print(f"\nPairing 1 chosen on {sum(r['op_lag'] == 1 for r in rows)} of {len(rows)} loops.")

@@ -187,16 +187,25 @@ def _band_needed(op, rule=SelectionRule()):
     return max(rule.min_band, min(rule.abs_band, rule.rel_band * op_range))
 
 
+#: Features of the model fits: read from the cached diagnosis as it computed them (diagnose's band
+#: feature reads the slip-jump fit's own band, which the cache does not keep apart from the profile's S).
+_MODEL_FEATURES = ("hammerstein", "hammerstein_band")
+
+
 def refresh(data, items):
     """Model-free evidence, features and sizes of every record with the current code (fast)."""
     by_name = {it["name"]: it for it in items}
     for r in data:
-        rec = _load(by_name[r["name"]]).with_op_lag(r.get("op_lag_chosen", 0))   # the record as diagnosed
-        r["_op"] = rec.op
-        ev = model_free_evidence(rec.op, rec.pv, float(rec.dt or 1.0), r["plant"], rec.sp) + [_hammerstein(r)]
+        logged = _load(by_name[r["name"]])
+        r["_op"] = logged.with_op_lag(r.get("op_lag_chosen", 0)).op     # the OP as the model read it
+        # as in diagnose: the data-driven methods read the record as logged, whatever the pairing
+        ev = model_free_evidence(logged.op, logged.pv, float(logged.dt or 1.0), r["plant"], logged.sp)
+        ev.append(_hammerstein(r))
         ev.append(kstep_evidence(r["verdict"]))
         del r["_op"]
+        fitted = {k: r["features"][k] for k in _MODEL_FEATURES if k in r.get("features", {})}
         r["features"] = dict(zip(FEATURES, map(float, features(ev, r["plant"]))))
+        r["features"].update(fitted)        # the model-based features exactly as diagnose computed them
         ell = next(e for e in ev if e.method == "ellipse")
         nan = float("nan")
         sizes = [SizeEstimate("hammerstein", *[nan if s[k] is None else float(s[k]) for k in SizeEstimate._fields[1:]])
@@ -210,7 +219,7 @@ def refresh(data, items):
         r.update({"S": size.S, "J": size.J, "S_interval": [size.S_lo, size.S_hi],
                   "J_interval": [size.J_lo, size.J_hi], "sizes_agree": agree,
                   "size_methods": [s._asdict() for s in sizes],
-                  "oscillates": bool(oscillation(rec.pv).present or oscillation(rec.op).present)})
+                  "oscillates": bool(oscillation(logged.pv).present or oscillation(logged.op).present)})
     return data
 
 
@@ -575,7 +584,7 @@ def main(argv=None):
     ap.add_argument("--cache", default="stiction_features.json")
     ap.add_argument("--write-model", action="store_true",
                     help="fit on every record and write valve_gym/diagnosis/stiction/_weights.py")
-    ap.add_argument("--op-lag", default="0", choices=OP_LAG_CHOICES,
+    ap.add_argument("--op-lag", default="auto", choices=OP_LAG_CHOICES,
                     help="diagnose(op_lag=...) for every record (the cache keeps each setting apart)")
     ap.add_argument("--docs", default=None, help="markdown file to put the report in (between markers)")
     a = ap.parse_args(argv)

@@ -198,7 +198,9 @@ def test_interrupted_and_resumed_equals_uninterrupted(ray_session, folder, tmp_p
     assert fast.done == 1                                                 # the fast search: not reused either
     lag = run_fleet(folder, out, dataclasses.replace(SETTINGS, op_lag=1), stream=None, top=0, max_loops=1)
     assert lag.done == 1                                                  # another OP/PV pairing: not reused
-    assert "op_lag" not in SETTINGS.hash_text() and "op_lag" in dataclasses.replace(SETTINGS, op_lag=1).hash_text()
+    assert '"op_lag": "auto"' in SETTINGS.hash_text()
+    assert '"op_lag": 1' in dataclasses.replace(SETTINGS, op_lag=1).hash_text()
+    assert "op_lag" not in dataclasses.replace(SETTINGS, op_lag=0).hash_text()   # the old default's keys stay
 
 
 def test_bad_recording_is_a_failed_row(ray_session, folder, tmp_path):

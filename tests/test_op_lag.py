@@ -57,8 +57,11 @@ def test_fixed_op_lag_is_not_tested():
     assert res.settings["op_lag"] == 1 and res.settings["op_lag_test"] == {"asked": 1, "chosen": 1, "tested": False}
     from valve_gym.diagnosis.report import render_markdown
     assert "as asked (--op-lag 1)" in render_markdown(res)
-    res0 = diagnose(rec, candidates=(), effort="fast")
-    assert res0.settings["op_lag"] == 0 and "Pairing of OP and PV" not in render_markdown(res0)   # the default
+    res0 = diagnose(rec, candidates=(), effort="fast", op_lag=0)
+    assert res0.settings["op_lag"] == 0 and "Pairing of OP and PV" not in render_markdown(res0)
+    res_auto = diagnose(rec, candidates=(), effort="fast")                                      # the default
+    assert res_auto.settings["op_lag_test"]["tested"] and res_auto.settings["op_lag"] == 0
+    assert "read from the controller's reaction" in render_markdown(res_auto)
 
 
 @pytest.mark.parametrize("bad", [2, -1, "1", True, None])

@@ -535,7 +535,7 @@ def diagnose(recording: Recording, plant: str = "auto", actuator: str = "valve",
              candidates: Sequence[str] | None = None, holdout: float = 0.3,
              validate: Recording | None = None, rule: SelectionRule = SelectionRule(),
              effort: str = "auto", seed: int = 0, jobs: int = 1, saturation="auto",
-             n_sub: int = 1, coarse: int | str = 1, search: str = "full", op_lag: int | str = 0,
+             n_sub: int = 1, coarse: int | str = 1, search: str = "full", op_lag: int | str = "auto",
              progress: Callable[[str], None] | None = None) -> DiagnosisResult:
     """Diagnose one recording: base fit, mismatch location, missing physics, friction verdict.
 
@@ -603,8 +603,8 @@ def diagnose(recording: Recording, plant: str = "auto", actuator: str = "valve",
         convention).  1: ``op[k]`` was computed from the ``pv[k]`` logged beside
         it and acts only after it (a controller's scan logged as it happened);
         the diagnosis then pairs ``op[k-1]`` with ``pv[k]``
-        (:meth:`Recording.with_op_lag`; one sample shorter).  Default 0.
-        ``'auto'`` reads it from the controller's reaction to PV moves
+        (:meth:`Recording.with_op_lag`; one sample shorter).  ``'auto'``
+        (default) reads it from the controller's reaction to PV moves
         (:func:`~valve_gym.diagnosis.pairing.controller_reaction`); when that is
         unclear it fits the base model both ways and takes 1 only when it lowers
         the information criterion by more than ``rule.ic_margin``; the test is

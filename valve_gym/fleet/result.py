@@ -47,7 +47,7 @@ class FleetSettings:
     holdout: float = 0.3
     effort: str = "auto"
     search: str = "full"
-    op_lag: int | str = 0
+    op_lag: int | str = "auto"
     seed: int = 0
     full: bool = False
     columns: tuple[tuple[str, Any], ...] | None = None
@@ -61,7 +61,7 @@ class FleetSettings:
         d.pop("report_dir")
         if d["search"] == "full":           # the default: keys of runs made before it existed stay valid
             d.pop("search")
-        if d["op_lag"] == 0:                # likewise
+        if d["op_lag"] == 0:                # the default before auto: those runs keep their keys
             d.pop("op_lag")
         d["version"] = RESULT_VERSION
         return json.dumps(d, sort_keys=True, default=list)
