@@ -32,7 +32,8 @@ class FleetSettings:
     holdout : float, fraction held out of the selection fits
     effort : str, search budget of the full diagnosis
     search : str, ``'full'`` or ``'fast'`` (the opt-in fast search of :func:`valve_gym.diagnosis.diagnose`)
-    op_lag : 0, 1 or 'auto', how the recorder pairs OP and PV (``op_lag`` of :func:`valve_gym.diagnosis.diagnose`)
+    op_lag : 0, 1 or 'auto' (default), how the recorder pairs OP and PV (``op_lag`` of
+        :func:`valve_gym.diagnosis.diagnose`)
     seed : int, seed of the full diagnosis
     full : bool, run the full diagnosis on every loop (default: only on oscillating loops)
     columns : tuple of (role, column) pairs, optional, for one-recording CSV files
