@@ -84,3 +84,33 @@ def test_missing_values_are_skipped():
     pv[100:103] = np.nan
     r = controller_reaction(op, pv)
     assert r["op_lag"] == 1 and np.isfinite(r["reaction"]["0"])
+
+
+def test_partial_regression_reads_a_pv_whose_moves_correlate_from_row_to_row():
+    # coloured measurement noise and a spilling tank: the PV's moves correlate from one row to the next,
+    # so the controller's reaction shows in the correlations at both lags and they do not decide; the
+    # regression on both rows' moves finds the reaction to the row the controller read and none to the other
+    spec = LoopSpec(process="tank", valve="linear", S=0.0, J=0.0, area=0.2465, q_max=0.00939, c_out=0.00542,
+                    Kc=7.38, Ti=14.2, Ts=1.0, theta=0.0, noise=0.00109, noise_pole=0.79, load=0.00039,
+                    tau_v=0.29, n=1800, sp_moves=0.1875, level_max=0.6476)
+    rec = simulate_loop(spec, seed=107)                  # logs op[k] computed from pv[k]: pairing 1
+    r = controller_reaction(rec.op, rec.pv)
+    assert abs(r["reaction"]["0"] - r["reaction"]["1"]) <= r["margin"]      # the correlations: undecided
+    assert r["method"] == "partial regression" and r["op_lag"] == 1
+    assert r["t"]["0"] > Z_MARGIN > r["t"]["1"]
+    assert "regressed on both rows' PV moves" in r["reason"]
+    # read with the wrong process sign, the reaction is not a controller's
+    assert controller_reaction(rec.op, rec.pv, -1.0)["op_lag"] != 1
+
+
+def test_partial_regression_stays_undecided_when_both_rows_answer():
+    # a controller that acts on the mean of its last two readings (a PV filter): it answers both rows
+    # alike, the correlations do not decide, and the regression finds both, so the pairing is not read
+    rng = np.random.default_rng(3)
+    pv = 1.0 + 0.01 * np.cumsum(rng.standard_normal(1500)) / 30 + 0.003 * rng.standard_normal(1500)
+    op = np.empty(1500)
+    op[0] = 0.5
+    op[1:] = 0.5 - 4.0 * (0.5 * (pv[1:] + pv[:-1]) - 1.0)
+    r = controller_reaction(op, pv)
+    assert r["method"] == "partial regression" and r["op_lag"] is None
+    assert r["t"]["0"] > Z_MARGIN and r["t"]["1"] > Z_MARGIN

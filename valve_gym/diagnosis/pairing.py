@@ -17,8 +17,14 @@ positive at the controller's lag, negative where the process answers the output.
 is 1 when ``c(0) - c(1)`` exceeds ``3 / sqrt(N)`` (three standard errors of a sample correlation
 of ``N`` moves), 0 when ``c(1) - c(0)`` does (the controller answering the previous row, or the
 process answering its own row's output, which it cannot do when the PV was read first);
-otherwise (an open-loop record read before its input acts, a smooth PV with no noise for the
-controller to answer) it is undecided and the diagnosis falls back on fitting the base model
+otherwise a second reading separates the two rows: when the PV's moves are themselves
+correlated from sample to sample (coloured noise, a slow cycle), both marginal correlations are
+high, so ``dop[k]`` is regressed on ``dpv[k]`` and ``dpv[k-1]`` together (least squares) and
+each coefficient's t statistic ``t(l) = -s beta_l / se(beta_l)`` read: the controller reacts to
+exactly one of the two rows, so the pairing is 1 when ``t(0) > 3`` and ``t(1) < 3``, 0 when
+``t(1) > 3`` and ``t(0) < 3``.  When both or neither stand out (an open-loop record read before
+its input acts, a smooth PV with no noise for the controller to answer, a loop whose cycle
+dominates every lag) it is undecided and the diagnosis falls back on fitting the base model
 both ways.  Differencing removes slow loads
 and the set point's level; the record's own pairing does not depend on the valve, so a sticky
 valve does not change the test (the controller output, not the stem, is recorded).
@@ -60,8 +66,9 @@ def controller_reaction(op, pv, process_sign: float = 1.0) -> dict:
     -------
     dict (JSON-ready): ``corr`` ``{lag: corr(dop[k], dpv[k-lag])}`` for lags -1..2,
     ``reaction`` ``{"0": c(0), "1": c(1)}`` (``-process_sign * corr``), ``margin``
-    (``Z_MARGIN / sqrt(N)``), ``n`` (moves), ``op_lag`` (1, 0, or None: undecided) and
-    ``reason``.
+    (``Z_MARGIN / sqrt(N)``), ``n`` (moves), ``op_lag`` (1, 0, or None: undecided),
+    ``method`` (``'correlation'`` or, where the correlations do not decide,
+    ``'partial regression'`` with its ``t`` statistics ``{"0": t(0), "1": t(1)}``) and ``reason``.
 
     Examples
     --------
@@ -91,9 +98,38 @@ def controller_reaction(op, pv, process_sign: float = 1.0) -> dict:
     why = (f"reaction of the output to its own row's PV move {c0:.2f}, to the previous row's {c1:.2f}, "
            f"margin {m:.2f}")
     if c0 - c1 > m:
-        out.update(op_lag=1, reason=f"each output was computed from the PV logged beside it ({why})")
+        out.update(op_lag=1, method="correlation",
+                   reason=f"each output was computed from the PV logged beside it ({why})")
     elif c1 - c0 > m:
-        out.update(op_lag=0, reason=f"each PV was measured after the output beside it acted ({why})")
+        out.update(op_lag=0, method="correlation",
+                   reason=f"each PV was measured after the output beside it acted ({why})")
     else:
-        out.update(op_lag=None, reason=f"no clear controller reaction ({why})")
+        t0, t1 = _partial_t(a, b, sign)
+        why = f"{why}; regressed on both rows' PV moves: t {t0:.1f} for its own row, {t1:.1f} for the previous"
+        out.update(method="partial regression", t={"0": t0, "1": t1})
+        # a controller's reaction is a spike at its lag: the correlation there also stands out of the
+        # lag beyond it (an open-loop record's smooth input-output relation does not)
+        cm1, c2 = -sign * corr["-1"], -sign * corr["2"]
+        if t0 > Z_MARGIN > t1 and c0 - cm1 > m:
+            out.update(op_lag=1, reason=f"each output was computed from the PV logged beside it ({why})")
+        elif t1 > Z_MARGIN > t0 and c1 - c2 > m:
+            out.update(op_lag=0, reason=f"each PV was measured after the output beside it acted ({why})")
+        else:
+            out.update(op_lag=None, reason=f"no clear controller reaction ({why})")
     return out
+
+
+def _partial_t(a: np.ndarray, b: np.ndarray, sign: float) -> tuple[float, float]:
+    """The t statistics ``-sign beta_l / se`` of ``a[k] ~ beta_0 b[k] + beta_1 b[k-1]`` (least squares, centred)."""
+    X = np.column_stack([b[1:], b[:-1]])
+    X = X - X.mean(axis=0)
+    y = a[1:] - a[1:].mean()
+    gram = X.T @ X
+    if np.linalg.cond(gram) > 1e12:          # one row's moves a multiple of the other's: nothing to separate
+        return 0.0, 0.0
+    beta = np.linalg.solve(gram, X.T @ y)
+    r = y - X @ beta
+    s2 = float(r @ r) / max(len(y) - 2, 1)
+    se = np.sqrt(np.maximum(s2 * np.diag(np.linalg.inv(gram)), 1e-300))
+    t = -sign * beta / se
+    return float(t[0]), float(t[1])
