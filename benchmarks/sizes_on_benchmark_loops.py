@@ -39,6 +39,7 @@ from collections import defaultdict
 import numpy as np
 
 from valve_gym.diagnosis import Recording, diagnose
+from valve_gym.diagnosis.cli import OP_LAG_CHOICES, op_lag_value
 from valve_gym.diagnosis.model import process_pool
 from valve_gym.diagnosis.stiction import oscillation
 
@@ -87,12 +88,12 @@ def _neutral_sizes() -> None:
 
 
 def _run_one(args) -> dict:
-    loop, neutral = args
+    loop, neutral, op_lag = args
     if neutral:
         _neutral_sizes()
     t0 = time.perf_counter()
     rec = Recording(t=loop["t"], op=loop["op"], pv=loop["pv"], sp=loop["sp"], dt=loop["dt"], name=loop["name"])
-    s = diagnose(rec, plant=loop["plant"], candidates=(), jobs=1).stiction
+    s = diagnose(rec, plant=loop["plant"], candidates=(), jobs=1, op_lag=op_lag).stiction
     out = {k: v for k, v in loop.items() if k not in ("t", "op", "pv", "sp")}
     out.update({"present": bool(s["present"]), "verdict": s.get("verdict"), "S": s.get("S"),
                 "S_interval": s.get("S_interval"), "J": s.get("J"), "J_interval": s.get("J_interval"),
@@ -101,9 +102,9 @@ def _run_one(args) -> dict:
     return out
 
 
-def run(loops: list[dict], jobs: int, neutral: bool = False) -> list[dict]:
-    """Diagnose every loop (``jobs`` processes)."""
-    args = [(lp, neutral) for lp in loops]
+def run(loops: list[dict], jobs: int, neutral: bool = False, op_lag="auto") -> list[dict]:
+    """Diagnose every loop (``jobs`` processes; ``op_lag`` of :func:`~valve_gym.diagnosis.diagnose`)."""
+    args = [(lp, neutral, op_lag) for lp in loops]
     if jobs <= 1:
         return [_run_one(a) for a in args]
     with process_pool(jobs) as ex:
@@ -237,15 +238,16 @@ def main(argv=None) -> None:
     ap.add_argument("--calibrate", action="store_true",
                     help="choose the size constants on textbook loops (seeds 90000+i) instead")
     ap.add_argument("--json", default="", help="write the per-loop results here")
+    ap.add_argument("--op-lag", default="auto", choices=OP_LAG_CHOICES, help="diagnose(op_lag=...)")
     a = ap.parse_args(argv)
     if a.n < 1 or a.jobs < 1:
         ap.error("--n and --jobs must be >= 1")
     t0 = time.perf_counter()
     if a.calibrate:
-        rows = run(calibration_loops(a.n), a.jobs, neutral=True)
+        rows = run(calibration_loops(a.n), a.jobs, neutral=True, op_lag=op_lag_value(a.op_lag))
         text = json.dumps(calibrate(rows), indent=1) + "\n" + report(rows)
     else:
-        rows = run(benchmark_loops(a.n, a.seed), a.jobs)
+        rows = run(benchmark_loops(a.n, a.seed), a.jobs, op_lag=op_lag_value(a.op_lag))
         text = report(rows)
     print(text + f"({time.perf_counter() - t0:.0f} s)")
     if a.json:
