@@ -467,9 +467,12 @@ def _verdict_dict(best0: FitResult, best1: FitResult, d_ic: float, n_eff: float,
     return verdict
 
 
-def _combine_verdict(stiction: dict, rec: Recording, plant: str, slip: FitResult | None,
-                     executor=None, logged: Recording | None = None) -> None:
+def _combine_verdict(stiction: dict, rec: Recording, logged: Recording, plant: str, slip: FitResult | None,
+                     executor=None) -> None:
     """Add the combined assessment of the stiction methods to the friction verdict.
+
+    The data-driven methods read ``logged`` (the record as logged), the S profile of ``slip``
+    reads ``rec`` (the record as paired for the model).
 
     Adds ``probability`` and ``verdict`` (``'stiction'``, ``'no stiction'``,
     ``'undecided'``) of the logistic combination, ``S``, ``J``, ``S_interval``,
@@ -481,7 +484,6 @@ def _combine_verdict(stiction: dict, rec: Recording, plant: str, slip: FitResult
     ``'undecided'`` alone is False.  Held out, this beats the model-based verdict alone
     (``docs/diagnosis.md``, section 4).
     """
-    logged = rec if logged is None else logged
     a = assess_stiction(logged.op, logged.pv, float(logged.dt or 1.0), plant, sp=logged.sp, verdict=stiction,
                         slip_fit=slip, map_fn=None if executor is None else executor.map,
                         fit_data=None if logged is rec else (rec.op, rec.pv))
@@ -725,8 +727,8 @@ def _fit_stages(recording: Recording, lags, plant, actuator, holdout, saturation
     timing["locate"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     say(f"{rec.name}: friction verdict")
-    fv = _friction_stage(rec, plant, actuator, base, final, mm, mm_final, rule, seed, plan["verdict"], q,
-                         fast, executor=ex, logged=recording)
+    fv = _friction_stage(rec, recording, plant, actuator, base, final, mm, mm_final, rule, seed, plan["verdict"],
+                         q, fast, executor=ex)
     timing["friction_verdict"] = time.perf_counter() - t0
     return rec, base_split, sel, fv, lag, align
 
@@ -837,22 +839,20 @@ class _FrictionStage(NamedTuple):
     mismatch_final: MismatchReport  # of ``final``
 
 
-def _friction_stage(rec: Recording, plant: str, actuator: str, base: FitResult, final: FitResult,
-                    mm: MismatchReport, mm_final: MismatchReport, rule: SelectionRule, seed: int,
-                    effort: str, coarse: int, fast: bool = False, executor=None,
-                    logged: Recording | None = None) -> _FrictionStage:
+def _friction_stage(rec: Recording, logged: Recording, plant: str, actuator: str, base: FitResult,
+                    final: FitResult, mm: MismatchReport, mm_final: MismatchReport, rule: SelectionRule,
+                    seed: int, effort: str, coarse: int, fast: bool = False, executor=None) -> _FrictionStage:
     """Friction verdict, Horch's test and the combined assessment; the final model it keeps.
 
     The model fits read ``rec`` (the record as paired for the model, :meth:`Recording.with_op_lag`);
-    the data-driven methods read ``logged``, the record as it was logged (default ``rec``), so their
-    evidence does not move with the pairing chosen.
+    the data-driven methods read ``logged``, the record as it was logged (``rec`` itself when the
+    pairing is the model's own), so their evidence does not move with the pairing chosen.
     """
-    logged = rec if logged is None else logged
     stiction, fr0, final_v, slip = _friction_verdict(final, rec, rule, seed, effort, mm,
                                                      coarse=coarse, fast=fast, executor=executor)
     if actuator == "valve":
         stiction["horch"] = horch_ccf(logged.op, logged.pv, _dt(logged), plant)
-        _combine_verdict(stiction, rec, plant, slip, executor, logged)
+        _combine_verdict(stiction, rec, logged, plant, slip, executor)
     if final_v is not final:
         same = final is base
         final = final_v
