@@ -11,7 +11,9 @@ fits a cylinder); ``--fixed-plant`` gives every case a cylinder sampled at 1 s, 
 earlier releases. No dead time (it would be a second effect; a first run with 0-3 s of dead
 time in every loop had the tool name ``dead_time`` in 3 of 6 healthy loops). Each is
 diagnosed with every candidate effect (``plant='tank'``, ``actuator='valve'``, default
-rule); "named right" means the first effect named is the concealed one (none for ``none``).
+rule); "named right" means the first effect named is the concealed one (none for ``none``), where
+``tank_shape`` is set aside on the tanks that are not cylinders (there the shape is a second, true
+difference from the base model, reported in its own column; on a cylinder it counts as a wrong name).
 Case ``i`` uses seed ``70_000 + i``; nothing here was tuned on these cases.
 
 ``--all-effects`` adds five more concealed effects, made by the same simulator's optional plant
@@ -128,7 +130,13 @@ def run_case(args):
     res = diagnose(rec, plant="tank", actuator="valve", jobs=1, op_lag=op_lag)
     s = res.stiction
     return (effect, seed, list(res.effects), time.perf_counter() - t0, bool(s["present"]),
-            float(s.get("probability", float("nan"))), f"{spec.shape}, Ts {spec.Ts:g} s")
+            float(s.get("probability", float("nan"))), f"{spec.shape}, Ts {spec.Ts:g} s", spec.shape)
+
+
+def concealed_named(effects: list[str], shape: str) -> list[str]:
+    """The effects named, less ``tank_shape`` where the tank is not a cylinder (there the shape is a true
+    difference from the base model, not a concealed effect; on a cylinder it stays and counts as wrong)."""
+    return [e for e in effects if not (e == "tank_shape" and shape != "cylinder")]
 
 
 def main(argv=None):
@@ -160,17 +168,20 @@ def main(argv=None):
             out.append(r)
             print(f"[{len(out)}/{len(tasks)}] {r[0]}_{r[1]} ({r[6]}): named {r[2] or 'none'} ({r[3]:.0f} s)",
                   file=sys.stderr, flush=True)
-    print("| concealed | cases | named right | what was named | `stiction.present` | "
-          "combined probability |\n|---|---|---|---|---|---|")
+    print("| concealed | cases | named right | what was named | `tank_shape` named (not cylinder) | "
+          "`stiction.present` | combined probability |\n|---|---|---|---|---|---|---|")
     right = 0
     for e in effects:
         rows = [r for r in out if r[0] == e]
-        ok = [(r[2][:1] == [e]) if e != "none" else (not r[2]) for r in rows]
+        seen = [concealed_named(r[2], r[7]) for r in rows]
+        ok = [(n[:1] == [e]) if e != "none" else (not n) for n in seen]
         right += sum(ok)
         named = ", ".join(",".join(r[2]) or "none" for r in rows)
         pres = sum(r[4] for r in rows)
         probs = ", ".join(f"{r[5]:.2f}" for r in rows)
-        print(f"| {e} | {len(rows)} | {sum(ok)} | {named} | {pres} of {len(rows)} | {probs} |")
+        shaped = [r for r in rows if r[7] != "cylinder"]
+        sh = sum("tank_shape" in r[2] for r in shaped)
+        print(f"| {e} | {len(rows)} | {sum(ok)} | {named} | {sh} of {len(shaped)} | {pres} of {len(rows)} | {probs} |")
     print(f"\n**{right} of {len(out)} named right** ({time.perf_counter() - t0:.0f} s, {a.jobs} workers). "
           f"Command: `nice -n 10 python benchmarks/naming_other_sim.py --per-effect {a.per_effect}"
           f"{' --fixed-plant' if a.fixed_plant else ''}{' --pv-after-op' if a.pv_after_op else ''}"

@@ -20,7 +20,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[1]
 
 def test_builtin_effects_are_the_core_blocks_in_the_order_tried():
     assert CANDIDATE_EFFECTS == ("slip_jump", "valve_characteristic", "dead_time", "overflow", "leak",
-                                 "sensor_lag", "sensor_curve", "oscillating_disturbance")
+                                 "sensor_lag", "sensor_curve", "oscillating_disturbance", "tank_shape")
     measurement = {"sensor_curve"}                  # acts on the PV after the core, no core block
     assert set(EFFECTS) - set(CANDIDATE_EFFECTS) == {"cascade", "actuator"}   # plant structure, not effects
     assert set(CANDIDATE_EFFECTS) - set(EFFECTS) == measurement

@@ -33,19 +33,20 @@ from .friction.choudhury import choudhury_sample
 from .friction.kano import kano_sample
 from .friction.karnopp import karnopp_step, substeps
 from .friction.riihilahti import riihilahti_step
-from .params import ModelParams, ParameterError
+from .params import AREA_FLOOR, ModelParams, ParameterError
 
 __all__ = ["State", "Trajectory", "Packed", "pack", "initial_state", "steady_input",
-           "step", "simulate", "run_packed", "check_dt", "HAVE_NUMBA"]
+           "step", "simulate", "run_packed", "check_dt", "tank_shape_factor", "HAVE_NUMBA"]
 
 # ---------------------------------------------------------------- layouts
 # parameter rows of the packed (NP, n) array
 TAU, VMAX, EDEAD, ZMAX, SJ_S, SJ_J, SJ_TAU, CH_R, CH_H0, P_A, P_Q, P_OUT, A2, K2, \
-    LMAX, L2MAX, SPILL, QLEAK, DELAY, TAU_S, DIST_A, DIST_P, DIST_PHI, KP_W2, KP_C2, KP_DV, KP_M = range(27)
-NP = 27
+    LMAX, L2MAX, SPILL, QLEAK, DELAY, TAU_S, DIST_A, DIST_P, DIST_PHI, KP_W2, KP_C2, KP_DV, KP_M, \
+    SH_A1, SH_A2, SH_REF = range(30)
+NP = 30
 # flag slots
-F_FRIC, F_CHAR, F_ACT, F_PROC, F_DEAD, F_OVER, F_LEAK, F_SENS, F_DIST = range(9)
-NF = 9
+F_FRIC, F_CHAR, F_ACT, F_PROC, F_DEAD, F_OVER, F_LEAK, F_SENS, F_DIST, F_SHAPE = range(10)
+NF = 10
 # friction codes of the F_FRIC slot: the seed valve (also 'none'), then the slip_jump laws
 FRIC_RIIHILAHTI, FRIC_CHOUDHURY, FRIC_KANO, FRIC_KARNOPP = range(4)
 _LAW_CODE = {"choudhury": FRIC_CHOUDHURY, "kano": FRIC_KANO, "karnopp": FRIC_KARNOPP}
@@ -188,6 +189,16 @@ def _process(proc, over, L1, L2, qin, pa, pout, qleak, lmax, a2, k2, spill_f, l2
 
 
 @njit(inline="always")
+def _shape_area(pa, L, a1, a2, ref, floor):  # pragma: no cover - compiled
+    """Cross-section of a shaped tank at level ``L``: ``pa max(1 + a1 x + a2 x^2, floor)``, ``x = L/ref - 1``."""
+    x = L / ref - 1.0
+    g = 1.0 + x * (a1 + a2 * x)
+    if g < floor:
+        g = floor
+    return pa * g
+
+
+@njit(inline="always")
 def _sensor(sens, y, lm, taus, dt):  # pragma: no cover - compiled
     """First-order sensor lag (``sens`` 1) or the level itself."""
     if sens == 1:
@@ -248,6 +259,7 @@ def _kernel_core(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV, E, M, lim, acc):  
     db = D.shape[1] > 1
     fric, char, act, proc = flags[F_FRIC], flags[F_CHAR], flags[F_ACT], flags[F_PROC]
     dead, over, leak, sens, dist = flags[F_DEAD], flags[F_OVER], flags[F_LEAK], flags[F_SENS], flags[F_DIST]
+    shape = flags[F_SHAPE]
     B = buf.shape[1]
     for i in range(n):
         err = acc[i] if track else 0.0
@@ -267,6 +279,7 @@ def _kernel_core(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV, E, M, lim, acc):  
         kdel = int(P[DELAY, j])
         taus = P[TAU_S, j]
         da, dw, dphi = P[DIST_A, j], 2.0 * np.pi / P[DIST_P, j], P[DIST_PHI, j]
+        sa1, sa2, sref = P[SH_A1, j], P[SH_A2, j], P[SH_REF, j]
         z, h, x, us = S[S_Z, i], S[S_H, i], S[S_X, i], S[S_US, i]
         stuck, sdir, uprev = S[S_STUCK, i], S[S_SDIR, i], S[S_UPREV, i]
         L1, L2, y, t = S[S_L1, i], S[S_L2, i], S[S_Y, i], S[S_T, i]
@@ -300,7 +313,8 @@ def _kernel_core(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV, E, M, lim, acc):  
                 qin = f * pq + dk
                 if dist == 1:
                     qin += da * np.sin(dw * t + dphi)
-                L1, L2, lm = _process(proc, over, L1, L2, qin, pa, pout, qleak, lmax, a2, k2, spill_f, l2max, dt)
+                pak = _shape_area(pa, L1, sa1, sa2, sref, AREA_FLOOR) if shape == 1 else pa
+                L1, L2, lm = _process(proc, over, L1, L2, qin, pak, pout, qleak, lmax, a2, k2, spill_f, l2max, dt)
                 y = _sensor(sens, y, lm, taus, dt)
                 t += dt
             Y[k, i] = y
@@ -466,7 +480,8 @@ def check_dt(params: ModelParams) -> None:
     ``tau`` (paper model), the positioner ``tau_p`` (slip-jump), the sensor
     ``tau_s``, the ``first_order`` process ``T``, and for the tank the
     linearised outflow time constant ``2 A sqrt(L)/k`` at the level where the
-    inflow is 10 % of ``q_max``. The force-balance valve (``law='karnopp'``)
+    inflow is 10 % of ``q_max`` (with ``tank_shape``, ``A`` the cross-section at
+    that level). The force-balance valve (``law='karnopp'``)
     integrates its stem on sub-steps of ``dt``; a stem too stiff for ``dt``
     (:func:`valve_gym.friction.karnopp.substeps`) is refused too.
     """
@@ -485,9 +500,10 @@ def check_dt(params: ModelParams) -> None:
         checks.append(("first_order T", pr.T))
     elif params.process_kind in ("tank", "cascade"):
         k = np.asarray(pr.k_out, float)
-        with np.errstate(divide="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore"):
             checks.append(("tank outflow time constant 2*A*sqrt(L)/k at 10 % inflow",
-                           np.asarray(pr.area) * 0.2 * np.asarray(pr.q_max) / k ** 2))
+                           np.asarray(pr.area) * 0.2 * np.asarray(pr.q_max) / k ** 2
+                           * tank_shape_factor(params.tank_shape, (0.1 * np.asarray(pr.q_max) / k) ** 2)))
         if params.cascade is not None:
             k2 = np.asarray(params.cascade.k_out2, float)
             with np.errstate(divide="ignore"):
@@ -505,6 +521,18 @@ def check_dt(params: ModelParams) -> None:
                 f"controller sample) or a slower model")
 
 
+def tank_shape_factor(shape, L):
+    """Cross-section at level ``L`` relative to ``area``: the numpy twin of the kernel's ``_shape_area``.
+
+    1 without a shape (``shape`` None); floored at :data:`~valve_gym.params.AREA_FLOOR`.
+    """
+    if shape is None:
+        return 1.0
+    x = np.asarray(L, float) / np.asarray(shape.L_ref, float) - 1.0
+    g = 1.0 + x * (np.asarray(shape.taper, float) + np.asarray(shape.curvature, float) * x)
+    return np.maximum(np.nan_to_num(g, nan=AREA_FLOOR, posinf=AREA_FLOOR, neginf=AREA_FLOOR), AREA_FLOOR)
+
+
 def _pack_slip_jump(sj, dt: float, n: int, P: np.ndarray) -> int:
     """Fill the rows of the ``slip_jump`` block in ``P``; returns its friction code."""
     if sj.law not in _LAW_CODE:
@@ -516,6 +544,38 @@ def _pack_slip_jump(sj, dt: float, n: int, P: np.ndarray) -> int:
         P[KP_W2], P[KP_C2], P[KP_DV] = w * w, 2.0 * _col(sj.zeta, n) * w, _col(sj.dv, n)
         P[KP_M] = substeps(dt, w)
     return _LAW_CODE[sj.law]
+
+
+def _pack_plant_blocks(params: ModelParams, kind: str, n: int, P: np.ndarray, flags: np.ndarray) -> int:
+    """Fill the rows and flags of the optional plant blocks; returns the dead-time buffer's length."""
+    buf_len = 1
+    if params.dead_time is not None:
+        flags[F_DEAD] = 1
+        kdel = np.rint(_col(params.dead_time.theta, n) / params.dt)
+        P[DELAY] = kdel
+        buf_len = int(kdel.max()) + 1
+    if params.overflow is not None:
+        o = params.overflow
+        flags[F_OVER] = 1
+        P[LMAX], P[L2MAX], P[SPILL] = _col(o.L_max, n), _col(o.L2_max, n), _col(o.spill_to_lower, n)
+    if params.leak is not None:
+        flags[F_LEAK] = 1
+        P[QLEAK] = _col(params.leak.q_leak, n)
+    if params.sensor_lag is not None:
+        flags[F_SENS] = 1
+        P[TAU_S] = _col(params.sensor_lag.tau_s, n)
+    if params.oscillating_disturbance is not None:
+        d = params.oscillating_disturbance
+        flags[F_DIST] = 1
+        P[DIST_A], P[DIST_P], P[DIST_PHI] = _col(d.amplitude, n), _col(d.period, n), _col(d.phase, n)
+    if params.tank_shape is not None:
+        if kind == "first_order":
+            raise ParameterError("tank_shape needs a tank (process_kind 'tank', 'cascade' or 'integrating'); "
+                                 "the first-order process has no level; switch tank_shape off")
+        sh = params.tank_shape
+        flags[F_SHAPE] = 1
+        P[SH_A1], P[SH_A2], P[SH_REF] = _col(sh.taper, n), _col(sh.curvature, n), _col(sh.L_ref, n)
+    return buf_len
 
 
 def pack(params: ModelParams, n: int | None = None, check: bool = True) -> Packed:
@@ -539,6 +599,7 @@ def pack(params: ModelParams, n: int | None = None, check: bool = True) -> Packe
     P[TAU_S] = 1.0
     P[A2] = 1.0
     P[KP_M] = 1.0
+    P[SH_REF] = 1.0
     if params.slip_jump is not None:
         flags[F_FRIC] = _pack_slip_jump(params.slip_jump, params.dt, n, P)
     if params.valve_characteristic is not None:
@@ -558,26 +619,7 @@ def pack(params: ModelParams, n: int | None = None, check: bool = True) -> Packe
         P[P_A], P[P_Q], P[P_OUT] = _col(pr.T, n), _col(pr.K, n), _col(pr.b, n)
     if params.cascade is not None:
         P[A2], P[K2] = _col(params.cascade.area2, n), _col(params.cascade.k_out2, n)
-    buf_len = 1
-    if params.dead_time is not None:
-        flags[F_DEAD] = 1
-        kdel = np.rint(_col(params.dead_time.theta, n) / params.dt)
-        P[DELAY] = kdel
-        buf_len = int(kdel.max()) + 1
-    if params.overflow is not None:
-        o = params.overflow
-        flags[F_OVER] = 1
-        P[LMAX], P[L2MAX], P[SPILL] = _col(o.L_max, n), _col(o.L2_max, n), _col(o.spill_to_lower, n)
-    if params.leak is not None:
-        flags[F_LEAK] = 1
-        P[QLEAK] = _col(params.leak.q_leak, n)
-    if params.sensor_lag is not None:
-        flags[F_SENS] = 1
-        P[TAU_S] = _col(params.sensor_lag.tau_s, n)
-    if params.oscillating_disturbance is not None:
-        d = params.oscillating_disturbance
-        flags[F_DIST] = 1
-        P[DIST_A], P[DIST_P], P[DIST_PHI] = _col(d.amplitude, n), _col(d.period, n), _col(d.phase, n)
+    buf_len = _pack_plant_blocks(params, kind, n, P, flags)
     return Packed(P=P, flags=flags, buf_len=buf_len, dt=float(params.dt), params=params)
 
 

@@ -28,9 +28,9 @@ Number = float | np.ndarray
 
 __all__ = [
     "ValveParams", "SlipJump", "ValveCharacteristic", "DeadTime", "Overflow", "Leak",
-    "SensorLag", "OscillatingDisturbance", "Cascade", "Actuator", "TankParams",
+    "SensorLag", "OscillatingDisturbance", "TankShape", "Cascade", "Actuator", "TankParams",
     "IntegratingParams", "FirstOrderParams", "ModelParams", "EFFECTS", "PROCESSES",
-    "ParameterError", "SLIP_JUMP_LAWS", "slip_jump_laws", "register_sample_law",
+    "ParameterError", "AREA_FLOOR", "SLIP_JUMP_LAWS", "slip_jump_laws", "register_sample_law",
 ]
 
 
@@ -395,6 +395,44 @@ class OscillatingDisturbance(_Block):
 
 
 @dataclass(frozen=True)
+class TankShape(_Block):
+    """``tank_shape``: the tank's cross-section changes with the level.
+
+    ``A(L) = area * max(1 + taper x + curvature x^2, AREA_FLOOR)`` with
+    ``x = L / L_ref - 1``: the vertical cylinder (``taper = curvature = 0``,
+    the block off) is nested in it. A quadratic cross-section is exact for the
+    common vessels: an upright cone, apex down (``A ~ L^2``: ``taper 2,
+    curvature 1`` at any ``L_ref``), a sphere (``A ~ L (D - L)``: ``taper 0,
+    curvature -1`` with ``L_ref`` half full), a trough or wedge (``A ~ L``:
+    ``taper 1``), and close to a horizontal cylinder (``curvature -1/2`` half
+    full). The floor :data:`AREA_FLOOR` keeps the area positive (the apex of a
+    cone) and the Euler step stable. Acts on the tank whose area is
+    ``process.area`` (the upper tank of ``cascade``).
+
+    Parameters
+    ----------
+    taper : float or (n,) array, - (relative change of the area per relative
+        change of the level at ``L_ref``)
+    curvature : float or (n,) array, -
+    L_ref : float or (n,) array, m (> 0), the level at which the area is ``area``
+    """
+
+    taper: Number = 0.0
+    curvature: Number = 0.0
+    L_ref: Number = 1.0
+
+    def validate(self):
+        """Raise :class:`ParameterError` for a field out of its range."""
+        _check(self, "taper", -10.0, 10.0)
+        _check(self, "curvature", -10.0, 10.0)
+        _check(self, "L_ref", 0.0, lo_open=True)
+
+
+#: Smallest cross-section of :class:`TankShape`, relative to ``area``.
+AREA_FLOOR = 0.1
+
+
+@dataclass(frozen=True)
 class Cascade(_Block):
     """``cascade``: a second tank below the first, whose level is measured.
 
@@ -518,6 +556,7 @@ EFFECTS = {
     "leak": Leak,
     "sensor_lag": SensorLag,
     "oscillating_disturbance": OscillatingDisturbance,
+    "tank_shape": TankShape,
     "cascade": Cascade,
     "actuator": Actuator,
 }
@@ -537,7 +576,7 @@ class ModelParams(_Block):
         Fixed explicit-Euler step (checked for stability by
         :func:`valve_gym.core.check_dt`).
     slip_jump, valve_characteristic, dead_time, overflow, leak, sensor_lag,
-    oscillating_disturbance, cascade, actuator : block or None
+    oscillating_disturbance, tank_shape, cascade, actuator : block or None
         Optional physics, off when ``None``.
     """
 
@@ -553,6 +592,7 @@ class ModelParams(_Block):
     leak: Leak | None = None
     sensor_lag: SensorLag | None = None
     oscillating_disturbance: OscillatingDisturbance | None = None
+    tank_shape: TankShape | None = None
     cascade: Cascade | None = None
     actuator: Actuator | None = None
 

@@ -23,6 +23,7 @@ from . import (  # noqa: F401
     sensor_curve,
     sensor_lag,
     slip_jump,
+    tank_shape,
     valve_characteristic,
 )
 from .spec import EffectSpec, effect_spec, register_effect, registered_effects
@@ -30,7 +31,7 @@ from .spec import EffectSpec, effect_spec, register_effect, registered_effects
 __all__ = ["CANDIDATE_EFFECTS", "EffectSpec", "effect_spec", "register_effect", "candidate_effects"]
 
 _ORDER = ("slip_jump", "valve_characteristic", "dead_time", "overflow", "leak", "sensor_lag",
-          "sensor_curve", "oscillating_disturbance")
+          "sensor_curve", "oscillating_disturbance", "tank_shape")
 
 
 def candidate_effects() -> tuple[str, ...]:
