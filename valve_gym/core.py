@@ -279,7 +279,7 @@ def _kernel_core(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV, E, M, lim, acc):  
         kdel = int(P[DELAY, j])
         taus = P[TAU_S, j]
         da, dw, dphi = P[DIST_A, j], 2.0 * np.pi / P[DIST_P, j], P[DIST_PHI, j]
-        sa1, sa2, sref = P[SH_A1, j], P[SH_A2, j], P[SH_REF, j]
+        sa1, sa2, sref = (P[SH_A1, j], P[SH_A2, j], P[SH_REF, j]) if shape == 1 else (0.0, 0.0, 1.0)
         z, h, x, us = S[S_Z, i], S[S_H, i], S[S_X, i], S[S_US, i]
         stuck, sdir, uprev = S[S_STUCK, i], S[S_SDIR, i], S[S_UPREV, i]
         L1, L2, y, t = S[S_L1, i], S[S_L2, i], S[S_Y, i], S[S_T, i]
@@ -296,6 +296,7 @@ def _kernel_core(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV, E, M, lim, acc):  
             if act == 0 and (fric == FRIC_CHOUDHURY or fric == FRIC_KANO):
                 x, us, stuck, sdir, z = _valve_sample(fric, u, uprev, x, us, stuck, sdir, z, sjS, sjJ)
             uprev = u
+            pak = _shape_area(pa, L1, sa1, sa2, sref, AREA_FLOOR) if shape == 1 else pa
             for s in range(n_sub):
                 if act == 1:                        # pump: the input is the flow fraction
                     hc = u
@@ -313,7 +314,6 @@ def _kernel_core(S, P, U, D, flags, buf, n_sub, dt, Y, H, LV, E, M, lim, acc):  
                 qin = f * pq + dk
                 if dist == 1:
                     qin += da * np.sin(dw * t + dphi)
-                pak = _shape_area(pa, L1, sa1, sa2, sref, AREA_FLOOR) if shape == 1 else pa
                 L1, L2, lm = _process(proc, over, L1, L2, qin, pak, pout, qleak, lmax, a2, k2, spill_f, l2max, dt)
                 y = _sensor(sens, y, lm, taus, dt)
                 t += dt

@@ -407,7 +407,11 @@ class TankShape(_Block):
     ``taper 1``), and close to a horizontal cylinder (``curvature -1/2`` half
     full). The floor :data:`AREA_FLOOR` keeps the area positive (the apex of a
     cone) and the Euler step stable. Acts on the tank whose area is
-    ``process.area`` (the upper tank of ``cascade``).
+    ``process.area`` (the upper tank of ``cascade``). The kernel evaluates the
+    cross-section once per controller sample, at the level at its start, and
+    holds it over that sample's Euler sub-steps (the area changes little within a
+    sample; evaluated every sub-step, the branch cost the vector envs, which do
+    not use the block, 3-8 % of their speed in ``benchmarks/bench_kernel.py``).
 
     Parameters
     ----------

@@ -68,7 +68,7 @@ SPEC = register_effect(EffectSpec(
     params=(ParamSpec("taper", "-", -10.0, 10.0, 0.0, "lin", "relative change of the area per relative level"),
             ParamSpec("curvature", "-", -10.0, 10.0, 0.0, "lin", "second-order term of the area"),
             ParamSpec("L_ref", "m", 1e-9, 1e9, 1.0, "log", "level at which the area is process.area")),
-    kernel="the level balance divides by the cross-section at the current level, every Euler step",
+    kernel="the level balance divides by the cross-section at the level at the start of each controller sample",
     signature="the model is too slow where the tank narrows and too fast where it widens; the steady "
               "level for a given inflow is right",
     conditions=("pv_low", "pv_high"),
