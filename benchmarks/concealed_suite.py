@@ -42,7 +42,8 @@ _PARAM = {"dead_time": ("dead_time.theta", "dead_time.theta"),
           "overflow": ("overflow.L_max", "overflow.L_max_pv"),
           "slip_jump": ("slip_jump.S", "slip_jump.S"),
           "oscillating_disturbance": ("oscillating_disturbance.period",
-                                      "oscillating_disturbance.period")}
+                                      "oscillating_disturbance.period"),
+          "tank_shape": ("tank_shape.taper", "tank_shape.taper")}
 
 
 def run_case(args):
@@ -156,7 +157,7 @@ def _print_confusion(out: list[dict], a) -> None:
     print("Rows: the effect hidden in the recording; columns: the first effect named.\n")
     short = {"none": "none", "slip_jump": "slip", "valve_characteristic": "char",
              "dead_time": "dead", "overflow": "overfl", "leak": "leak", "sensor_lag": "s.lag",
-             "oscillating_disturbance": "osc", "other": "other"}
+             "oscillating_disturbance": "osc", "tank_shape": "shape", "other": "other"}
     print("| truth \\ named | " + " | ".join(short[c] for c in cols) + " |")
     print("|---|" + "---|" * len(cols))
     for lab in labels:

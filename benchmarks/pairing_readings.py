@@ -78,7 +78,7 @@ def main() -> int:
     t0 = time.perf_counter()
     print("| records | true pairing | n | read right | undecided | read wrong | decided by the partial regression |")
     print("|---|---|---|---|---|---|---|")
-    _count(_package(), 0, "package generator, 8 effects")
+    _count(_package(), 0, f"package generator, {len(SUITE_EFFECTS) + 1} effects")
     _count(_validation_loops(), 1, "textbook loops of validate_stiction.py --n-sim 160")
     _count(_random_loops(), 1, "400 random textbook loops (seeds 300000-300399)")
     _count(_naming_cases(), 1, "naming_other_sim.py cases (--per-effect 6; --per-effect 3 --all-effects)")

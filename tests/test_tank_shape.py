@@ -83,3 +83,16 @@ def test_diagnosis_names_a_cone_and_leaves_a_cylinder():
     cyl = diagnose(simulate_loop(spec, seed=0), plant="tank", actuator="valve",
                    candidates=("tank_shape", "leak"), jobs=1)
     assert cyl.effects == []
+
+
+def test_the_suite_generator_conceals_a_shaped_tank():
+    from valve_gym.diagnosis.synthetic import SUITE_EFFECTS, make_case
+
+    assert "tank_shape" in SUITE_EFFECTS
+    case = make_case("tank_shape", seed=4, n=400)
+    sh = case.params.tank_shape
+    e = case.truth["tank_shape.taper"]
+    assert 1.0 <= e <= 2.0 and sh.taper == e and sh.L_ref == 1.0
+    assert case.truth["tank_shape.curvature"] == pytest.approx(e * (e - 1) / 2)
+    plain = make_case("none", seed=4, n=400)
+    assert plain.params.tank_shape is None

@@ -40,6 +40,7 @@ from ..params import (
     SensorLag,
     SlipJump,
     TankParams,
+    TankShape,
     ValveCharacteristic,
     ValveParams,
 )
@@ -50,7 +51,7 @@ __all__ = ["SUITE_EFFECTS", "SyntheticCase", "make_case", "make_recording", "con
 
 #: Effects of the concealed-effect suite (plus ``'none'``).
 SUITE_EFFECTS = ("slip_jump", "valve_characteristic", "dead_time", "overflow", "leak",
-                 "sensor_lag", "oscillating_disturbance")
+                 "sensor_lag", "oscillating_disturbance", "tank_shape")
 
 
 @dataclass
@@ -257,6 +258,14 @@ def _conceal(effect: str, p: ModelParams, tank: TankParams, truth: dict[str, flo
         truth.update({"oscillating_disturbance.amplitude": amp,
                       "oscillating_disturbance.period": period,
                       "oscillating_disturbance.phase": phase})
+    elif effect == "tank_shape":
+        # a vessel whose cross-section grows as L^e from its bottom, e 1-2 (a wedge or trough to an upright
+        # cone), with the drawn area at the nominal 1 m: A/area = (L/1 m)^e = 1 + e x + e (e-1)/2 x^2 + ...,
+        # exact in the block's quadratic for e = 1 and 2
+        e = 1.0 + rng.uniform(0.0, 1.0) * mag
+        taper, curvature = e, e * (e - 1.0) / 2.0
+        p = replace(p, tank_shape=TankShape(taper=taper, curvature=curvature, L_ref=1.0))
+        truth.update({"tank_shape.taper": taper, "tank_shape.curvature": curvature})
     return p, hi
 
 
