@@ -56,7 +56,14 @@ import time
 import numpy as np
 
 from valve_gym.diagnosis import diagnose
-from valve_gym.diagnosis.model import DataScales, ModelStructure, kernel_threads, set_kernel_threads
+from valve_gym.diagnosis.model import (
+    CANDIDATE_EFFECTS,
+    DataScales,
+    ModelStructure,
+    effect_applicability,
+    kernel_threads,
+    set_kernel_threads,
+)
 from valve_gym.diagnosis.synthetic import make_case
 
 
@@ -202,7 +209,8 @@ def main(argv=None):
     diagnose(make_case("none", seed=1, n=a.samples).recording, candidates=(), effort="fast", jobs=a.jobs)
     rate = kernel_rate(a.samples)
     load = os.getloadavg()
-    print(f"## Diagnosis speed ({a.samples}-sample recordings, all 7 candidate effects, "
+    n_cand = sum(effect_applicability(e, "tank", "valve")[0] for e in CANDIDATE_EFFECTS)
+    print(f"## Diagnosis speed ({a.samples}-sample recordings, all {n_cand} candidate effects, "
           f"{a.jobs} worker(s), effort {a.effort}, search {a.search})\n")
     print(f"Machine: {os.cpu_count()} cores, load average {load[0]:.1f} / {load[1]:.1f} / "
           f"{load[2]:.1f} (1/5/15 min) at the start; batched core {rate / 1e6:.1f} M simulated "
