@@ -599,7 +599,6 @@ def pack(params: ModelParams, n: int | None = None, check: bool = True) -> Packe
     P[TAU_S] = 1.0
     P[A2] = 1.0
     P[KP_M] = 1.0
-    P[SH_REF] = 1.0
     if params.slip_jump is not None:
         flags[F_FRIC] = _pack_slip_jump(params.slip_jump, params.dt, n, P)
     if params.valve_characteristic is not None:
