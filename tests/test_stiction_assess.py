@@ -160,3 +160,29 @@ def test_kstep_test_finds_a_sticky_valve_under_a_drifting_load():
     assert s["kstep_rmse"]["friction"] < 0.95 * s["kstep_rmse"]["frictionless"]
     ks = next(e for e in s["evidence"] if e["method"] == "kstep")
     assert ks["verdict"] == "stiction"              # its own verdict; the public one reads it as a check only
+
+
+def test_naming_and_verdict_conflict_is_reported():
+    """A slip-jump term named while the verdict is no: flagged in the paragraph and in ``naming_agrees``."""
+    from valve_gym.diagnosis.diagnose import _note_friction_conflict
+
+    expl = ["Leak paragraph.", "Slip-jump paragraph."]
+    s = {"tested": True, "present": False, "probability": 0.03}
+    _note_friction_conflict(expl, ["leak", "slip_jump"], s)
+    assert s["naming_agrees"] is False
+    assert expl[0] == "Leak paragraph."
+    assert expl[1].startswith("Slip-jump paragraph. Caution: the stiction verdict is no (probability of "
+                              "stiction 0.03)") and "valve test" in expl[1]
+    for effects, present, agrees in ((["slip_jump"], True, True), (["leak"], False, True), ([], True, True)):
+        expl = ["x"] * max(len(effects), 1)
+        s = {"tested": True, "present": present, "probability": 0.9}
+        _note_friction_conflict(expl, effects, s)
+        assert s["naming_agrees"] is agrees and expl == ["x"] * max(len(effects), 1)
+    s = {"tested": False, "present": False}
+    _note_friction_conflict(["x"], ["slip_jump"], s)
+    assert s["naming_agrees"] is None
+
+
+def test_diagnosis_reports_whether_naming_agrees(sticky_result):
+    s = sticky_result.to_dict()["stiction"]
+    assert s["naming_agrees"] is True               # nothing named (no candidates): no conflict

@@ -654,6 +654,7 @@ def diagnose(recording: Recording, plant: str = "auto", actuator: str = "valve",
     if validate is not None:
         validate = validate.with_op_lag(lag)
     expl = _explanations(rec, sel, base, final, mm)
+    _note_friction_conflict(expl, list(sel.effects), fv.stiction)
     # ---- validation
     validation = None
     if validate is not None:
@@ -883,6 +884,33 @@ def _explanations(rec: Recording, sel: Selection, base: FitResult, final: FitRes
         best = min(sel.candidates, key=lambda c: c.delta_ic).effect if sel.candidates else None
         expl.append(explain_none(base, mm, best))
     return expl
+
+
+def _note_friction_conflict(expl: list[str], effects: list[str], stiction: dict) -> None:
+    """Say so, in place, where the slip-jump effect is named but the stiction verdict is no.
+
+    The two answer different questions: naming asks whether a slip-jump term improves the fit
+    enough (criterion and held-out test); the verdict (``stiction['present']``) whether the
+    valve sticks, from every method combined, and it is the one validated on labelled plant
+    loops.  A record without a limit cycle or stick episodes can pay for the term and still
+    give those methods nothing to confirm it.  ``stiction['naming_agrees']`` records whether
+    the two agree (None where no valve was tested).
+    """
+    if not stiction.get("tested", False):
+        stiction["naming_agrees"] = None
+        return
+    named = "slip_jump" in effects
+    stiction["naming_agrees"] = (not named) or bool(stiction["present"])
+    if named and not stiction["present"]:
+        i = effects.index("slip_jump")
+        p = stiction.get("probability")
+        pr = f" (probability of stiction {p:.2f})" if isinstance(p, float) and np.isfinite(p) else ""
+        expl[i] += (f" Caution: the stiction verdict is no{pr}. The slip-jump term pays in the fit, but "
+                    f"the methods that judge whether the valve sticks (the limit cycle's shape, stick "
+                    f"episodes, friction against frictionless models on the whole record) do not "
+                    f"confirm it: treat it as a model correction, not as a finding against the valve, "
+                    f"until a valve test (a slow output ramp or small steps with the loop in manual) "
+                    f"shows the stem sticking.")
 
 
 # --------------------------------------------------------------------------- many
