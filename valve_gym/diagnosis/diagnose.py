@@ -482,18 +482,29 @@ def _combine_verdict(stiction: dict, rec: Recording, logged: Recording, plant: s
     (kept under ``model_based_present``) finds friction that the k-step test does not
     contradict (:func:`~valve_gym.diagnosis.stiction.combine.stiction_present`);
     ``'undecided'`` alone is False.  Held out, this beats the model-based verdict alone
-    (``docs/diagnosis.md``, section 4).
+    (``docs/diagnosis.md``, section 4).  Where the record holds the valve's position (``mv``)
+    and the stem test applies (:mod:`~valve_gym.diagnosis.stiction.stem`), ``present`` is the
+    stem test's verdict instead (``verdict_source`` ``'stem'``, else ``'methods'``).
     """
     a = assess_stiction(logged.op, logged.pv, float(logged.dt or 1.0), plant, sp=logged.sp, verdict=stiction,
                         slip_fit=slip, map_fn=None if executor is None else executor.map,
-                        fit_data=None if logged is rec else (rec.op, rec.pv))
+                        fit_data=None if logged is rec else (rec.op, rec.pv), mv=logged.mv)
     d = a.to_dict()
     stiction["model_based_present"] = bool(stiction["present"])
     stiction["present"] = stiction_present(a.verdict, stiction["present"], stiction.get("kstep_delta_ic"))
+    stem = next((e for e in a.evidence if e.method == "stem"), None)
+    stiction["verdict_source"] = "methods"
+    if stem is not None and stem.applicable:
+        # the valve's position is recorded: whether the stem follows the output is read, not inferred
+        stiction["present"] = stem.verdict == "stiction"
+        stiction["verdict_source"] = "stem"
     for k in ("probability", "verdict", "S", "J", "S_interval", "J_interval", "sizes_agree", "sizes",
               "evidence", "features", "contributions"):
         stiction[k] = d[k]
     stiction["explanation"] = (stiction.get("explanation", "") + " " + explain_combined(a)).strip()
+    if stem is not None:
+        stiction["explanation"] += (f" Recorded valve position: {stem.reason}" + (
+            "; the verdict reads the stem." if stem.applicable else "; the verdict rests on the other methods."))
 
 
 #: Searches :func:`diagnose` knows (``search=``).

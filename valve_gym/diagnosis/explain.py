@@ -132,7 +132,8 @@ def explain_combined(a) -> str:
     stiction size with its 90 % interval (when the verdict is stiction).
     """
     words = {"stiction": "stiction", "no stiction": "no stiction", "undecided": "undecided"}
-    txt = (f"{len(a.evidence)} methods combined: {words[a.verdict]} "
+    n = sum(e.method != "stem" for e in a.evidence)      # the stem test is read apart, not combined
+    txt = (f"{n} methods combined: {words[a.verdict]} "
            f"(probability of stiction {a.probability:.2f}")
     pulls = sorted(a.contributions.items(), key=lambda kv: -abs(kv[1]))[:2]
     pulls = [(k, v) for k, v in pulls if abs(v) > 0.1]

@@ -22,6 +22,7 @@ from .episodes import episodes_evidence
 from .hammerstein import NAN_SIZE, SizeEstimate, hammerstein_evidence, slip_jump_profile
 from .horch import horch_evidence
 from .kstep import kstep_evidence
+from .stem import stem_evidence, stem_size
 from .waveform import waveform_evidence
 
 __all__ = ["assess_stiction", "combine_size_estimates", "default_model", "model_free_evidence"]
@@ -80,7 +81,8 @@ def _fitted_band(fit: FitResult | None) -> float:
 
 def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None,
                     verdict: Mapping | None = None, slip_fit: FitResult | None = None,
-                    model: LogisticModel | None = None, map_fn=None, fit_data=None) -> StictionAssessment:
+                    model: LogisticModel | None = None, map_fn=None, fit_data=None,
+                    mv=None) -> StictionAssessment:
     """Combined stiction probability, verdict and size of one record.
 
     Parameters
@@ -99,6 +101,9 @@ def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None
     fit_data : (op, pv), optional, the signals ``slip_fit`` was fitted on when they are not
         ``op``, ``pv`` (the record re-paired for the model, e.g. each OP with the next PV); the
         data-driven methods read ``op``, ``pv`` as logged, the S profile reads ``fit_data``
+    mv : (T,) recorded valve position (0..1), optional: the stem test (:mod:`.stem`) reads it
+        against ``op``; its evidence is added (not a feature of the logistic model) and, where it
+        finds stiction, its S and J are the ones reported (a measured stem is the direct reading)
 
     Returns
     -------
@@ -116,12 +121,20 @@ def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None
         # validated on), not the profile's re-optimised estimate
         ev.append(hammerstein_evidence(verdict, _fitted_band(slip_fit)))
         ev.append(kstep_evidence(verdict))
+    stem = None
+    if mv is not None:
+        need = float(verdict["band_needed"]) if verdict is not None and "band_needed" in verdict else 0.01
+        stem = stem_evidence(op, mv, dt, band_needed=need)
+        ev.append(stem)
     model = model or default_model()
     x = features(ev, plant)
     p = float(model.probability(x)[0])
     z = x / np.asarray(model.scale) * np.asarray(model.coef)     # pull away from a silent method (0)
     sizes = [s for s in (slip, _ellipse_size(ev)) if np.isfinite(s.S)]
     size, agree = combine_size_estimates(sizes)
+    if stem is not None and stem.verdict == "stiction":
+        size = stem_size(stem)                     # the measured stem: its own S and J are reported
+        sizes = [size] + sizes
     return StictionAssessment(p, verdict_of(p), size.S, size.J, (size.S_lo, size.S_hi),
                               (size.J_lo, size.J_hi), agree, sizes, ev,
                               dict(zip(FEATURES, map(float, x))),

@@ -251,11 +251,14 @@ def _steady(spec: LoopSpec, x0: float) -> float:
     return (max(spec.q_max * f0 - spec.leak, 1e-9) / spec.c_out) ** 2
 
 
-def simulate_loop(spec: LoopSpec, seed: int = 0, name: str | None = None) -> Recording:
+def simulate_loop(spec: LoopSpec, seed: int = 0, name: str | None = None, stem: bool = False) -> Recording:
     """Simulate ``spec`` at constant set point and return the recording (OP 0..1).
 
     The loop starts at rest at 50 % valve opening; the first 10 % of the run is
     discarded as start-up.  Euler integration with 20 steps per controller sample.
+    ``stem=True`` also records the valve's position (``mv``, 0..1: the positioner's
+    output at the end of each sample, as a travel sensor reads it); the other
+    signals are the same with or without it.
     """
     rng = np.random.default_rng(seed)
     n_total = int(spec.n * 1.1) + 1
@@ -288,6 +291,7 @@ def simulate_loop(spec: LoopSpec, seed: int = 0, name: str | None = None) -> Rec
     e_prev = 0.0
     op = np.empty(n_total)
     pv = np.empty(n_total)
+    mv = np.empty(n_total)
     sps = _sp_profile(rng, n_total, sp, spec.sp_moves)
     for k in range(n_total):
         t = k * spec.Ts
@@ -312,11 +316,12 @@ def simulate_loop(spec: LoopSpec, seed: int = 0, name: str | None = None) -> Rec
             if spill and y > spec.level_max:
                 y = spec.level_max
             ys = ys + h / spec.sensor_tau * (y - ys) if lag_s else y
+        mv[k] = min(max(xv, 0.0), 1.0)      # a travel sensor reads the stroke 0..1
     k0 = n_total - spec.n
     t = np.arange(spec.n) * spec.Ts
-    return Recording(t=t, op=op[k0:], pv=pv[k0:], sp=sps[k0:], dt=spec.Ts,
-                     name=name or f"{spec.process}_{spec.valve}_{seed}", op_range=(0.0, 1.0),
-                     columns={"t": "t", "op": "op", "pv": "pv", "sp": "sp"})
+    cols = {"t": "t", "op": "op", "pv": "pv", "sp": "sp"} | ({"mv": "mv"} if stem else {})
+    return Recording(t=t, op=op[k0:], pv=pv[k0:], sp=sps[k0:], mv=mv[k0:] if stem else None, dt=spec.Ts,
+                     name=name or f"{spec.process}_{spec.valve}_{seed}", op_range=(0.0, 1.0), columns=cols)
 
 
 def _sp_profile(rng, n: int, sp0: float, size: float) -> np.ndarray:

@@ -1,0 +1,121 @@
+"""The stem test: stiction read from a recorded valve position against the controller output."""
+import numpy as np
+import pytest
+
+from valve_gym.diagnosis import Recording, diagnose, load_recording
+from valve_gym.diagnosis.stiction.loops import LoopSpec, simulate_loop
+from valve_gym.diagnosis.stiction.stem import stem_evidence, stem_size
+
+
+def _output(T=2400, seed=1):
+    """An output like a PI's at constant set point: a slow random walk with noise, 0..1."""
+    rng = np.random.default_rng(seed)
+    return np.clip(0.5 + np.cumsum(rng.normal(0, 0.002, T)) + rng.normal(0, 0.003, T), 0, 1), rng
+
+
+def _independent_choudhury(u, S, J):
+    """Choudhury's law written out here (stick point kept while stuck), as a check on the package's."""
+    x, us, stuck, d = u[0], u[0], True, 0.0
+    out = np.empty(len(u))
+    out[0] = x
+    for k in range(1, len(u)):
+        du = u[k] - u[k - 1]
+        s = np.sign(du)
+        if not stuck and (s == 0 or s != d):
+            stuck, us = True, u[k - 1]
+        if stuck:
+            dev = u[k] - us
+            need = J if (d != 0 and (dev > 0) == (d > 0)) else S
+            if abs(dev) > need:
+                d, stuck = (1.0 if dev > 0 else -1.0), False
+        if not stuck:
+            x = u[k] - d * (S - J) / 2
+        out[k] = x
+    return out
+
+
+def test_sticky_stem_is_found_and_sized():
+    op, rng = _output()
+    x = _independent_choudhury(op, 0.03, 0.015)
+    mv = 0.01 + 0.97 * x + rng.normal(0, 0.001, len(op))       # a transmitter's offset, span and noise
+    e = stem_evidence(op, mv, 1.0, band_needed=0.01)
+    d = e.details
+    assert e.applicable and e.verdict == "stiction"
+    assert d["S_lo"] <= 0.03 <= d["S_hi"] and abs(d["S"] / 0.03 - 1) < 0.15
+    assert d["J_lo"] <= 0.015 <= d["J_hi"]
+    assert d["delta_ic"] < -10 and 0.9 < d["span"] < 1.05
+    s = stem_size(e)
+    assert s.method == "stem" and s.S == d["S"] and s.S_lo <= s.S <= s.S_hi
+
+
+def test_healthy_stem_is_cleared_and_a_small_band_does_not_matter():
+    op, rng = _output(seed=2)
+    lagged = np.empty_like(op)                       # a positioner lag of one sample, no friction
+    lagged[0] = op[0]
+    for k in range(1, len(op)):
+        lagged[k] = 0.37 * lagged[k - 1] + 0.63 * op[k]
+    e = stem_evidence(op, 0.02 + lagged + rng.normal(0, 0.001, len(op)), 1.0)
+    assert e.verdict == "no stiction" and e.details["S"] < 0.01
+    small = _independent_choudhury(op, 0.004, 0.0)   # a healthy positioner's dead band
+    e = stem_evidence(op, small + rng.normal(0, 0.0005, len(op)), 1.0, band_needed=0.01)
+    assert e.verdict == "no stiction" and "below the 1 %" in e.reason
+
+
+def test_stem_refuses_what_it_cannot_read():
+    op, rng = _output(T=600)
+    assert not stem_evidence(op, None).applicable
+    e = stem_evidence(op, op.copy())
+    assert not e.applicable and "readback" in e.reason
+    e = stem_evidence(op, np.full(len(op), 0.4) + rng.normal(0, 1e-4, len(op)))
+    assert e.verdict == "undetermined" and "seized valve or a frozen position signal" in e.reason
+    e = stem_evidence(op, rng.random(len(op)))
+    assert e.verdict == "undetermined" and "does not follow the output" in e.reason
+    assert stem_size(e).method == "none"
+    with pytest.raises(ValueError, match="same shape"):
+        stem_evidence(op, op[:-1])
+
+
+def test_kano_valve_of_the_independent_simulator():
+    """A Kano valve of the textbook simulator (its own code, not the package's law), no limit cycle needed."""
+    spec = LoopSpec(process="tank", valve="kano", S=0.03, J=0.02, Kc=3.0, Ti=40.0, Ts=1.0, noise=0.002,
+                    tau_v=0.3, n=1500, load=0.004, sp_moves=0.3)
+    rec = simulate_loop(spec, seed=4, stem=True)
+    assert rec.mv is not None and rec.columns["mv"] == "mv"
+    e = stem_evidence(rec.op, rec.mv, 1.0)
+    assert e.verdict == "stiction" and e.details["S_lo"] <= 0.03 <= e.details["S_hi"]
+    same = simulate_loop(spec, seed=4)               # the stem is recorded without changing the loop
+    assert same.mv is None and np.array_equal(same.op, rec.op) and np.array_equal(same.pv, rec.pv)
+
+
+@pytest.fixture(scope="module")
+def sticky_loop():
+    spec = LoopSpec(process="integrating", valve="kano", S=0.04, J=0.02, k_i=0.02, Kc=4.0, Ti=60.0, Ts=1.0,
+                    theta=2.0, noise=0.0003, tau_v=0.2, n=900, sp_step=0.02)
+    return simulate_loop(spec, seed=3, stem=True)
+
+
+def test_diagnosis_reads_the_stem_when_recorded(sticky_loop, tmp_path):
+    s = diagnose(sticky_loop, plant="integrating", candidates=(), effort="fast").stiction
+    assert s["verdict_source"] == "stem" and s["present"] is True
+    stem = next(e for e in s["evidence"] if e["method"] == "stem")
+    assert stem["verdict"] == "stiction"
+    assert s["S"] == stem["details"]["S"] and s["sizes"][0]["method"] == "stem"
+    assert s["S_interval"][0] <= 0.04 <= s["S_interval"][1]
+    assert "Recorded valve position" in s["explanation"] and "stem" not in s["features"]
+    # through the loader: a CSV with a position column in percent
+    path = tmp_path / "loop.csv"
+    r = sticky_loop
+    np.savetxt(path, np.c_[r.t, 100 * r.op, r.pv, 100 * r.mv], delimiter=",", header="t,OP,PV,valve_position",
+               comments="")
+    rec = load_recording(str(path), op_range=(0, 100))
+    assert rec.mv is not None and np.allclose(rec.mv, r.mv)
+    s2 = diagnose(rec, plant="integrating", candidates=(), effort="fast").stiction
+    assert s2["verdict_source"] == "stem" and s2["present"] is True
+
+
+def test_diagnosis_without_a_stem_is_unchanged(sticky_loop):
+    rec = Recording(t=sticky_loop.t, op=sticky_loop.op, pv=sticky_loop.pv, sp=sticky_loop.sp,
+                    dt=sticky_loop.dt, name="no_stem")
+    s = diagnose(rec, plant="integrating", candidates=(), effort="fast").stiction
+    assert s["verdict_source"] == "methods"
+    assert all(e["method"] != "stem" for e in s["evidence"]) and "Recorded valve position" not in s["explanation"]
