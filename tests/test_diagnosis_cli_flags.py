@@ -54,7 +54,7 @@ def run_json(rec_dir, tmp_path, capsys, *flags, path=None):
 # the list of flags
 # --------------------------------------------------------------------------
 
-CASES = {"-h", "--help", "--columns", "--op-range", "--plant", "--actuator", "--validate", "--holdout", "--json",
+CASES = {"-h", "--help", "--columns", "--op-range", "--mv-range", "--plant", "--actuator", "--validate", "--holdout", "--json",
          "--report", "--effects", "--jobs", "--effort", "--search", "--op-lag", "--seed", "--quiet", "--out",
          "--address", "--full", "--max-loops", "--top"}
 
@@ -99,6 +99,14 @@ def test_op_range(rec_dir, tmp_path, capsys):
     assert d["recording"]["op_range"] == [0.0, 100.0]
     code, _, err = run([rec_dir / "loop.csv", "--op-range", "5,5", *FAST], capsys)
     assert code == 2 and "LO >= HI" in err
+
+
+def test_mv_range(rec_dir, capsys):
+    """A bad range is refused; reading a position in its own range: tests/test_stem.py."""
+    code, _, err = run([rec_dir / "loop.csv", "--op-range", "0,100", "--mv-range", "5,5", *FAST], capsys)
+    assert code == 2 and "LO >= HI" in err
+    code, _, err = run([rec_dir / "loop.csv", "--op-range", "0,100", "--mv-range", "abc", *FAST], capsys)
+    assert code == 2 and "Traceback" not in err
 
 
 def test_plant(rec_dir, tmp_path, capsys):

@@ -119,3 +119,36 @@ def test_diagnosis_without_a_stem_is_unchanged(sticky_loop):
     s = diagnose(rec, plant="integrating", candidates=(), effort="fast").stiction
     assert s["verdict_source"] == "methods"
     assert all(e["method"] != "stem" for e in s["evidence"]) and "Recorded valve position" not in s["explanation"]
+
+
+def test_cli_reads_a_position_in_its_own_range(sticky_loop, tmp_path, capsys):
+    """``--mv-range``: a position logged 0..10 V beside an output in percent."""
+    from valve_gym.diagnosis.cli import main
+
+    r = sticky_loop
+    path = tmp_path / "LIC7.csv"
+    np.savetxt(path, np.c_[r.t, 100 * r.op, r.pv, 10 * r.mv], delimiter=",", header="t,op,pv,pos", comments="")
+    js = tmp_path / "out.json"
+    rc = main([str(path), "--op-range", "0,100", "--mv-range", "0,10", "--plant", "integrating", "--effects",
+               "none", "--effort", "fast", "--jobs", "1", "--json", str(js), "--quiet"])
+    assert rc == 0, capsys.readouterr().err
+    import json
+    s = json.loads(js.read_text())["stiction"]
+    assert s["verdict_source"] == "stem" and s["present"] is True
+    # without --mv-range the position is read like the output (0..100): a tenth of the stroke, refused
+    rc = main([str(path), "--op-range", "0,100", "--plant", "integrating", "--effects", "none", "--effort",
+               "fast", "--jobs", "1", "--json", str(js), "--quiet"])
+    assert rc == 0
+    s = json.loads(js.read_text())["stiction"]
+    stem = next(e for e in s["evidence"] if e["method"] == "stem")
+    assert s["verdict_source"] == "methods" and stem["verdict"] == "undetermined" and "span" in stem["reason"]
+
+
+def test_fleet_sends_a_loop_whose_stem_sticks_to_the_full_diagnosis(sticky_loop):
+    from valve_gym.fleet.analyse import position_sticks
+
+    assert position_sticks(sticky_loop) is True
+    healthy = simulate_loop(LoopSpec(process="integrating", valve="linear", k_i=0.02, Kc=4.0, Ti=60.0, Ts=1.0,
+                                     noise=0.0003, tau_v=0.2, n=900, sp_step=0.02, load=0.005), seed=5, stem=True)
+    assert position_sticks(healthy) is False
+    assert position_sticks(Recording(t=sticky_loop.t, op=sticky_loop.op, pv=sticky_loop.pv, dt=1.0)) is False

@@ -3,7 +3,7 @@
 Usage::
 
     valve-gym diagnose REC.csv|DIR [--columns t=COL,op=COL,pv=COL,sp=COL,mv=COL]
-        [--op-range LO,HI] [--plant auto|tank|integrating|first_order|cascade]
+        [--op-range LO,HI] [--mv-range LO,HI] [--plant auto|tank|integrating|first_order|cascade]
         [--actuator valve|pump] [--validate OTHER.csv] [--holdout FRAC]
         [--json OUT.json] [--report DIR] [--effects LIST] [--jobs N]
         [--effort auto|fast|normal|thorough] [--search full|fast] [--op-lag auto|0|1] [--seed N] [--quiet]
@@ -65,6 +65,8 @@ def build_parser() -> argparse.ArgumentParser:
                                      "(default: common names are recognised)")
     p.add_argument("--op-range", help="raw controller-output range LO,HI that maps to 0..1, "
                                       "e.g. 0,100 for percent")
+    p.add_argument("--mv-range", help="raw valve-position range LO,HI that maps to 0..1 (default: the "
+                                      "--op-range); the position column is read by the stem test")
     p.add_argument("--plant", default="auto", choices=("auto",) + tuple(PLANTS),
                    help="process model (default auto: from the ISA tag of the PV column, else of the file name: "
                         "LIC/LT... integrating, FIC/PIC/TIC/AIC... first_order, no tag: tank)")
@@ -183,6 +185,7 @@ def _main(argv: list[str]) -> int:
     a = build_parser().parse_args(argv)
     columns = parse_columns(a.columns) if a.columns else None
     op_range = parse_range(a.op_range) if a.op_range else None
+    mv_range = parse_range(a.mv_range) if a.mv_range else None
     holdout = _number(a.holdout, "--holdout", float, 0.0, 0.6)
     jobs = int(_number(a.jobs, "--jobs", int, 1, 64))
     seed = int(_number(a.seed, "--seed", int, 0, 2 ** 31 - 1))
@@ -190,7 +193,7 @@ def _main(argv: list[str]) -> int:
     _check_out(a.json, "--json", False)
     _check_out(a.report, "--report", True)
     say = (lambda s: None) if a.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
-    load_kw = {"columns": columns, "op_range": op_range}
+    load_kw = {"columns": columns, "op_range": op_range, "mv_range": mv_range}
     diag_kw = {"plant": a.plant, "actuator": a.actuator, "candidates": cands,
                "holdout": holdout, "effort": a.effort, "seed": seed, "search": a.search,
                "op_lag": op_lag_value(a.op_lag)}
@@ -257,7 +260,7 @@ def _fleet(a, path, jobs, seed, holdout, cands, op_range, say) -> int:
                              effort=a.effort, search=a.search, seed=seed, full=bool(a.full),
                              op_lag=op_lag_value(a.op_lag),
                              columns=tuple(sorted(cols.items())) if cols else None, op_range=op_range,
-                             report_dir=a.report)
+                             mv_range=parse_range(a.mv_range) if a.mv_range else None, report_dir=a.report)
 
     run = run_fleet(path, a.out, settings, jobs=jobs, address=a.address, max_loops=max_loops,
                     stream=None if a.quiet else sys.stderr, top=top)
@@ -313,10 +316,15 @@ def _print_summary(res) -> None:
               f"{_g(v['final_rmse'])} (initial state refitted); {_g(v['base_rmse_same_state'])} "
               f"-> {_g(v['final_rmse_same_state'])} from the fitted recording's initial state")
     s = d["stiction"]
-    print(f"  valve friction: {'present' if s.get('present') else 'not significant'}"
-          + (f" ({s['model']}: " + ", ".join(f"{k} = {v:.4g}" for k, v in s['parameters'].items()
-                                          if isinstance(v, float)) + ")" if s.get("tested") else
-             " (not tested)"))
+    if s.get("verdict_source") == "stem":
+        st = next(e for e in s["evidence"] if e["method"] == "stem")["details"]
+        print(f"  valve friction: {'present' if s.get('present') else 'not significant'} (read from the "
+              f"recorded valve position: S = {st['S']:.4g}, J = {st['J']:.4g} of the stroke)")
+    else:
+        print(f"  valve friction: {'present' if s.get('present') else 'not significant'}"
+              + (f" ({s['model']}: " + ", ".join(f"{k} = {v:.4g}" for k, v in s['parameters'].items()
+                                              if isinstance(v, float)) + ")" if s.get("tested") else
+                 " (not tested)"))
     h = s.get("horch")
     if h:
         print(f"  Horch's cross-correlation test (model-free, not part of the verdict): {h['verdict']}"

@@ -174,11 +174,11 @@ def analyse_loop(src: LoopSource, settings: FleetSettings, key: str = "") -> Loo
     t0, c0 = time.perf_counter(), time.process_time()
     try:
         loaded = load_loop(src, columns=dict(settings.columns) if settings.columns else None,
-                           op_range=settings.op_range, max_gap=settings.max_gap)
+                           op_range=settings.op_range, max_gap=settings.max_gap, mv_range=settings.mv_range)
         rec = loaded.recording
         sc = screen_recording(rec, resolve_plant(settings.plant, rec.name, rec.columns.get("pv"))[0])
         res = None
-        if settings.full or sc.oscillation.oscillating:
+        if settings.full or sc.oscillation.oscillating or position_sticks(rec):
             res = _full(loaded.recording, settings, src.name)
         return _ok_result(src, key, loaded, sc, res, time.perf_counter() - t0, time.process_time() - c0)
     except (RecordingError, ValueError) as e:
@@ -187,3 +187,17 @@ def analyse_loop(src: LoopSource, settings: FleetSettings, key: str = "") -> Loo
     except Exception as e:  # an internal error must not stop the fleet
         return failed_result(src, key, "error", f"internal error: {type(e).__name__}: {e}",
                              time.perf_counter() - t0)
+
+
+def position_sticks(rec) -> bool:
+    """Whether the loop's recorded valve position shows a sticking stem (the stem test; False without one).
+
+    The screen sends only oscillating loops to the full diagnosis; a sticky valve under a drifting
+    load often does not cycle, but where the position is logged the stem test (a fraction of a second)
+    reads it directly, and such a loop gets the full diagnosis too.
+    """
+    if rec.mv is None:
+        return False
+    from ..diagnosis.stiction.stem import stem_evidence
+
+    return stem_evidence(rec.op, rec.mv, float(rec.dt or 1.0)).verdict == "stiction"

@@ -11,7 +11,8 @@ from typing import Any
 __all__ = ["FleetSettings", "LoopResult", "TABLE_COLUMNS", "RESULT_VERSION", "loop_key"]
 
 #: Version of the per-loop result; a change makes every stored result stale (recomputed on resume).
-RESULT_VERSION = 1
+#: 2: a recorded valve position (``mv``) sends a loop to the full diagnosis and decides its verdict.
+RESULT_VERSION = 2
 
 #: Columns of ``loops.parquet`` / ``loops.csv``, in order (the first eleven are the issue's minimum).
 TABLE_COLUMNS = ("loop", "status", "message", "stiction", "S", "J", "effects", "rmse_base", "rmse_final",
@@ -38,6 +39,7 @@ class FleetSettings:
     full : bool, run the full diagnosis on every loop (default: only on oscillating loops)
     columns : tuple of (role, column) pairs, optional, for one-recording CSV files
     op_range : (lo, hi), optional, raw controller-output range mapped to 0..1
+    mv_range : (lo, hi), optional, raw valve-position range mapped to 0..1 (default: ``op_range``)
     max_gap : int, longest stretch without samples bridged, in scans
     report_dir : str, optional, folder for a full report per fully diagnosed loop
     """
@@ -54,6 +56,7 @@ class FleetSettings:
     columns: tuple[tuple[str, Any], ...] | None = None
     op_range: tuple[float, float] | None = None
     max_gap: int = 5
+    mv_range: tuple[float, float] | None = None
     report_dir: str | None = field(default=None, compare=False)
 
     def hash_text(self) -> str:
@@ -64,6 +67,8 @@ class FleetSettings:
             d.pop("search")
         if d["op_lag"] == 0:                # the default before auto: those runs keep their keys
             d.pop("op_lag")
+        if d["mv_range"] is None:           # the default: the position read like the output
+            d.pop("mv_range")
         d["version"] = RESULT_VERSION
         return json.dumps(d, sort_keys=True, default=list)
 

@@ -457,7 +457,7 @@ def _load_wide(src: LoopSource, op_range, max_gap: int) -> LoadedLoop:
     return LoadedLoop(rec, tuple(gaps), tuple(notes))
 
 
-def load_loop(src: LoopSource, columns=None, op_range=None, max_gap: int = 5) -> LoadedLoop:
+def load_loop(src: LoopSource, columns=None, op_range=None, max_gap: int = 5, mv_range=None) -> LoadedLoop:
     """Read one loop.
 
     Parameters
@@ -466,6 +466,7 @@ def load_loop(src: LoopSource, columns=None, op_range=None, max_gap: int = 5) ->
     columns : dict, optional, role -> column name for one-recording CSV files (as ``--columns``)
     op_range : (lo, hi), optional, raw controller-output range that maps to 0..1
     max_gap : int, longest stretch without samples bridged by interpolation, in scans
+    mv_range : (lo, hi), optional, raw valve-position range (one-recording files; default ``op_range``)
 
     Returns
     -------
@@ -482,7 +483,7 @@ def load_loop(src: LoopSource, columns=None, op_range=None, max_gap: int = 5) ->
     if src.kind == "wide":
         return _load_wide(src, op_range, max_gap)
     rec = load_recording(src.path, columns=columns, op_range=op_range, name=src.name, max_gap=max_gap,
-                         gaps="longest")
+                         gaps="longest", mv_range=mv_range)
     n_gaps = sum(int(m) for r in rec.repairs for m in re.findall(r"(\d+) gap\(s\)", r))
     gaps = tuple(Gap("pv", math.nan, math.nan) for _ in range(n_gaps))     # times are in the notes
     return LoadedLoop(rec, gaps, tuple(rec.repairs))
