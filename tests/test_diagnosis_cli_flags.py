@@ -54,8 +54,8 @@ def run_json(rec_dir, tmp_path, capsys, *flags, path=None):
 # the list of flags
 # --------------------------------------------------------------------------
 
-CASES = {"-h", "--help", "--columns", "--op-range", "--mv-range", "--plant", "--actuator", "--validate", "--holdout", "--json",
-         "--report", "--effects", "--jobs", "--effort", "--search", "--op-lag", "--seed", "--quiet", "--out",
+CASES = {"-h", "--help", "--columns", "--op-range", "--mv-range", "--plant", "--actuator", "--validate", "--holdout",
+         "--json", "--report", "--effects", "--jobs", "--effort", "--search", "--op-lag", "--seed", "--quiet", "--out",
          "--address", "--full", "--max-loops", "--top"}
 
 

@@ -894,3 +894,23 @@ def test_folders_pick_dcs_exports_not_other_text(tmp_path):
     assert is_dcs_export(tmp_path / "a.txt") and not is_dcs_export(tmp_path / "README.txt")
     assert [p.rsplit("/", 1)[-1] for p in recording_files(str(tmp_path))] == ["a.txt", "b.csv"]
     assert [s.name for s in discover_loops(str(tmp_path))] == ["a", "b"]
+
+
+def test_decimal_comma_in_a_semicolon_file(tmp_path):
+    """European exports: ';' between columns and a decimal comma in the numbers (time included)."""
+    rng = np.random.default_rng(0)
+    t = np.arange(300) * 0.5
+    op = 0.5 + 0.1 * np.sin(t / 10) + 0.01 * rng.standard_normal(300)
+    pv = 1.2 + 0.3 * np.sin(t / 10 - 0.5)
+    p = tmp_path / "export.csv"
+    p.write_text("Zeit;OP;PV\n" + "".join(f"{a:.1f};{b:.5f};{c:.5f}\n".replace(".", ",")
+                                           for a, b, c in zip(t, op, pv)), encoding="utf-8")
+    rec = load_recording(p, columns={"t": "Zeit", "op": "OP", "pv": "PV"})
+    assert rec.dt == pytest.approx(0.5) and np.allclose(rec.op, op, atol=1e-5) and np.allclose(rec.pv, pv, atol=1e-5)
+    assert any("decimal comma" in n for n in rec.notes)
+    # a comma-separated file does not guess: a quoted "0,5" may be a thousands separator there
+    q = tmp_path / "quoted.csv"
+    cells = [f"{b:.3f}".replace(".", ",") for b in op]
+    q.write_text("t,op,pv\n" + "".join(f'{a},"{b}",{c}\n' for a, b, c in zip(t, cells, pv)), encoding="utf-8")
+    with pytest.raises(RecordingError, match="decimal comma is read only where the columns are separated"):
+        load_recording(q)

@@ -141,9 +141,13 @@ def load_recording(
     opts = check_options(src, max_gap, resample, gaps, op_range, mv_range, max_samples, engine)
     sn = sniff(src, opts.engine)
     raw = read_columns(sn, columns)
-    p = parse_raw(raw, src)
+    dc = _decimal_comma_file(sn, raw)
+    p = parse_raw(raw, src, decimal_comma=dc)
     repairs: list[str] = []
     notes = _reader_notes(sn, raw)
+    if dc:
+        notes.append(f"numbers with a decimal comma read as decimal points (columns separated by "
+                     f"{sn.dialect.delimiter!r})")
     check_time_order(p)
     p = drop_duplicates(p, repairs)
     p = mark_absurd(p, repairs)
@@ -162,6 +166,16 @@ def load_recording(
         name=name if name is not None else sn.path.stem, op_range=op_range_used,
         repairs=tuple(repairs), columns=dict(p.columns.names), start=p.start, notes=tuple(notes),
     )
+
+
+def _decimal_comma_file(sn: Sniffed, raw: RawColumns) -> bool:
+    """Whether a CSV file writes its numbers with a decimal comma (``;``- or tab-separated, commas in cells)."""
+    if sn.kind != "csv" or sn.dialect is None or sn.dialect.delimiter == ",":
+        return False
+    for a in raw.data.values():
+        if a.dtype == object and any(isinstance(c, str) and "," in c for c in a[:200]):
+            return True
+    return False
 
 
 def _reader_notes(sn: Sniffed, raw: RawColumns) -> list[str]:

@@ -74,13 +74,16 @@ class Parsed:
         return f"{self.unit}(s) {fmt_lines(self.lines[np.asarray(idx, dtype=np.int64)].tolist())}"
 
 
-def parse_numbers(cells: np.ndarray) -> tuple[np.ndarray, list[int], list[int]]:
+def parse_numbers(cells: np.ndarray, decimal_comma: bool = False) -> tuple[np.ndarray, list[int], list[int]]:
     """Numbers of a column of cells.
 
     Parameters
     ----------
     cells : ndarray, shape (n,)
         float64, or object holding str or float.
+    decimal_comma : bool
+        Also read a cell with one comma and no point as a number with a decimal comma
+        (``'0,53'``, European exports); only for files whose columns are not separated by commas.
 
     Returns
     -------
@@ -110,9 +113,11 @@ def parse_numbers(cells: np.ndarray) -> tuple[np.ndarray, list[int], list[int]]:
             try:
                 v = float(s)
             except ValueError:
-                bad.append(i)
-                out[i] = np.nan
-                continue
+                v = _decimal_comma(s) if decimal_comma else None
+                if v is None:
+                    bad.append(i)
+                    out[i] = np.nan
+                    continue
         if math.isinf(v):
             nonfin.append(i)
         out[i] = v if math.isfinite(v) else np.nan
@@ -155,16 +160,27 @@ def parse_datetimes(cells, idx) -> tuple[np.ndarray, list[int]]:
     return out, bad
 
 
-def _signal(raw: RawColumns, r: str, src: str) -> tuple[np.ndarray, list[int]]:
+def _decimal_comma(s: str) -> float | None:
+    """``s`` read with a decimal comma (one comma, no point), or None."""
+    if s.count(",") != 1 or "." in s:
+        return None
+    try:
+        return float(s.replace(",", "."))
+    except ValueError:
+        return None
+
+
+def _signal(raw: RawColumns, r: str, src: str, decimal_comma: bool = False) -> tuple[np.ndarray, list[int]]:
     where = f"{src}: column {raw.columns.names[r]!r} ({r})"
     cells = raw.data[r]
-    v, bad, nonfin = parse_numbers(cells)
+    v, bad, nonfin = parse_numbers(cells, decimal_comma)
     if bad:
         ex = str(cells[bad[0]]).strip()
         raise RecordingError(
             f"{where}: {len(bad)} non-numeric cell(s) at {raw.unit}(s) "
             f"{fmt_lines(raw.lines[bad].tolist())} (e.g. {ex!r}); fix or blank those cells "
-            f"(blank cells count as missing values; use '.' as the decimal point)"
+            f"(blank cells count as missing values; use '.' as the decimal point: a decimal comma is read "
+            f"only where the columns are separated by ';' or tabs)"
         )
     if np.isnan(v).all():
         raise RecordingError(
@@ -174,11 +190,11 @@ def _signal(raw: RawColumns, r: str, src: str) -> tuple[np.ndarray, list[int]]:
     return v, nonfin
 
 
-def _text_time(raw: RawColumns, src: str) -> tuple[np.ndarray, str | None, list[int]]:
+def _text_time(raw: RawColumns, src: str, decimal_comma: bool = False) -> tuple[np.ndarray, str | None, list[int]]:
     """Seconds from a text time column: numbers, or ISO date strings throughout."""
     where = f"{src}: column {raw.columns.names['t']!r} (t)"
     cells = raw.data["t"]
-    t, bad, nonfin = parse_numbers(cells)
+    t, bad, nonfin = parse_numbers(cells, decimal_comma)
     if not bad:
         return t, None, nonfin
     present = [i for i, c in enumerate(cells)
@@ -205,7 +221,8 @@ def _text_time(raw: RawColumns, src: str) -> tuple[np.ndarray, str | None, list[
     return t, str(cells[present[0]]).strip(), []
 
 
-def _time(raw: RawColumns, src: str) -> tuple[np.ndarray, str | None, float | None, list[int]]:
+def _time(raw: RawColumns, src: str,
+          decimal_comma: bool = False) -> tuple[np.ndarray, str | None, float | None, list[int]]:
     """Time in seconds, the first stamp as written (dates) and its POSIX seconds."""
     cells = raw.data["t"]
     if cells.dtype.kind == "M":
@@ -220,7 +237,7 @@ def _time(raw: RawColumns, src: str) -> tuple[np.ndarray, str | None, float | No
     if cells.dtype.kind == "f":
         t, _, nonfin = parse_numbers(cells)
         return t, None, None, nonfin
-    t, start, nonfin = _text_time(raw, src)
+    t, start, nonfin = _text_time(raw, src, decimal_comma)
     if start is None:
         return t, None, None, nonfin
     epoch0 = float(parse_datetimes([start], [0])[0][0])
@@ -228,7 +245,7 @@ def _time(raw: RawColumns, src: str) -> tuple[np.ndarray, str | None, float | No
     return t - t[ok[0]], start, epoch0, []
 
 
-def parse_raw(raw: RawColumns, src: str) -> Parsed:
+def parse_raw(raw: RawColumns, src: str, decimal_comma: bool = False) -> Parsed:
     """Numbers of every mapped column.
 
     Parameters
@@ -237,6 +254,8 @@ def parse_raw(raw: RawColumns, src: str) -> Parsed:
         From one of the readers.
     src : str
         The file, for messages.
+    decimal_comma : bool
+        Read ``'0,53'`` as 0.53 (a file whose columns are separated by ``;`` or tabs).
 
     Returns
     -------
@@ -253,10 +272,10 @@ def parse_raw(raw: RawColumns, src: str) -> Parsed:
     values: dict[str, np.ndarray] = {}
     nonfinite: dict[str, np.ndarray] = {}
     for r in sig:
-        v, nf = _signal(raw, r, src)
+        v, nf = _signal(raw, r, src, decimal_comma)
         values[r] = v
         nonfinite[r] = np.asarray(nf, dtype=np.int64)
-    t, start, epoch0, t_nf = _time(raw, src)
+    t, start, epoch0, t_nf = _time(raw, src, decimal_comma)
     lines = raw.lines
     t_text = raw.data["t"] if raw.data["t"].dtype == object else None
     if raw.drop_blank:

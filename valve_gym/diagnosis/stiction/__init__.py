@@ -10,7 +10,9 @@ applicability and reliability on the record):
 * :mod:`.episodes` - stick episodes: the OP ramps, the process does not answer (after Kano et al. 2004);
 * :mod:`.hammerstein` - the package's friction block fitted inside the process model, S and J
   with profile intervals;
-* :mod:`.kstep` - the same friction test on k-step-ahead predictions (robust to slow unmeasured loads).
+* :mod:`.kstep` - the same friction test on k-step-ahead predictions (robust to slow unmeasured loads);
+* :mod:`.stem` - where the valve position is recorded: stiction laws fitted from the output to it
+  (read apart from the combination: it decides the verdict where it applies).
 
 :mod:`.combine` turns them into a calibrated probability (logistic model over
 two regimes: regular oscillation or not) and one S, J estimate; :func:`assess_stiction` does it all for one record.

@@ -5,26 +5,29 @@ travel feedback), the valve's friction need not be inferred through the
 process: the stem either follows the controller output or it does not.
 Kano et al. (2004) look for sections where the output moves while the
 position stays; here the same reading is made quantitative by fitting the
-two-parameter stiction model of Choudhury, Thornhill & Shah (2005)
-(:func:`valve_gym.friction.choudhury.choudhury_sample`, the law of the
-package's core) from the recorded output to the recorded position, on a grid:
+two-parameter stiction models of Choudhury, Thornhill & Shah (2005) and of
+Kano et al. (2004) (:func:`valve_gym.friction.choudhury.choudhury_sample`,
+:func:`valve_gym.friction.kano.kano_sample`, the laws of the package's core)
+from the recorded output to the recorded position, on a grid:
 
-* stick band ``S`` (0 and 40 values from 0.1 % to 30 % of the stroke), slip
-  jump ``J = r S`` (``r`` 0, 0.25, 0.5, 0.75, 1), a first-order positioner lag
-  (0 and ten from 0.19 to 4 samples) and the pairing of position and output (the
-  position logged after the output of its row has acted, or before);
+* the law, stick band ``S`` (0 and 40 values from 0.1 % to 30 % of the stroke),
+  slip jump ``J = r S`` (``r`` 0, 0.25, 0.5, 0.75, 1), a first-order positioner
+  lag (0 and ten from 0.19 to 4 samples) and the pairing of position and output
+  (the position logged after the output of its row has acted, or before), with
+  finer grids around the three best basins (stick-slip makes the cost rugged);
 * each candidate's stem is mapped to the recorded position by least squares
   ``mv = c + b x`` (a transmitter's offset and span; ``b`` negative for a
   position read the other way round).
 
 The verdict compares the best sticky valve with the best frictionless one
-(``S = 0``, any lag): ``dBIC = n_eff ln(RSS_S / RSS_0) + 2 ln(n_eff)`` on the
+(``S = 0``, its positioner pole searched continuously): ``dBIC = n_eff ln(RSS_S / RSS_0) + 2 ln(n_eff)`` on the
 effective number of samples of the residual (:func:`~valve_gym.diagnosis.fit.effective_n`).
 The valve sticks when ``dBIC`` is below ``-ic_margin`` and the fitted band
 reaches the band that matters in the loop (the friction verdict's rule,
 ``band_needed``).  90 % intervals of ``S`` and ``J`` are profile-likelihood
 intervals over the grid (``n_eff ln(RSS / RSS_min) <= 2.706``), widened by
-half a grid step.
+half a grid step and by the calibrated model discrepancy (:data:`DISCREPANCY_S`,
+:data:`DISCREPANCY_J`).
 
 Limits: a position sensor on the actuator reads the actuator, not the plug;
 a rotary valve's shaft can wind up while the plug sticks, and the stem test
@@ -68,8 +71,8 @@ _CHI2_90 = 2.706
 #: Model-discrepancy factors (log scale) the profile intervals of S and J are widened by: the 90 %
 #: quantiles of ``|log(estimate / true)|`` on sticky textbook loops of Choudhury, Kano and
 #: force-balance valves read through a noisy transmitter, none of them scored
-#: (``benchmarks/stem_verdict.py --calibrate``).  The grid fits Choudhury's law; the other laws'
-#: bands read differently through it (a force-balance stem slides on after it breaks away).
+#: (``benchmarks/stem_verdict.py --calibrate --n 160``).  The grid fits Choudhury's and Kano's laws;
+#: a force-balance stem, which slides on after it breaks away, reads through them as a smaller band.
 DISCREPANCY_S = 0.86
 DISCREPANCY_J = 2.77
 
@@ -87,70 +90,45 @@ def _law_step(law, u, uprev, x, us, stuck, sdir, du_old, S, J):  # pragma: no co
 def _grid_rss(op, mv, S, J, a, law):  # pragma: no cover - compiled
     """Residual sum of squares of ``mv ~ c + b x`` for each row's stem ``x``, at both pairings.
 
-    Row ``i`` runs the stiction law ``law[i]`` (0 Choudhury, 1 Kano) with ``S[i], J[i]`` over ``op`` and a first-order
-    positioner ``x <- a[i] x + (1 - a[i]) target``.  Returns ``(m, 2, 3)``: for pairing 0
-    (``mv[k]`` against ``x[k]``) and 1 (``mv[k]`` against ``x[k-1]``), the RSS, ``b`` and ``c``,
-    both over samples ``1..T-1``.
+    Row ``i`` runs the stiction law ``law[i]`` (0 Choudhury, 1 Kano) with ``S[i], J[i]`` over ``op``
+    and a first-order positioner with pole ``a[i]`` (:func:`_stem_into`).  Returns ``(m, 2, 3)``: for
+    pairing 0 (``mv[k]`` against ``x[k]``) and 1 (``mv[k]`` against ``x[k-1]``), the RSS, ``b`` and
+    ``c``, both over samples ``1..T-1``.
     """
     T = op.shape[0]
     m = S.shape[0]
     out = np.empty((m, 2, 3))
+    buf = np.empty(T)
     n = T - 1.0
     sm = 0.0
     smm = 0.0
     for k in range(1, T):
         sm += mv[k]
         smm += mv[k] * mv[k]
+    vm = smm - sm * sm / n
     for i in range(m):
-        x = op[0]
-        us = op[0]
-        stuck = 0.0
-        sdir = 0.0
-        stem = op[0]
-        uprev = op[0]
-        du_old = 0.0
-        sx0 = 0.0
-        sxx0 = 0.0
-        sxm0 = 0.0
-        sx1 = 0.0
-        sxx1 = 0.0
-        sxm1 = 0.0
-        for k in range(T):
-            prev = stem
-            x, us, stuck, sdir, du_old = _law_step(law[i], op[k], uprev, x, us, stuck, sdir, du_old, S[i], J[i])
-            uprev = op[k]
-            stem = a[i] * stem + (1.0 - a[i]) * x
-            if k >= 1:
-                sx0 += stem
-                sxx0 += stem * stem
-                sxm0 += stem * mv[k]
-                sx1 += prev
-                sxx1 += prev * prev
-                sxm1 += prev * mv[k]
+        _stem_into(op, S[i], J[i], a[i], law[i], buf)
         for j in range(2):
-            sx = sx0 if j == 0 else sx1
-            sxx = sxx0 if j == 0 else sxx1
-            sxm = sxm0 if j == 0 else sxm1
+            sx = 0.0
+            sxx = 0.0
+            sxm = 0.0
+            for k in range(1, T):
+                x = buf[k - j]
+                sx += x
+                sxx += x * x
+                sxm += x * mv[k]
             vx = sxx - sx * sx / n
             cxm = sxm - sx * sm / n
-            vm = smm - sm * sm / n
-            if vx > 1e-18:
-                b = cxm / vx
-                rss = vm - cxm * cxm / vx
-            else:
-                b = 0.0
-                rss = vm
-            out[i, j, 0] = max(rss, 0.0)
+            b = cxm / vx if vx > 1e-18 else 0.0
+            out[i, j, 0] = max(vm - cxm * b, 0.0)
             out[i, j, 1] = b
             out[i, j, 2] = (sm - b * sx) / n
     return out
 
 
 @njit(cache=True)
-def _stem(op, S, J, a, law=0):  # pragma: no cover - compiled
-    """The stem ``x`` (T,) of one grid row (see :func:`_grid_rss`)."""
-    T = op.shape[0]
-    y = np.empty(T)
+def _stem_into(op, S, J, a, law, y):  # pragma: no cover - compiled
+    """The stem (T,) into ``y``: stiction law ``law`` with ``S, J`` over ``op``, then ``x <- a x + (1 - a) target``."""
     x = op[0]
     us = op[0]
     stuck = 0.0
@@ -158,11 +136,17 @@ def _stem(op, S, J, a, law=0):  # pragma: no cover - compiled
     du_old = 0.0
     stem = op[0]
     uprev = op[0]
-    for k in range(T):
+    for k in range(op.shape[0]):
         x, us, stuck, sdir, du_old = _law_step(law, op[k], uprev, x, us, stuck, sdir, du_old, S, J)
         uprev = op[k]
         stem = a * stem + (1.0 - a) * x
         y[k] = stem
+
+
+def _stem(op, S: float, J: float, a: float, law: int = 0) -> np.ndarray:
+    """The stem ``x`` (T,) of one grid row (see :func:`_grid_rss`)."""
+    y = np.empty(len(op))
+    _stem_into(np.ascontiguousarray(op, dtype=float), float(S), float(J), float(a), int(law), y)
     return y
 
 
