@@ -152,3 +152,14 @@ def test_fleet_sends_a_loop_whose_stem_sticks_to_the_full_diagnosis(sticky_loop)
                                      noise=0.0003, tau_v=0.2, n=900, sp_step=0.02, load=0.005), seed=5, stem=True)
     assert position_sticks(healthy) is False
     assert position_sticks(Recording(t=sticky_loop.t, op=sticky_loop.op, pv=sticky_loop.pv, dt=1.0)) is False
+
+
+def test_stem_size_comes_first_and_the_others_check_it(sticky_loop):
+    from valve_gym.diagnosis.stiction import assess_stiction
+
+    a = assess_stiction(sticky_loop.op, sticky_loop.pv, 1.0, "integrating", mv=sticky_loop.mv)
+    stem = next(e for e in a.evidence if e.method == "stem")
+    assert stem.verdict == "stiction" and a.sizes[0].method == "stem" and a.S == stem.details["S"]
+    others = [s for s in a.sizes[1:] if np.isfinite(s.S)]
+    expect = None if not others else all(s.S_lo <= a.S_interval[1] and a.S_interval[0] <= s.S_hi for s in others)
+    assert a.sizes_agree == expect

@@ -133,8 +133,9 @@ def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None
     sizes = [s for s in (slip, _ellipse_size(ev)) if np.isfinite(s.S)]
     size, agree = combine_size_estimates(sizes)
     if stem is not None and stem.verdict == "stiction":
-        size = stem_size(stem)                     # the measured stem: its own S and J are reported
-        sizes = [size] + sizes
+        # the measured stem comes first: its own S and J are reported, the other methods check it
+        sizes = [stem_size(stem)] + sizes
+        size, agree = combine_sizes(sizes)
     return StictionAssessment(p, verdict_of(p), size.S, size.J, (size.S_lo, size.S_hi),
                               (size.J_lo, size.J_hi), agree, sizes, ev,
                               dict(zip(FEATURES, map(float, x))),
