@@ -11,6 +11,10 @@ friction through the process.  This script measures that reading:
   stroke, log-uniform), an offset (+-2 %) and a span error (+-5 %): the stem test's own verdict
   (sensitivity, specificity) and whether the true S and J lie inside the 90 % intervals.  Seeds
   ``160_000`` on; no other script draws them.
+* **positions that never move**: the sticky textbook loops above whose stem stays put (a seized
+  valve) and the healthy ones with the position signal frozen at its median (a transmitter that
+  stopped updating), through ``diagnose``: the public verdict, and how often the process model
+  calls the valve seized (``verdict_source`` ``'stem+model'``).
 * **the compensator benchmark's regulation loops** (``--bench-n``; the package's simulator under
   its SIMC PI and drifting load, Riihilahti, Choudhury and Kano friction), the public verdict
   ``stiction.present`` of ``diagnose(rec, plant='tank', candidates=())`` with and without the
@@ -23,7 +27,7 @@ the model-discrepancy factors :data:`valve_gym.diagnosis.stiction.stem.DISCREPAN
 
 Usage::
 
-    nice -n 10 python benchmarks/stem_verdict.py [--n 60] [--bench-n 36] [--jobs 2] [--calibrate]
+    nice -n 10 python benchmarks/stem_verdict.py [--n 60] [--bench-n 36] [--jobs 2] [--calibrate] [--seed-score 160000]
 """
 from __future__ import annotations
 
@@ -115,6 +119,40 @@ def score_textbook(n: int, jobs: int) -> None:
             print(f"- healthy not cleared: {r['process']}: {r['verdict']}, {r['reason']}")
 
 
+_PLANT = {"foptd": "first_order", "integrating": "integrating", "tank": "tank"}
+
+
+def frozen_task(args) -> dict | None:
+    """Textbook loop ``i``: a sticky one whose stem never moves, or a healthy one with a frozen position signal."""
+    i, sticky = args
+    truth, rec = textbook(i, sticky, SEED_SCORE)
+    assert rec.mv is not None
+    if sticky:
+        if stem_evidence(rec.op, rec.mv, float(rec.dt or 1.0)).details.get("frozen") != 1.0:
+            return None
+    else:           # the transmitter stops updating: its last value, with its noise
+        rng = np.random.default_rng(SEED_SCORE + 7 + i)
+        rec = replace(rec, mv=np.clip(np.median(rec.mv) + rng.normal(0.0, 3e-4, len(rec.mv)), 0.0, 1.0))
+    s = diagnose(rec, plant=_PLANT[truth["process"]], candidates=(), effort="fast").stiction
+    return {"label": int(sticky), "present": bool(s["present"]), "source": s["verdict_source"]}
+
+
+def score_frozen(n: int, jobs: int) -> None:
+    t0 = time.perf_counter()
+    with process_pool(jobs) as ex:
+        rows = [r for r in ex.map(frozen_task, [(i, True) for i in range(n)] + [(i, False) for i in range(n // 2)])
+                if r is not None]
+    st = [r for r in rows if r["label"]]
+    he = [r for r in rows if not r["label"]]
+    print(f"\n## Positions that never move: seized valve or frozen signal (public verdict, "
+          f"{time.perf_counter() - t0:.0f} s)\n")
+    print(f"- sticky textbook loops whose stem never moves: **{sum(r['present'] for r in st)} of {len(st)}** "
+          f"called ({sum(r['source'] == 'stem+model' for r in st)} as seized by the position and the process "
+          f"model together)")
+    print(f"- healthy textbook loops with a frozen position signal: **{sum(not r['present'] for r in he)} of "
+          f"{len(he)}** cleared ({sum(r['source'] == 'stem+model' for r in he)} wrongly called seized)")
+
+
 def bench_task(args) -> dict:
     loop, with_stem = args
     mv = loop["mv"] if with_stem else None
@@ -165,13 +203,18 @@ def main(argv=None) -> int:
     ap.add_argument("--bench-n", type=int, default=36, help="benchmark regulation loops (0: skip)")
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--calibrate", action="store_true")
+    ap.add_argument("--seed-score", type=int, default=SEED_SCORE,
+                    help="first seed of the scored textbook loops (another value: a fresh draw)")
     a = ap.parse_args(argv)
+    global SEED_SCORE
+    SEED_SCORE = a.seed_score
     if a.n < 2 or a.bench_n < 0:
         raise SystemExit("--n must be at least 2 and --bench-n at least 0")
     if a.calibrate:
         calibrate(a.n, a.jobs)
         return 0
     score_textbook(a.n, a.jobs)
+    score_frozen(a.n, a.jobs)
     if a.bench_n:
         score_bench(a.bench_n, a.jobs)
     return 0

@@ -163,3 +163,20 @@ def test_stem_size_comes_first_and_the_others_check_it(sticky_loop):
     others = [s for s in a.sizes[1:] if np.isfinite(s.S)]
     expect = None if not others else all(s.S_lo <= a.S_interval[1] and a.S_interval[0] <= s.S_hi for s in others)
     assert a.sizes_agree == expect
+
+
+def test_a_position_that_never_moves_seized_or_frozen():
+    """The process model tells a seized valve from a frozen position signal (diagnose._seized)."""
+    from valve_gym.diagnosis.diagnose import SEIZED_TRAVEL, _seized
+    from valve_gym.diagnosis.stiction import Evidence
+
+    frozen = Evidence("stem", "", False, float("nan"), 0.0, "undetermined", "", "", {"frozen": 1.0})
+    s = {"present": False, "verdict_source": "methods", "band": 0.30, "op_working_range": 0.40, "band_needed": 0.01}
+    assert "seized" in _seized(frozen, s) and s["present"] is True and s["verdict_source"] == "stem+model"
+    s = {"present": False, "verdict_source": "methods", "band": 0.02, "op_working_range": 0.40, "band_needed": 0.01}
+    assert "transmitter" in _seized(frozen, s) and s["present"] is False and s["verdict_source"] == "methods"
+    quiet = 0.5 * SEIZED_TRAVEL          # too little travel to tell: nothing concluded, even with a wide band
+    s = {"present": False, "verdict_source": "methods", "band": quiet, "op_working_range": quiet, "band_needed": 0.01}
+    assert "too little" in _seized(frozen, s) and s["present"] is False
+    moving = Evidence("stem", "", True, 0.03, 1.0, "stiction", "", "", {"S": 0.03})
+    assert _seized(moving, dict(s)) is None and _seized(None, dict(s)) is None

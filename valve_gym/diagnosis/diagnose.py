@@ -484,7 +484,8 @@ def _combine_verdict(stiction: dict, rec: Recording, logged: Recording, plant: s
     ``'undecided'`` alone is False.  Held out, this beats the model-based verdict alone
     (``docs/diagnosis.md``, section 4).  Where the record holds the valve's position (``mv``)
     and the stem test applies (:mod:`~valve_gym.diagnosis.stiction.stem`), ``present`` is the
-    stem test's verdict instead (``verdict_source`` ``'stem'``, else ``'methods'``).
+    stem test's verdict instead (``verdict_source`` ``'stem'``, else ``'methods'``); where the
+    position never moved, :func:`_seized` tells a seized valve from a frozen signal.
     """
     a = assess_stiction(logged.op, logged.pv, float(logged.dt or 1.0), plant, sp=logged.sp, verdict=stiction,
                         slip_fit=slip, map_fn=None if executor is None else executor.map,
@@ -498,13 +499,53 @@ def _combine_verdict(stiction: dict, rec: Recording, logged: Recording, plant: s
         # the valve's position is recorded: whether the stem follows the output is read, not inferred
         stiction["present"] = stem.verdict == "stiction"
         stiction["verdict_source"] = "stem"
+    seized = _seized(stem, stiction)
     for k in ("probability", "verdict", "S", "J", "S_interval", "J_interval", "sizes_agree", "sizes",
               "evidence", "features", "contributions"):
         stiction[k] = d[k]
     stiction["explanation"] = (stiction.get("explanation", "") + " " + explain_combined(a)).strip()
-    if stem is not None:
+    if stem is not None and seized is not None:
+        stiction["explanation"] += f" Recorded valve position: {seized}"
+    elif stem is not None:
         stiction["explanation"] += (f" Recorded valve position: {stem.reason}" + (
             "; the verdict reads the stem." if stem.applicable else "; the verdict rests on the other methods."))
+
+
+#: Output travel (working range, fraction of stroke) above which a position that never moved and a
+#: process model that needs a band of half that travel call the valve seized: a valve with less than
+#: 10 % stiction moves over such a travel (``benchmarks/stem_verdict.py``: healthy textbook loops with a
+#: frozen position signal and 2.5-8 % of travel fitted bands of 3-6 %).
+SEIZED_TRAVEL = 0.1
+
+
+def _seized(stem, stiction: dict) -> str | None:
+    """A position that never moved: seized valve or frozen signal, told apart by the process model.
+
+    Where the recorded position stays put while the output travels (the stem test's ``frozen``), the
+    friction fit of the process model says which: where the output's working range is at least
+    :data:`SEIZED_TRAVEL` of the stroke, a valve that does not move needs a friction band of at least
+    half that range (and the band that matters) to explain a process that does not follow the output,
+    and is then called seized (``present`` True, ``verdict_source`` ``'stem+model'``); a process that
+    follows the output with a smaller band means the valve moves and the position signal is frozen
+    (the verdict stays the other methods').  Below that travel a frozen signal on a healthy valve
+    with a quiet output fits a band of the output's size as well, and nothing is concluded.
+    Returns the sentence for the explanation, or None where the position moved or was not recorded.
+    """
+    if stem is None or not stem.details.get("frozen"):
+        return None
+    band, travel = float(stiction.get("band", 0.0)), float(stiction.get("op_working_range", 0.0))
+    if travel >= SEIZED_TRAVEL and band >= 0.5 * travel and band >= float(stiction.get("band_needed", 0.0)):
+        stiction["present"] = True
+        stiction["verdict_source"] = "stem+model"
+        return (f"it stays put while the output travels {100 * travel:.2g} %, and the process model needs a "
+                f"friction band of {100 * band:.2g} % of the stroke to explain a process that does not follow "
+                f"the output: the valve is seized; free it or replace it.")
+    if travel < SEIZED_TRAVEL:
+        return (f"it stays put while the output travels only {100 * travel:.2g} % of the stroke: too little to "
+                f"tell a seized valve from a frozen position signal; the verdict rests on the other methods.")
+    return (f"it stays put while the output travels {100 * travel:.2g} %, yet the process follows the output "
+            f"(the process model needs a friction band of only {100 * band:.2g} %): the position signal is "
+            f"frozen, not the valve; check the position transmitter. The verdict rests on the other methods.")
 
 
 #: Searches :func:`diagnose` knows (``search=``).

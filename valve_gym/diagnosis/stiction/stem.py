@@ -204,7 +204,8 @@ def stem_evidence(op, mv, dt: float = 1.0, band_needed: float = 0.01, ic_margin:
         return Evidence("stem", CITE, False, float("nan"), 0.0, "undetermined",
                         f"the valve position stays within {100 * mv_span:.2g} % of the stroke while the output "
                         f"travels {100 * op_span:.2g} %: a seized valve or a frozen position signal; check the "
-                        f"valve with the loop in manual", DOC)
+                        f"valve with the loop in manual", DOC,
+                        {"frozen": 1.0, "mv_span": mv_span, "op_span": op_span})
     rows = _grid()
     res = _rss(op, mv, rows)
     for S, law, lag in _basins(rows, res[:, :, 0].min(axis=1)):
