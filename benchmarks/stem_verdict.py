@@ -198,6 +198,7 @@ def score_bench(n: int, jobs: int) -> None:
 
 
 def main(argv=None) -> int:
+    global SEED_SCORE
     ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n")[0])
     ap.add_argument("--n", type=int, default=60, help="sticky textbook loops (and half as many healthy)")
     ap.add_argument("--bench-n", type=int, default=36, help="benchmark regulation loops (0: skip)")
@@ -206,7 +207,6 @@ def main(argv=None) -> int:
     ap.add_argument("--seed-score", type=int, default=SEED_SCORE,
                     help="first seed of the scored textbook loops (another value: a fresh draw)")
     a = ap.parse_args(argv)
-    global SEED_SCORE
     SEED_SCORE = a.seed_score
     if a.n < 2 or a.bench_n < 0:
         raise SystemExit("--n must be at least 2 and --bench-n at least 0")

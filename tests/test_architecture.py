@@ -123,3 +123,11 @@ def test_one_name_per_quantity_in_each_layer():
     assert "(physics: u, control: op)" in name_of("u")
     readme = (ROOT / "README.md").read_text(encoding="utf-8")
     assert "valve_gym/quantities.py" in readme
+
+
+def test_benchmark_scripts_compile():
+    """Every script in benchmarks/ compiles (ruff does not see every compile-time error, e.g. a late ``global``)."""
+    scripts = sorted((ROOT / "benchmarks").glob("*.py"))
+    assert scripts
+    for p in scripts:
+        compile(p.read_text(encoding="utf-8"), str(p), "exec")

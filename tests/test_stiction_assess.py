@@ -181,6 +181,10 @@ def test_naming_and_verdict_conflict_is_reported():
     s = {"tested": False, "present": False}
     _note_friction_conflict(["x"], ["slip_jump"], s)
     assert s["naming_agrees"] is None
+    expl = ["Slip-jump paragraph."]
+    s = {"tested": True, "present": False, "probability": 0.9, "verdict_source": "stem"}
+    _note_friction_conflict(expl, ["slip_jump"], s)
+    assert s["naming_agrees"] is False and "recorded valve position follows the output" in expl[0]
 
 
 def test_diagnosis_reports_whether_naming_agrees(sticky_result):

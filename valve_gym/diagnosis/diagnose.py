@@ -957,6 +957,11 @@ def _note_friction_conflict(expl: list[str], effects: list[str], stiction: dict)
         i = effects.index("slip_jump")
         p = stiction.get("probability")
         pr = f" (probability of stiction {p:.2f})" if isinstance(p, float) and np.isfinite(p) else ""
+        if stiction.get("verdict_source") == "stem":
+            expl[i] += (" Caution: the recorded valve position follows the output (the stem test finds no "
+                        "stiction that matters): the slip-jump term is a model correction, not a finding "
+                        "against the valve.")
+            return
         expl[i] += (f" Caution: the stiction verdict is no{pr}. The slip-jump term pays in the fit, but "
                     f"the methods that judge whether the valve sticks (the limit cycle's shape, stick "
                     f"episodes, friction against frictionless models on the whole record) do not "
