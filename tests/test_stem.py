@@ -180,3 +180,16 @@ def test_a_position_that_never_moves_seized_or_frozen():
     assert "too little" in _seized(frozen, s) and s["present"] is False
     moving = Evidence("stem", "", True, 0.03, 1.0, "stiction", "", "", {"S": 0.03})
     assert _seized(moving, dict(s)) is None and _seized(None, dict(s)) is None
+
+
+def test_report_shows_the_stem(sticky_loop, tmp_path):
+    from valve_gym.diagnosis.report import write_report
+
+    res = diagnose(sticky_loop, plant="integrating", candidates=(), effort="fast")
+    paths = write_report(res, tmp_path / "rep")
+    assert any(p.endswith("stem.png") for p in paths)
+    md = (tmp_path / "rep" / "report.md").read_text()
+    assert "stem.png" in md and "recorded valve position" in md
+    plain = Recording(t=sticky_loop.t, op=sticky_loop.op, pv=sticky_loop.pv, dt=1.0, name="plain")
+    paths = write_report(diagnose(plain, plant="integrating", candidates=(), effort="fast"), tmp_path / "p2")
+    assert not any(p.endswith("stem.png") for p in paths)

@@ -165,6 +165,43 @@ def plot_acf(res, path=None):
     return _savefig(fig, path) if path else fig
 
 
+def plot_stem(res, path=None):
+    """The recorded valve position against the output, with the stem test's fitted stiction law.
+
+    None where the recording holds no position or the stem test did not apply.
+    """
+    from .stiction.stem import _stem
+
+    ev = next((e for e in res.stiction.get("evidence", []) if e.get("method") == "stem"), None)
+    rec = res.recording
+    if ev is None or not ev.get("applicable") or rec.mv is None:
+        return None
+    d = ev["details"]
+    lag = float(d["lag_s"]) / float(rec.dt or 1.0)
+    x = _stem(rec.op, d["S"], d["J"], float(np.exp(-1.0 / lag)) if lag > 0 else 0.0, int(d["law"]))
+    fits = [d["offset"] + d["span"] * (x if j == 0 else np.r_[x[0], x[:-1]]) for j in (0, 1)]
+    fit = min(fits, key=lambda f: float(np.sum((rec.mv - f) ** 2)))
+    plt = _plt()
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 3.8), gridspec_kw={"width_ratios": [2, 1]})
+    t = rec.t - rec.t[0]
+    a1.plot(t, 100 * rec.op, lw=0.8, color="0.5", label="controller output")
+    a1.plot(t, 100 * rec.mv, lw=0.9, color="tab:blue", label="recorded position")
+    a1.plot(t, 100 * fit, lw=0.9, ls="--", color="tab:red", label=f"fitted law (S {100 * d['S']:.2g} %, "
+                                                                  f"J {100 * d['J']:.2g} %)")
+    a1.set_xlabel("t [s]")
+    a1.set_ylabel("% of stroke")
+    a1.set_title(f"stem test: {ev['verdict']}")
+    a1.legend(fontsize=8)
+    a2.plot(100 * rec.op, 100 * rec.mv, ".", ms=2, color="tab:blue", label="recorded")
+    a2.plot(100 * rec.op, 100 * fit, lw=0.6, color="tab:red", alpha=0.7, label="fitted")
+    a2.set_xlabel("controller output [%]")
+    a2.set_ylabel("position [%]")
+    a2.set_title("position against output")
+    a2.legend(fontsize=8)
+    fig.tight_layout()
+    return _savefig(fig, path) if path else fig
+
+
 def plot_validation(res, path=None):
     """The fitted models on the validation recording (initial state refitted)."""
     ser = getattr(res, "_validation_series", None)
@@ -214,6 +251,10 @@ def _verdict_basis(s: dict) -> str:
     """What the stiction verdict rests on: the methods combined and the model-based test."""
     if s.get("probability") is None:
         return ""
+    if s.get("verdict_source") == "stem":
+        return " (read from the recorded valve position: the stem test, figure `stem.png`)"
+    if s.get("verdict_source") == "stem+model":
+        return " (the recorded valve position never moved, and the process model needs a band that wide)"
     k = s.get("kstep_delta_ic")
     kstep = "" if k is None else (f"; on {s.get('kstep_horizon')}-sample-ahead predictions friction "
                                   f"{'lowers' if k < 0 else 'does not lower'} the criterion ({k:+.1f})")
@@ -412,6 +453,9 @@ def write_report(res, folder) -> list[str]:
             "acf": plot_acf(res, os.path.join(folder, "acf.png"))}
     if getattr(res, "_validation_series", None) is not None:
         figs["validation"] = plot_validation(res, os.path.join(folder, "validation.png"))
+    stem = plot_stem(res, os.path.join(folder, "stem.png"))
+    if stem is not None:
+        figs["stem"] = stem
     paths = [p for p in figs.values() if p]
     paths.append(write_json(res, os.path.join(folder, "diagnosis.json")))
     paths.append(write_text(render_markdown(res, figs), os.path.join(folder, "report.md")))
