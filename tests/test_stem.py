@@ -193,3 +193,18 @@ def test_report_shows_the_stem(sticky_loop, tmp_path):
     plain = Recording(t=sticky_loop.t, op=sticky_loop.op, pv=sticky_loop.pv, dt=1.0, name="plain")
     paths = write_report(diagnose(plain, plant="integrating", candidates=(), effort="fast"), tmp_path / "p2")
     assert not any(p.endswith("stem.png") for p in paths)
+
+
+def test_a_held_position_is_flagged():
+    """A position stored only when it moves by 1 % (a historian's compression with hold) reads as sticking."""
+    op, rng = _output(seed=3)
+    held = np.empty_like(op)
+    held[0] = op[0]
+    for k in range(1, len(op)):
+        held[k] = op[k] if abs(op[k] - held[k - 1]) > 0.012 else held[k - 1]
+    e = stem_evidence(op, held, 1.0)
+    assert e.details["repeats"] > 0.5
+    if e.verdict == "stiction":
+        assert "compression" in e.reason
+    moving = stem_evidence(op, op + rng.normal(0, 1e-3, len(op)), 1.0)
+    assert moving.details["repeats"] < 0.01 and "compression" not in moving.reason

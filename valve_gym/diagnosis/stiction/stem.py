@@ -187,8 +187,9 @@ def stem_evidence(op, mv, dt: float = 1.0, band_needed: float = 0.01, ic_margin:
     -------
     Evidence, ``value`` = fitted stick band S; ``details``: ``S``, ``S_lo``, ``S_hi``, ``J``,
     ``J_lo``, ``J_hi``, ``delta_ic``, ``n_eff``, ``lag_s`` (positioner lag), ``pairing`` (0: the
-    position of a row after its output acted, 1: before), ``span``, ``offset``, ``r2``,
-    ``rmse`` (fraction of stroke), ``band_needed``
+    position of a row after its output acted, 1: before), ``span``, ``offset``, ``r2``, ``law`` (0
+    Choudhury, 1 Kano), ``rmse`` (fraction of stroke), ``band_needed``, ``repeats`` (share of
+    samples equal to the one before: above a half, the reason warns of a historian's compression)
     """
     op = np.ascontiguousarray(op, dtype=float)
     mv = None if mv is None else np.ascontiguousarray(mv, dtype=float)
@@ -295,7 +296,13 @@ def _verdict(op, mv, dt, rows, a, res, band_needed: float, ic_margin: float) -> 
         verdict = "no stiction"
         reason = (f"the stem follows the output: no stick band explains the recorded position better "
                   f"(criterion {d_ic:+.1f})")
+    repeats = float(np.mean(np.diff(mv) == 0.0))
+    if verdict == "stiction" and repeats > 0.5:
+        reason += (f"; caution: {100 * repeats:.0f} % of the position samples repeat the one before exactly, as a "
+                   f"historian's compression or a held value does, which also looks like a stuck stem: confirm "
+                   f"with uncompressed data or a valve test")
     det = {"S": S, "S_lo": lo_S, "S_hi": hi_S, "J": J, "J_lo": lo_J, "J_hi": hi_J, "delta_ic": d_ic,
+           "repeats": repeats,
            "n_eff": n_eff, "lag_s": float(rows[i, 2]) * float(dt), "pairing": float(j), "span": b,
            "offset": c, "r2": r2, "law": float(rows[i, 3]), "rmse": float(np.sqrt(rss[i, j] / max(len(resid), 1))),
            "band_needed": float(band_needed)}
