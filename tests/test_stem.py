@@ -208,3 +208,18 @@ def test_a_held_position_is_flagged():
         assert "compression" in e.reason
     moving = stem_evidence(op, op + rng.normal(0, 1e-3, len(op)), 1.0)
     assert moving.details["repeats"] < 0.01 and "compression" not in moving.reason
+
+
+def test_healthy_valves_that_are_slow_or_characterised_are_not_called():
+    """A slew-rate-limited actuator and a position read through a curve are not stiction."""
+    rng = np.random.default_rng(0)
+    T = 2400
+    op = 0.5 + np.cumsum(rng.normal(0, 0.002, T)) + rng.normal(0, 0.003, T)
+    op = np.clip(op + np.repeat(rng.choice([-0.05, 0.0, 0.05], T // 200), 200), 0, 1)
+    slow = np.empty(T)
+    slow[0] = op[0]
+    for k in range(1, T):
+        slow[k] = slow[k - 1] + np.clip(op[k] - slow[k - 1], -0.002, 0.002)     # 0.2 % of stroke per sample
+    for mv in (slow, op ** 1.5, 30.0 ** (op - 1.0)):
+        e = stem_evidence(op, np.clip(mv + rng.normal(0, 1e-3, T), 0, 1), 1.0)
+        assert e.verdict == "no stiction", e.reason
