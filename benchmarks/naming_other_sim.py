@@ -34,7 +34,7 @@ recording to the diagnosis' convention first (pairs ``op[k-1]``, ``pv[k]``; one 
 Usage::
 
     nice -n 10 python benchmarks/naming_other_sim.py [--per-effect 6] [--jobs 2] [--fixed-plant] [--pv-after-op]
-        [--op-lag 0|1|auto] [--all-effects]
+        [--op-lag 0|1|auto] [--all-effects] [--first 0]
 """
 from __future__ import annotations
 
@@ -152,14 +152,19 @@ def main(argv=None):
                          "convention), auto lets the diagnosis test it")
     ap.add_argument("--all-effects", action="store_true",
                     help=f"also conceal {', '.join(MORE_EFFECTS)} (seeds 70100 on)")
+    ap.add_argument("--first", type=int, default=0,
+                    help="index of the first case (seed 70000 + index; e.g. 1000 for a fresh draw of loops "
+                         "no earlier run has diagnosed)")
     a = ap.parse_args(argv)
+    if a.first < 0:
+        raise SystemExit("--first must be 0 or more")
     if a.per_effect < 1:
         raise SystemExit("--per-effect must be at least 1")
     op_lag = op_lag_value(a.op_lag)
-    tasks = [(e, i, not a.fixed_plant, a.pv_after_op, op_lag) for i, e in enumerate(EFFECTS * a.per_effect)]
+    tasks = [(e, a.first + i, not a.fixed_plant, a.pv_after_op, op_lag) for i, e in enumerate(EFFECTS * a.per_effect)]
     effects = EFFECTS + (MORE_EFFECTS if a.all_effects else ())
     if a.all_effects:
-        tasks += [(e, 100 + i, not a.fixed_plant, a.pv_after_op, op_lag)
+        tasks += [(e, a.first + 100 + i, not a.fixed_plant, a.pv_after_op, op_lag)
                   for i, e in enumerate(MORE_EFFECTS * a.per_effect)]
     t0 = time.perf_counter()
     with process_pool(a.jobs) as ex:
@@ -185,7 +190,8 @@ def main(argv=None):
     print(f"\n**{right} of {len(out)} named right** ({time.perf_counter() - t0:.0f} s, {a.jobs} workers). "
           f"Command: `nice -n 10 python benchmarks/naming_other_sim.py --per-effect {a.per_effect}"
           f"{' --fixed-plant' if a.fixed_plant else ''}{' --pv-after-op' if a.pv_after_op else ''}"
-          f"{' --op-lag ' + a.op_lag if a.op_lag != 'auto' else ''}{' --all-effects' if a.all_effects else ''}`.")
+          f"{' --op-lag ' + a.op_lag if a.op_lag != 'auto' else ''}{' --all-effects' if a.all_effects else ''}"
+          f"{f' --first {a.first}' if a.first else ''}`.")
     return 0
 
 
