@@ -48,7 +48,7 @@ GRID = np.round(np.arange(0.0, 3.0001, 0.05), 2)
 
 
 def benchmark_loops(n: int, seed: int | None) -> list[dict]:
-    """``n`` regulation loops of the benchmark under its SIMC PI: OP, PV and the true valve."""
+    """``n`` regulation loops of the benchmark under its SIMC PI: OP, PV, the stem and the true valve."""
     from agents.bench.config import load_bench_config
     from agents.bench.runner import ControllerSpec, run_spec
     from agents.bench.scenarios import regulation_scenarios
@@ -61,7 +61,7 @@ def benchmark_loops(n: int, seed: int | None) -> list[dict]:
     return [{"name": f"{sc.model[i]}_{sc.band[i]}_{i}", "model": str(sc.model[i]), "band": str(sc.band[i]),
              "label": int(sc.band[i] != "healthy"), "S_true": float(sc.S[i]), "J_true": float(sc.J[i]),
              "plant": "tank", "dt": sc.scan_s, "t": t, "op": runs.op[:, i], "pv": runs.pv[:, i],
-             "sp": runs.sp[:, i]} for i in range(sc.n)]
+             "sp": runs.sp[:, i], "stem": runs.stem[:, i]} for i in range(sc.n)]
 
 
 def calibration_loops(n: int) -> list[dict]:

@@ -41,6 +41,8 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
+from validate_stiction import PLANT_OF  # noqa: E402
+
 from valve_gym.diagnosis import Recording, diagnose  # noqa: E402
 from valve_gym.diagnosis.model import process_pool  # noqa: E402
 from valve_gym.diagnosis.stiction.loops import random_spec, simulate_loop  # noqa: E402
@@ -119,9 +121,6 @@ def score_textbook(n: int, jobs: int) -> None:
             print(f"- healthy not cleared: {r['process']}: {r['verdict']}, {r['reason']}")
 
 
-_PLANT = {"foptd": "first_order", "integrating": "integrating", "tank": "tank"}
-
-
 def frozen_task(args) -> dict | None:
     """Textbook loop ``i``: a sticky one whose stem never moves, or a healthy one with a frozen position signal."""
     i, sticky = args
@@ -133,7 +132,7 @@ def frozen_task(args) -> dict | None:
     else:           # the transmitter stops updating: its last value, with its noise
         rng = np.random.default_rng(SEED_SCORE + 7 + i)
         rec = replace(rec, mv=np.clip(np.median(rec.mv) + rng.normal(0.0, 3e-4, len(rec.mv)), 0.0, 1.0))
-    s = diagnose(rec, plant=_PLANT[truth["process"]], candidates=(), effort="fast").stiction
+    s = diagnose(rec, plant=PLANT_OF[truth["process"]], candidates=(), effort="fast").stiction
     return {"label": int(sticky), "present": bool(s["present"]), "source": s["verdict_source"]}
 
 
@@ -165,18 +164,10 @@ def bench_task(args) -> dict:
 
 def bench_loops(n: int) -> list[dict]:
     """The benchmark's regulation loops under its SIMC PI, with each stem read by a transmitter."""
-    from agents.bench.config import load_bench_config
-    from agents.bench.runner import ControllerSpec, run_spec
-    from agents.bench.scenarios import regulation_scenarios
+    from sizes_on_benchmark_loops import benchmark_loops
 
-    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    sc = regulation_scenarios(load_bench_config(os.path.join(root, "configs", "benchmark.yaml")), n=n, seed=None)
-    runs = run_spec(ControllerSpec("PI (SIMC)", "pi", "pi"), sc)
-    t = np.arange(sc.n_steps) * sc.scan_s
     rng = np.random.default_rng(SEED_SCORE - 1)
-    return [{"name": f"{sc.model[i]}_{sc.band[i]}_{i}", "label": int(sc.band[i] != "healthy"),
-             "S_true": float(sc.S[i]), "dt": sc.scan_s, "t": t, "op": runs.op[:, i], "pv": runs.pv[:, i],
-             "sp": runs.sp[:, i], "mv": transmitter(np.clip(runs.stem[:, i], 0.0, 1.0), rng)} for i in range(sc.n)]
+    return [{**lp, "mv": transmitter(np.clip(lp["stem"], 0.0, 1.0), rng)} for lp in benchmark_loops(n, None)]
 
 
 def score_bench(n: int, jobs: int) -> None:
