@@ -1,18 +1,10 @@
 """``slip_jump``: stick-slip valve friction sized by a stick band ``S`` and a slip jump ``J``.
 
 In the diagnosis this effect replaces the paper's integral friction (``z_max``,
-``e_dead``) by a two-parameter stiction model, applied once per sample, with a
-positioner lag of one Euler step. Two published forms are fitted: the model of
-Choudhury, Thornhill & Shah (2005) (the default form) and that of Kano et al.
-(2004) (variant ``'kano'``). They agree on smooth outputs and differ where the
-output stops or reverses by small steps, as a controller acting on a noisy
-measurement makes it do: Kano's law, proposed to mend Choudhury's handling of
-stops and noisy reversals, keeps the stem stuck until the output has moved the
-band from the stick point in the right sense (:mod:`valve_gym.friction.kano`).
-The selection keeps the form that fits better; the Kano form counts one
-parameter more, for the choice. The block
-is :class:`valve_gym.params.SlipJump`; its kernel laws are the friction models
-of :mod:`valve_gym.friction`.
+``e_dead``) by the two-parameter model of Choudhury, Thornhill & Shah (2005),
+applied once per sample, with a positioner lag of one Euler step. The block is
+:class:`valve_gym.params.SlipJump`; its kernel laws are the friction models of
+:mod:`valve_gym.friction`.
 """
 from __future__ import annotations
 
@@ -39,12 +31,7 @@ def _free(ctx: FitContext) -> list[FreeParam]:
 
 
 def _build(ctx: FitContext, v: dict, dte: float, part: Any) -> SlipJump:
-    return SlipJump(S=v["S"], J=np.minimum(v["S"] * v["J_rel"], 1.0), tau_p=dte, law=_law(ctx.variants))
-
-
-def _law(variants: dict) -> str:
-    """The friction law of the chosen form (None: Choudhury's, the default form)."""
-    return variants.get("slip_jump") or "choudhury"
+    return SlipJump(S=v["S"], J=np.minimum(v["S"] * v["J_rel"], 1.0), tau_p=dte)
 
 
 def _physical(ctx: FitContext, v: dict, mp: Any, sign, offset) -> dict:
@@ -67,10 +54,6 @@ def _seed(prev: dict, structure: Any, seeds: np.ndarray) -> np.ndarray:
     return seeds
 
 
-_LAW_TEXT = {"choudhury": "the stiction law of Choudhury, Thornhill & Shah (2005)",
-             "kano": "the stiction law of Kano et al. (2004)"}
-
-
 def _explain(before: Any, after: Any, mm: Any, pv_unit: str, imp: str, where: str) -> str:
     p = after.physical
     S, J = p.get("slip_jump.S", float("nan")), p.get("slip_jump.J", float("nan"))
@@ -81,10 +64,9 @@ def _explain(before: Any, after: Any, mm: Any, pv_unit: str, imp: str, where: st
     else:
         kind = "J ~ S: the stem jumps to the controller output"
     ev = cond(mm, "near_op_reversal")
-    law = _LAW_TEXT[_law(after.structure.variants)]
     return (f"Slip-jump valve friction. Evidence: {ev or 'the base model misses after reversals'}; "
             f"the stem sticks when the controller output reverses and then jumps, which the "
-            f"paper's integral friction model cannot reproduce; {law} fits best. Fitted stick band S = "
+            f"paper's integral friction model cannot reproduce. Fitted stick band S = "
             f"{pct(S)} and slip jump J = {pct(J)} of the stroke ({kind}). {imp}.{where}")
 
 
@@ -96,8 +78,6 @@ SPEC = register_effect(EffectSpec(
     kernel="the slip_jump block of the core: the friction law once per sample, then the positioner lag",
     signature="the base model misses right after the controller output reverses (the stem sticks, then jumps)",
     conditions=("near_op_reversal",),
-    citation="M.A.A.S. Choudhury, N.F. Thornhill, S.L. Shah, Control Engineering Practice 13 (2005) 641-658; "
-             "M. Kano, H. Maruta, H. Kugemoto, K. Shimizu, Practical model and detection algorithm for valve "
-             "stiction, IFAC DYCOPS 2004 (variant 'kano').",
+    citation="M.A.A.S. Choudhury, N.F. Thornhill, S.L. Shah, Control Engineering Practice 13 (2005) 641-658.",
     applies=_applies, free=_free, neutral={"S": 0.3, "J_rel": 0.5}, build=_build, physical=_physical,
-    units=_units, explain=_explain, seed=_seed, rugged=True, variants=(None, "kano"), variant_k={"kano": 1}))
+    units=_units, explain=_explain, seed=_seed, rugged=True))
