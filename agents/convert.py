@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import warnings
 import zipfile
@@ -41,6 +42,21 @@ def convert_sb3_zip(src: str, dst: str) -> str:
     return save_policy(model, dst, meta)
 
 
+def _check_src(src: str) -> str:
+    """What is wrong with the input ``src`` (empty if nothing): checked before anything is unpickled."""
+    if os.path.isdir(src):
+        return f"{src} is a folder, not a file; give the old policy .zip"
+    if not os.path.isfile(src):
+        return f"{src} does not exist; give the path of the old policy .zip (stable-baselines3)"
+    try:
+        ok = zipfile.is_zipfile(src)
+    except OSError as exc:
+        return f"cannot read {src}: {exc.strerror or exc}"
+    if not ok:
+        return f"{src} is not a zip file; give an old stable-baselines3 policy .zip"
+    return ""
+
+
 def main(argv=None) -> int:
     """Command line; exit 0 done, 1 failed, 2 bad usage."""
     p = argparse.ArgumentParser(prog="valve-gym convert-policy", description=(__doc__ or "").split("\n\n")[0])
@@ -49,6 +65,10 @@ def main(argv=None) -> int:
     p.add_argument("src", help="old policy .zip (stable-baselines3)")
     p.add_argument("dst", help="output stem: writes DST.safetensors and DST.json")
     args = p.parse_args(argv)
+    problem = _check_src(args.src)
+    if problem:
+        print(f"valve-gym convert-policy: {problem}", file=sys.stderr)
+        return 2
     try:
         out = convert_sb3_zip(args.src, args.dst)
     except (OSError, ValueError, KeyError, zipfile.BadZipFile) as exc:

@@ -59,6 +59,9 @@ Range = tuple[float, float]
 #: Environment settings a policy needs wherever it is evaluated (stored in its JSON).
 ENV_OVERRIDE_KEYS = ("action_mode", "residual_scale", "pi", "measure_stem", "control_period")
 
+#: What to do about an empty training config (it has no defaults to fall back on).
+_TRAIN_EMPTY_HINT = "start from a shipped config, e.g. configs/learned.yaml or configs/ppo_residual.yaml"
+
 
 # --------------------------------------------------------------------------- config
 @dataclass(frozen=True)
@@ -261,7 +264,7 @@ def load_train_config(path_or_dict) -> TrainConfig:
     src = ""
     if isinstance(path_or_dict, (str, os.PathLike)):
         p = Path(path_or_dict)
-        data = read_yaml(p, "training config")
+        data = read_yaml(p, "training config", empty_hint=_TRAIN_EMPTY_HINT)
         src = f" in {p}"
     else:
         data = path_or_dict or {}
@@ -859,8 +862,23 @@ def _print_summary(s: dict) -> None:
     print(f"\npolicy: {s['final']} (best on validation: {s['best']})")
 
 
+#: Largest ``--seed`` (the seeders of NumPy's legacy RNG and of SB3 take 32-bit seeds).
+_MAX_SEED = 2**32 - 1
+
+
+def check_options(args) -> None:
+    """Refuse bad numeric options before anything is read, created or trained (:class:`UsageError`)."""
+    if args.seed is not None and not 0 <= args.seed <= _MAX_SEED:
+        raise UsageError(f"--seed must be an integer from 0 to {_MAX_SEED}, got {args.seed}")
+    for flag, val in (("--generations", args.generations), ("--timesteps", args.timesteps)):
+        if val is not None and val < 1:
+            raise UsageError(f"{flag} must be an integer >= 1, got {val}")
+    if args.out is not None and not str(args.out).strip():
+        raise UsageError("--out must not be empty; give a folder (or leave it out for runs/<name>)")
+
+
 def _raw_algorithm(path: str) -> str:
-    data = read_yaml(Path(path), "training config")
+    data = read_yaml(Path(path), "training config", empty_hint=_TRAIN_EMPTY_HINT)
     if isinstance(data, Mapping) and data.get("algorithm") is not None:
         return str(data.get("algorithm"))
     return "ppo"
@@ -909,6 +927,7 @@ def main(argv=None) -> int:
     argv_list = list(sys.argv[1:] if argv is None else argv)
     command = "valve-gym train " + " ".join(shlex.quote(a) for a in argv_list)
     try:
+        check_options(args)
         algo = _raw_algorithm(args.config)
         if algo == "es":
             return _main_learned(args, command)

@@ -179,7 +179,9 @@ def test_file_errors(tmp_path):
     (tmp_path / "list.yaml").write_text("- 1\n- 2\n")
     assert "mapping" in _err(tmp_path / "list.yaml")
     (tmp_path / "empty.yaml").write_text("")
-    assert load_config(tmp_path / "empty.yaml") == EnvConfig()
+    with pytest.raises(ConfigError, match="is empty"):          # a mistake, not a request for the defaults
+        load_config(tmp_path / "empty.yaml")
+    assert load_config(None) == EnvConfig()
 
 
 def test_direct_construction_validates():

@@ -54,7 +54,8 @@ def run_json(rec_dir, tmp_path, capsys, *flags, path=None):
 # the list of flags
 # --------------------------------------------------------------------------
 
-CASES = {"-h", "--help", "--columns", "--op-range", "--mv-range", "--plant", "--actuator", "--validate", "--holdout",
+CASES = {"-h", "--help", "--columns", "--op-range", "--mv-range", "--max-gap", "--gaps",
+         "--plant", "--actuator", "--validate", "--holdout",
          "--json", "--report", "--effects", "--jobs", "--effort", "--search", "--op-lag", "--seed", "--quiet", "--out",
          "--address", "--full", "--max-loops", "--top"}
 
@@ -107,6 +108,26 @@ def test_mv_range(rec_dir, capsys):
     assert code == 2 and "LO >= HI" in err
     code, _, err = run([rec_dir / "loop.csv", "--op-range", "0,100", "--mv-range", "abc", *FAST], capsys)
     assert code == 2 and "Traceback" not in err
+
+
+def test_max_gap_and_gaps(rec_dir, tmp_path, capsys):
+    """A gap longer than --max-gap is refused with the flags that would accept it; they do."""
+    lines = (rec_dir / "loop.csv").read_text().splitlines()
+    holed = [lines[0]] + [",".join(c if j == 0 or k not in range(100, 108) else "" for j, c in
+                                   enumerate(row.split(","))) for k, row in enumerate(lines[1:])]
+    p = tmp_path / "holed.csv"
+    p.write_text("\n".join(holed) + "\n")                  # op, pv, sp blank for 8 samples
+    code, _, err = run([p, "--op-range", "0,100", *FAST], capsys)
+    assert code == 2 and "--max-gap" in err and "--gaps longest" in err
+    d, out, _ = run_json(rec_dir, tmp_path, capsys, "--max-gap", "10", path=p)
+    assert d["recording"]["n"] == 300 and "by linear interpolation" in d["recording"]["repairs"][0]
+    assert "recording repaired (3): filled 8 missing value(s)" in out          # the console says so too
+    d, out, _ = run_json(rec_dir, tmp_path, capsys, "--gaps", "longest", path=p)
+    assert d["recording"]["n"] == 192 and d["recording"]["repairs"][0].startswith("kept the longest stretch")
+    code, _, err = run([p, "--op-range", "0,100", "--max-gap", "abc", *FAST], capsys)
+    assert code == 2 and "--max-gap must be a whole number" in err
+    code, _, err = run([p, "--op-range", "0,100", "--gaps", "longest", "--out", tmp_path / "fl", *FAST], capsys)
+    assert code == 2 and "not in fleet mode" in err
 
 
 def test_plant(rec_dir, tmp_path, capsys):

@@ -538,13 +538,23 @@ def _build(cls, data: Mapping, path: str, base=None):
         raise ConfigError(f"{where}: {msg}") from None
 
 
-def read_yaml(path, what: str = "config") -> Any:
-    """Read a YAML file; ``ConfigError`` (naming ``what`` and the file) if missing or invalid."""
+_EMPTY_HINT = "leave out --config to use the defaults, or write the settings to change into the file"
+
+
+def read_yaml(path, what: str = "config", empty_hint: str = _EMPTY_HINT) -> Any:
+    """Read a YAML file; ``ConfigError`` (naming ``what`` and the file) if missing, a folder, invalid or empty.
+
+    A file with no settings (empty, or only comments or ``null``) is refused: it is almost
+    certainly a mistake (a wrong or truncated file), not a request for the defaults.
+    ``empty_hint`` says what to do instead.
+    """
     try:
         import yaml
     except ImportError:  # pragma: no cover
         raise ImportError("reading YAML configs needs PyYAML: pip install pyyaml") from None
     p = Path(path)
+    if p.is_dir():
+        raise ConfigError(f"{what} file {str(p)!r} is a folder, not a file; give the path of a YAML file")
     if not p.is_file():
         raise ConfigError(f"{what} file {str(p)!r} does not exist")
     try:
@@ -552,7 +562,12 @@ def read_yaml(path, what: str = "config") -> Any:
             data = yaml.safe_load(fh)
     except yaml.YAMLError as exc:
         raise ConfigError(f"{p}: not valid YAML: {exc}") from None
-    return {} if data is None else data
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"{what} file {str(p)!r} is not a UTF-8 text file ({exc.reason})") from None
+    if data is None:
+        raise ConfigError(f"{what} file {str(p)!r} is empty (no settings: only blanks, comments or null); "
+                          f"{empty_hint}")
+    return data
 
 
 _T = TypeVar("_T")
@@ -582,7 +597,8 @@ def load_config(path_or_dict: str | os.PathLike | Mapping | None, cls: type[_T] 
     ConfigError
         On an unknown key (with a suggestion), a string where a number belongs,
         a wrong type, a value out of range or an unstable ``model.dt``; the
-        message names the full key path, e.g. ``model.valve.tau``.
+        message names the full key path, e.g. ``model.valve.tau``; also on a YAML file that is
+        missing, a folder, not valid YAML or empty (no settings: pass ``None`` for the defaults).
 
     Notes
     -----

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import shlex
 import sys
 import time
@@ -12,7 +13,7 @@ from valve_gym.config import ConfigError
 from .config import BenchConfig, load_bench_config
 from .pipeline import default_jobs, print_progress, run_benchmark
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "check_out"]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -21,13 +22,33 @@ def build_parser() -> argparse.ArgumentParser:
         prog="valve-gym benchmark",
         description="Compensator benchmark: every controller on sticky valves at a constant set point "
                     "(regulation) and on set-point steps (servo). See docs/benchmark.md.")
-    p.add_argument("--out", default="results", help="output folder (default: results)")
+    p.add_argument("--out", default="results",
+                   help="output folder, created if absent; must not be a file (default: results)")
     p.add_argument("--quick", action="store_true", help="a few short loops (seconds; a smoke test)")
     p.add_argument("--config", default=None, help="benchmark YAML (default: the built-in = configs/benchmark.yaml)")
     p.add_argument("--jobs", type=int, default=None, help="worker processes (default: the cores available)")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
     return p
+
+
+def check_out(out: str) -> None:
+    """Refuse an ``--out`` that the report could not be written into (before the benchmark runs).
+
+    ``--out`` must be a folder or not exist yet (it is created; existing result files in it are
+    replaced). Raises :class:`ConfigError` naming the problem and what to do.
+    """
+    if not str(out).strip():
+        raise ConfigError("--out must not be empty; give an output folder (default: results)")
+    p = Path(out)
+    if p.exists() and not p.is_dir():
+        raise ConfigError(f"--out {out} is a file, not a folder; give a folder (it is created if it does "
+                          f"not exist) or move the file")
+    parent = p if p.exists() else next((q for q in p.absolute().parents if q.exists()), None)
+    if parent is not None and not parent.is_dir():
+        raise ConfigError(f"--out {out}: {parent} is a file, not a folder; give a folder path")
+    if parent is not None and not os.access(parent, os.W_OK | os.X_OK):
+        raise ConfigError(f"--out {out}: cannot write into {parent} (permission denied); give another folder")
 
 
 def _load(args) -> BenchConfig:
@@ -39,6 +60,7 @@ def main(argv=None) -> int:
     """Run the benchmark; 0 on success, 2 on a bad config or option (message on stderr)."""
     args = build_parser().parse_args(argv)
     try:
+        check_out(args.out)
         cfg = _load(args)
     except (ConfigError, OSError) as exc:  # bad file or value: one line, no traceback
         print(f"valve-gym benchmark: {exc}", file=sys.stderr)

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 import time
 
@@ -67,6 +68,12 @@ def build_parser() -> argparse.ArgumentParser:
                                       "e.g. 0,100 for percent")
     p.add_argument("--mv-range", help="raw valve-position range LO,HI that maps to 0..1 (default: the "
                                       "--op-range); the position column is read by the stem test")
+    p.add_argument("--max-gap", default="5", metavar="N",
+                   help="longest run of missing samples filled by interpolation (default 5); longer gaps "
+                        "are an error unless --gaps longest")
+    p.add_argument("--gaps", default="error", choices=("error", "longest"),
+                   help="a gap longer than --max-gap: error (default), or keep the longest stretch without one "
+                        "(single files and folders)")
     p.add_argument("--plant", default="auto", choices=("auto",) + tuple(PLANTS),
                    help="process model (default auto: from the ISA tag of the PV column, else of the file name: "
                         "LIC/LT... integrating, FIC/PIC/TIC/AIC... first_order, no tag: tank)")
@@ -112,6 +119,17 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _joined_ranges(argv: list[str]) -> list[str]:
+    """``--op-range -1,0`` as ``--op-range=-1,0``: a value that starts with a minus sign would read as an option."""
+    out: list[str] = []
+    for tok in argv:
+        if out and out[-1] in ("--op-range", "--mv-range") and re.match(r"-[\d.]", tok):
+            out[-1] = f"{out[-1]}={tok}"
+        else:
+            out.append(tok)
+    return out
+
+
 def _parse_effects(text: str) -> tuple:
     t = text.strip().lower()
     if t in ("all", ""):
@@ -142,16 +160,50 @@ def _number(text, name, kind=float, lo=None, hi=None):
 
 
 def _check_out(path: str | None, what: str, is_dir: bool):
-    if not path:
+    """Refuse, before any work, an output path that cannot be written: ``is_dir`` a folder, else a file."""
+    if path is None:
         return
-    parent = os.path.dirname(os.path.abspath(path)) if not is_dir else os.path.abspath(path)
-    if is_dir and os.path.exists(parent) and not os.path.isdir(parent):
+    if not path.strip():
+        raise _UsageError(f"{what} is empty; give a {'folder' if is_dir else 'file'} name or leave the option out")
+    target = os.path.abspath(path)
+    if is_dir and os.path.exists(target) and not os.path.isdir(target):
         raise _UsageError(f"{what} {path!r} exists and is not a folder")
-    if not is_dir:
-        if os.path.isdir(path):
-            raise _UsageError(f"{what} {path!r} is a folder; give a file name such as out.json")
-        if not os.path.isdir(parent):
-            raise _UsageError(f"{what}: folder {parent!r} does not exist; create it first")
+    if not is_dir and os.path.isdir(target):
+        raise _UsageError(f"{what} {path!r} is a folder; give a file name such as out.json")
+    parent = target if is_dir else os.path.dirname(target)
+    while not os.path.exists(parent):            # the first part of the path that exists must be a folder
+        parent = os.path.dirname(parent)
+    if not os.path.isdir(parent):
+        raise _UsageError(f"{what} {path!r}: {parent!r} is a file, not a folder")
+    if not is_dir and not os.path.isdir(os.path.dirname(target)):
+        raise _UsageError(f"{what}: folder {os.path.dirname(target)!r} does not exist; create it first")
+
+
+def _check_outputs(a) -> None:
+    """The output options, each on its own, and not two of them on the same path."""
+    _check_out(a.json, "--json", False)
+    _check_out(a.report, "--report", True)
+    if a.json and a.report and os.path.abspath(a.json) == os.path.abspath(a.report):
+        raise _UsageError("--json and --report name the same path; the JSON is a file, the report a folder")
+    if a.json and a.out and os.path.abspath(a.json) == os.path.abspath(a.out):
+        raise _UsageError("--json and --out name the same path; the JSON is a file, --out a folder")
+
+
+def _check_address(address: str | None) -> None:
+    """Refuse a Ray address that is neither 'auto' nor a reachable host:port (Ray itself would retry for minutes)."""
+    if not address or address == "auto" or address.startswith("ray://"):
+        return
+    host, _, port = address.rpartition(":")
+    if not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise _UsageError(f"--address {address!r}: give 'auto' or HOST:PORT of a running Ray cluster's head "
+                          f"(e.g. 10.0.0.5:6379)")
+    import socket
+
+    try:
+        socket.create_connection((host, int(port)), timeout=5.0).close()
+    except OSError as e:
+        raise _UsageError(f"--address {address!r}: no Ray cluster answers there ({e}); start one with "
+                          f"'ray start --head' or leave --address out to run Ray in this process") from None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -182,23 +234,26 @@ def main(argv: list[str] | None = None) -> int:
 def _main(argv: list[str]) -> int:
     from .diagnose import diagnose, diagnose_many
 
-    a = build_parser().parse_args(argv)
+    a = build_parser().parse_args(_joined_ranges(argv))
     columns = parse_columns(a.columns) if a.columns else None
     op_range = parse_range(a.op_range) if a.op_range else None
-    mv_range = parse_range(a.mv_range) if a.mv_range else None
+    mv_range = parse_range(a.mv_range, "--mv-range") if a.mv_range else None
     holdout = _number(a.holdout, "--holdout", float, 0.0, 0.6)
     jobs = int(_number(a.jobs, "--jobs", int, 1, 64))
     seed = int(_number(a.seed, "--seed", int, 0, 2 ** 31 - 1))
     cands = _parse_effects(a.effects)
-    _check_out(a.json, "--json", False)
-    _check_out(a.report, "--report", True)
+    _check_outputs(a)
     say = (lambda s: None) if a.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
-    load_kw = {"columns": columns, "op_range": op_range, "mv_range": mv_range}
+    max_gap = int(_number(a.max_gap, "--max-gap", int, 0, 10 ** 6))
+    load_kw = {"columns": columns, "op_range": op_range, "mv_range": mv_range, "max_gap": max_gap,
+               "gaps": a.gaps}
     diag_kw = {"plant": a.plant, "actuator": a.actuator, "candidates": cands,
                "holdout": holdout, "effort": a.effort, "seed": seed, "search": a.search,
                "op_lag": op_lag_value(a.op_lag)}
     path = a.path
     if a.out:
+        if (max_gap, a.gaps) != (5, "error"):
+            raise _UsageError("--max-gap and --gaps work with single files and folders, not in fleet mode (--out)")
         return _fleet(a, path, jobs, seed, holdout, cands, op_range, say)
     if a.address or a.full or a.max_loops:
         raise _UsageError("--address, --full and --max-loops work in fleet mode only: add --out OUTDIR")
@@ -253,6 +308,7 @@ def _fleet(a, path, jobs, seed, holdout, cands, op_range, say) -> int:
     if not os.path.exists(path):
         raise RecordingError(f"{path}: no such file or folder")
     _check_out(a.out, "--out", True)
+    _check_address(a.address)
     max_loops = int(_number(a.max_loops, "--max-loops", int, 1, 10 ** 9)) if a.max_loops else None
     top = int(_number(a.top, "--top", int, 0, 1000))
     cols = parse_columns(a.columns) if a.columns else None
@@ -260,7 +316,8 @@ def _fleet(a, path, jobs, seed, holdout, cands, op_range, say) -> int:
                              effort=a.effort, search=a.search, seed=seed, full=bool(a.full),
                              op_lag=op_lag_value(a.op_lag),
                              columns=tuple(sorted(cols.items())) if cols else None, op_range=op_range,
-                             mv_range=parse_range(a.mv_range) if a.mv_range else None, report_dir=a.report)
+                             mv_range=parse_range(a.mv_range, "--mv-range") if a.mv_range else None,
+                             report_dir=a.report)
 
     run = run_fleet(path, a.out, settings, jobs=jobs, address=a.address, max_loops=max_loops,
                     stream=None if a.quiet else sys.stderr, top=top)
@@ -304,6 +361,9 @@ def _print_summary(res) -> None:
     choice = res.settings.get("plant_choice", {})
     how = f" ({choice['reason']})" if choice.get("asked") == "auto" else ""
     print(f"{d['recording']['name']}: plant {res.plant}{how}, actuator {res.actuator}")
+    reps = d["recording"].get("repairs") or []
+    if reps:
+        print(f"  recording repaired ({len(reps)}): " + "; ".join(reps[:3]) + ("; ..." if len(reps) > 3 else ""))
     print(f"  effects: {', '.join(d['effects']) or 'none'}")
     print(f"  RMSE base {d['base']['rmse']:.4g} -> final {d['final']['rmse']:.4g} "
           f"(fit {d['base']['fit_percent']:.1f} % -> {d['final']['fit_percent']:.1f} %)")
@@ -325,6 +385,9 @@ def _print_summary(res) -> None:
               + (f" ({s['model']}: " + ", ".join(f"{k} = {v:.4g}" for k, v in s['parameters'].items()
                                               if isinstance(v, float)) + ")" if s.get("tested") else
                  " (not tested)"))
+    stem = next((e for e in s.get("evidence") or [] if e["method"] == "stem"), None)
+    if stem is not None and s.get("verdict_source") != "stem":
+        print(f"  recorded valve position: {stem['reason']}")
     h = s.get("horch")
     if h:
         print(f"  Horch's cross-correlation test (model-free, not part of the verdict): {h['verdict']}"

@@ -707,6 +707,7 @@ def diagnose(recording: Recording, plant: str = "auto", actuator: str = "valve",
         validate = validate.with_op_lag(lag)
     expl = _explanations(rec, sel, base, final, mm)
     _note_friction_conflict(expl, list(sel.effects), fv.stiction)
+    _note_poor_fit(expl, final, plant)
     # ---- validation
     validation = None
     if validate is not None:
@@ -936,6 +937,23 @@ def _explanations(rec: Recording, sel: Selection, base: FitResult, final: FitRes
         best = min(sel.candidates, key=lambda c: c.delta_ic).effect if sel.candidates else None
         expl.append(explain_none(base, mm, best))
     return expl
+
+
+#: Whole-record fit [%] (NRMSE, 100 perfect, 0 the record's mean) below which the final model explains too
+#: little of the record for its effects and verdict to be read.
+POOR_FIT = 0.0
+
+
+def _note_poor_fit(expl: list[str], final: FitResult, plant: str) -> None:
+    """Append a caution when the final model explains the record worse than its mean does."""
+    fp = float(final.fit_percent_all)
+    if not (fp < POOR_FIT):
+        return
+    expl.append(f"Caution: the final model fits the record worse than a constant at its mean (fit {fp:.3g} %), "
+                f"so the effects named and the friction verdict above do not describe it. Check that the plant "
+                f"model suits the loop (--plant; now '{plant}': the tank reads the PV as the level above its "
+                f"outlet, so a PV with a large offset or in odd units does not fit it), the PV's units and the "
+                f"output's range (--op-range).")
 
 
 def _note_friction_conflict(expl: list[str], effects: list[str], stiction: dict) -> None:

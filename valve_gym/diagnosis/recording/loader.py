@@ -226,4 +226,16 @@ def _normalised(grid: Grid, p: Parsed, opts: LoadOptions,
                               names["mv"], grid.t)
     for r in ("op", "pv"):
         check_constant(grid.values[r], r, p.where(r))
+    moved = float(np.ptp(out["op"]))
+    if moved < MIN_OP_TRAVEL:
+        raise RecordingError(
+            f"{p.where('op')}: the controller output moves over only {100 * moved:.2g} % of its range "
+            f"{op_range[0]:g}..{op_range[1]:g}, too little to identify anything; check the range "
+            f"(--op-range LO,HI: the output's full scale, e.g. 0,100 for percent)"
+        )
     return out, op_range
+
+
+#: Least travel of the controller output over a record (fraction of the range that maps to 0..1) that
+#: the loader accepts: an output that moves less is effectively constant, or its range is wrong.
+MIN_OP_TRAVEL = 1e-4

@@ -185,7 +185,8 @@ def _signal(raw: RawColumns, r: str, src: str, decimal_comma: bool = False) -> t
     if np.isnan(v).all():
         raise RecordingError(
             f"{where}: has no numeric values at all; map the {ROLE_WORDS[r]} to another column"
-            + (f" or switch it off with columns={{'{r}': None}}" if r not in REQUIRED else "")
+            + (f" or switch it off with columns={{'{r}': None}} (CLI: --columns {r}=)" if r not in REQUIRED
+               else "")
         )
     return v, nonfin
 

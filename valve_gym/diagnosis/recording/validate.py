@@ -63,13 +63,15 @@ class LoadOptions:
     engine: str
 
 
-def parse_range(text: str) -> tuple[float, float]:
+def parse_range(text: str, flag: str = "--op-range") -> tuple[float, float]:
     """Parse a range ``"LO,HI"`` such as ``"0,100"``.
 
     Parameters
     ----------
     text : str
         Two finite numbers separated by a comma, ``LO < HI``.
+    flag : str
+        The option it came from, for the message.
 
     Returns
     -------
@@ -86,7 +88,7 @@ def parse_range(text: str) -> tuple[float, float]:
     >>> parse_range("0,100")
     (0.0, 100.0)
     """
-    usage = "expected LO,HI with two numbers and LO < HI, e.g. --op-range 0,100"
+    usage = f"expected LO,HI with two numbers and LO < HI, e.g. {flag} 0,100"
     parts = [p.strip() for p in str(text).split(",")]
     if len(parts) != 2 or not all(parts):
         raise RecordingError(f"range {text!r} is not two comma-separated numbers: {usage}")

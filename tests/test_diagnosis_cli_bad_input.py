@@ -1,0 +1,73 @@
+"""``valve-gym diagnose`` refuses bad output paths, a Ray address nobody answers and an output range that
+leaves the output constant, before any work; a negative-sign range is read; a final model that fits worse
+than the record's mean says so."""
+from __future__ import annotations
+
+import time
+from types import SimpleNamespace
+
+import pytest
+
+from valve_gym.diagnosis import cli
+from valve_gym.diagnosis.diagnose import _note_poor_fit
+from valve_gym.diagnosis.synthetic import make_recording, write_csv
+
+FAST = ["--effects", "none", "--effort", "fast", "--jobs", "1", "--quiet"]
+
+
+@pytest.fixture(scope="module")
+def loop(tmp_path_factory):
+    p = tmp_path_factory.mktemp("bad_input") / "loop.csv"
+    write_csv(make_recording("none", seed=4, n=300), p)
+    return p
+
+
+def run(argv, capsys):
+    t0 = time.perf_counter()
+    code = cli.main([str(a) for a in argv])
+    _, err = capsys.readouterr()
+    assert "Traceback" not in err and time.perf_counter() - t0 < 30     # refused before the diagnosis
+    return code, err
+
+
+def test_output_paths_that_cannot_be_written_are_refused_first(loop, tmp_path, capsys):
+    code, err = run([loop, "--op-range", "0,100", *FAST, "--report", loop.parent / "loop.csv" / "rep"], capsys)
+    assert code == 2 and "is a file, not a folder" in err
+    code, err = run([loop, "--op-range", "0,100", *FAST, "--json", loop.parent / "loop.csv" / "x.json"], capsys)
+    assert code == 2 and "is a file, not a folder" in err
+    both = tmp_path / "same"
+    code, err = run([loop, "--op-range", "0,100", *FAST, "--json", both, "--report", both], capsys)
+    assert code == 2 and "name the same path" in err and not both.exists()
+    code, err = run([loop, "--op-range", "0,100", *FAST, "--json", ""], capsys)
+    assert code == 2 and "--json is empty" in err
+
+
+def test_a_ray_address_nobody_answers_is_refused_at_once(loop, tmp_path, capsys):
+    out = tmp_path / "fleet"
+    code, err = run([loop, "--op-range", "0,100", *FAST, "--out", out, "--address", "127.0.0.1:9"], capsys)
+    assert code == 2 and "no Ray cluster answers there" in err and "ray start --head" in err
+    code, err = run([loop, "--op-range", "0,100", *FAST, "--out", out, "--address", "garbage"], capsys)
+    assert code == 2 and "HOST:PORT" in err
+
+
+def test_ranges_with_a_minus_sign_and_their_own_flag_in_messages(loop, tmp_path, capsys):
+    # parsed (not argparse's "expected one argument"): the run gets as far as the output check
+    code, err = run([loop, "--op-range", "-1,0", *FAST, "--json", tmp_path / "no" / "x.json"], capsys)
+    assert code == 2 and "expected one argument" not in err and "does not exist; create it first" in err
+    code, err = run([loop, "--op-range", "0,100", "--mv-range", "a,b", *FAST], capsys)
+    assert code == 2 and "e.g. --mv-range 0,100" in err
+
+
+def test_an_output_range_that_leaves_the_output_constant_is_refused(loop, capsys):
+    code, err = run([loop, "--op-range", "0,1e308", *FAST], capsys)
+    assert code == 2 and "moves over only" in err and "--op-range" in err
+
+
+def test_a_final_model_worse_than_the_mean_is_flagged():
+    expl = ["No candidate effect pays."]
+    _note_poor_fit(expl, SimpleNamespace(fit_percent_all=-14.8), "tank")
+    assert len(expl) == 2 and expl[1].startswith("Caution: the final model fits the record worse than a constant")
+    assert "(fit -14.8 %)" in expl[1] and "--plant" in expl[1]
+    expl = ["x"]
+    _note_poor_fit(expl, SimpleNamespace(fit_percent_all=35.0), "tank")
+    assert expl == ["x"]
