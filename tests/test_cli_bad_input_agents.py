@@ -57,7 +57,7 @@ def _refused(argv, capsys, snapshot, *words):
     return err
 
 
-# ----------------------------------------------------------------- defect 1: benchmark --out is a file
+# ----------------------------------------------------------------- benchmark --out is a file
 def test_benchmark_out_is_a_file(probe, capsys):
     Path("ok.csv").write_text("x\n")
     err = _refused(["benchmark", "--quick", "--out", "ok.csv", "--jobs", "1"], capsys, probe,
@@ -71,7 +71,7 @@ def test_benchmark_out_below_a_file(probe, capsys):
              "ok.csv", "is a file", "folder")
 
 
-# ----------------------------------------------------------------- defect 2: empty config files
+# ----------------------------------------------------------------- empty config files
 @pytest.mark.parametrize("text", ["", "# only a comment\n", "null\n", "~\n", "\n\n"])
 def test_benchmark_empty_config(probe, capsys, text):
     Path("empty.yaml").write_text(text)
@@ -95,7 +95,7 @@ def test_load_config_refuses_empty_file(tmp_path):
     assert load_config(None) == load_config({})        # no file at all: the defaults
 
 
-# ----------------------------------------------------------------- defects 3 and 5: numeric options
+# ----------------------------------------------------------------- numeric options
 @pytest.mark.parametrize("config,opts,words", [
     (LEARNED, ["--seed", "-1", "--generations", "1"], ["--seed", "-1"]),
     (PPO, ["--seed", "-1"], ["--seed", "-1"]),
@@ -120,7 +120,7 @@ def test_train_bad_seed_leaves_out_usable(probe, capsys):
     assert "not empty" not in capsys.readouterr().err
 
 
-# ----------------------------------------------------------------- defect 4: config is a folder
+# ----------------------------------------------------------------- config is a folder
 @pytest.mark.parametrize("cmd", [["train", "--out", "X"], ["benchmark", "--out", "Y"]])
 def test_config_is_a_folder(probe, capsys, cmd):
     Path("adir").mkdir()
@@ -132,7 +132,7 @@ def test_config_missing_still_says_so(probe, capsys):
     _refused(["train", "--config", "nope.yaml", "--out", "X"], capsys, probe, "nope.yaml", "does not exist")
 
 
-# ----------------------------------------------------------------- defect 6: convert-policy input
+# ----------------------------------------------------------------- convert-policy input
 def test_convert_missing_input_no_warning(probe, capsys):
     with warnings.catch_warnings():
         warnings.simplefilter("error")              # any warning (the unpickling one) fails the test
