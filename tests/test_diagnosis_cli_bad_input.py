@@ -71,3 +71,28 @@ def test_a_final_model_worse_than_the_mean_is_flagged():
     expl = ["x"]
     _note_poor_fit(expl, SimpleNamespace(fit_percent_all=35.0), "tank")
     assert expl == ["x"]
+
+
+def test_empty_or_contradictory_options_are_refused(loop, capsys):
+    code, err = run([loop, "--op-range", "0,100", *FAST[2:], "--effects", ""], capsys)
+    assert code == 2 and "--effects is empty" in err
+    code, err = run([loop, "--op-range", "0,100", *FAST[2:], "--effects", "none,slip_jump"], capsys)
+    assert code == 2 and "'none' stands alone" in err
+    code, err = run([loop, "--op-range", "0,100", *FAST, "--columns", ""], capsys)
+    assert code == 2 and "empty column mapping" in err
+
+
+def test_utf16_text_and_a_column_of_inf_are_named(loop, tmp_path, capsys):
+    text = loop.read_text()
+    u16 = tmp_path / "u16.csv"
+    u16.write_bytes(text.encode("utf-16"))
+    code, err = run([u16, "--op-range", "0,100", *FAST], capsys)
+    assert code == 2 and "UTF-16" in err and "UTF-8" in err
+    lines = text.splitlines()
+    head = lines[0].split(",")
+    k = head.index("SP")
+    rows = [",".join("inf" if j == k else c for j, c in enumerate(r.split(","))) for r in lines[1:]]
+    bad = tmp_path / "infsp.csv"
+    bad.write_text("\n".join([lines[0]] + rows) + "\n")
+    code, err = run([bad, "--op-range", "0,100", *FAST], capsys)
+    assert code == 2 and "has no finite values" in err and "--columns sp=" in err

@@ -273,7 +273,7 @@ def test_quiet(rec_dir, capsys):
 
 
 def test_fleet_only_flags_need_out(rec_dir, capsys):
-    for flag in (["--address", "auto"], ["--full"], ["--max-loops", "1"]):
+    for flag in (["--address", "auto"], ["--full"], ["--max-loops", "1"], ["--top", "-1"]):
         code, _, err = run([rec_dir / "loop.csv", "--op-range", "0,100", *flag], capsys)
         assert code == 2 and "fleet mode only" in err, flag
 

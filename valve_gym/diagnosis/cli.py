@@ -132,7 +132,9 @@ def _joined_ranges(argv: list[str]) -> list[str]:
 
 def _parse_effects(text: str) -> tuple:
     t = text.strip().lower()
-    if t in ("all", ""):
+    if not t:
+        raise _UsageError("--effects is empty; give 'all' (the default), 'none' or effects separated by commas")
+    if t == "all":
         return candidate_effects()
     if t == "none":
         return ()
@@ -140,6 +142,8 @@ def _parse_effects(text: str) -> tuple:
     for e in (s.strip() for s in t.split(",")):
         if not e:
             continue
+        if e in ("all", "none"):
+            raise _UsageError(f"--effects: {e!r} stands alone; it cannot be listed with other effects")
         if e not in candidate_effects():
             raise _UsageError(f"--effects: unknown effect {e!r}; known effects: "
                               f"{', '.join(candidate_effects())} (or 'all', 'none')")
@@ -235,9 +239,9 @@ def _main(argv: list[str]) -> int:
     from .diagnose import diagnose, diagnose_many
 
     a = build_parser().parse_args(_joined_ranges(argv))
-    columns = parse_columns(a.columns) if a.columns else None
-    op_range = parse_range(a.op_range) if a.op_range else None
-    mv_range = parse_range(a.mv_range, "--mv-range") if a.mv_range else None
+    columns = parse_columns(a.columns) if a.columns is not None else None
+    op_range = parse_range(a.op_range) if a.op_range is not None else None
+    mv_range = parse_range(a.mv_range, "--mv-range") if a.mv_range is not None else None
     holdout = _number(a.holdout, "--holdout", float, 0.0, 0.6)
     jobs = int(_number(a.jobs, "--jobs", int, 1, 64))
     seed = int(_number(a.seed, "--seed", int, 0, 2 ** 31 - 1))
@@ -255,8 +259,8 @@ def _main(argv: list[str]) -> int:
         if (max_gap, a.gaps) != (5, "error"):
             raise _UsageError("--max-gap and --gaps work with single files and folders, not in fleet mode (--out)")
         return _fleet(a, path, jobs, seed, holdout, cands, op_range, say)
-    if a.address or a.full or a.max_loops:
-        raise _UsageError("--address, --full and --max-loops work in fleet mode only: add --out OUTDIR")
+    if a.address or a.full or a.max_loops or a.top != "10":
+        raise _UsageError("--address, --full, --max-loops and --top work in fleet mode only: add --out OUTDIR")
     if os.path.isdir(path):
         if a.validate:
             raise _UsageError("--validate works with a single recording, not a folder")

@@ -183,8 +183,10 @@ def _signal(raw: RawColumns, r: str, src: str, decimal_comma: bool = False) -> t
             f"only where the columns are separated by ';' or tabs)"
         )
     if np.isnan(v).all():
+        what = (f"has no finite values ({len(nonfin)} non-finite, such as inf)" if nonfin
+                else "has no numeric values at all")
         raise RecordingError(
-            f"{where}: has no numeric values at all; map the {ROLE_WORDS[r]} to another column"
+            f"{where}: {what}; map the {ROLE_WORDS[r]} to another column"
             + (f" or switch it off with columns={{'{r}': None}} (CLI: --columns {r}=)" if r not in REQUIRED
                else "")
         )

@@ -238,6 +238,10 @@ def sniff(path: str | os.PathLike, engine: str = "auto") -> Sniffed:
         return Sniffed(p, src, "parquet", size, None, None, (), 0, "columns")
     if not raw.strip() and size <= len(raw):
         raise RecordingError(f"{src}: file is empty; expected a CSV file with a header row and data rows")
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        raise RecordingError(
+            f"{src}: UTF-16 text (a spreadsheet's 'Unicode text' export); save it as CSV in UTF-8 "
+            f"(e.g. 'CSV UTF-8' in the spreadsheet's Save As) or convert it: iconv -f UTF-16 -t UTF-8")
     if b"\x00" in raw:
         raise RecordingError(
             f"{src}: not a text CSV file (binary content); if it is a spreadsheet, export it as CSV "
