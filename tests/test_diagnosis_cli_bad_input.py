@@ -96,3 +96,20 @@ def test_utf16_text_and_a_column_of_inf_are_named(loop, tmp_path, capsys):
     bad.write_text("\n".join([lines[0]] + rows) + "\n")
     code, err = run([bad, "--op-range", "0,100", *FAST], capsys)
     assert code == 2 and "has no finite values" in err and "--columns sp=" in err
+
+
+def test_column_problems_are_named(loop, tmp_path, capsys):
+    lines = loop.read_text().splitlines()
+    head = lines[0].split(",")                                    # t_s, OP, PV, SP
+    dup = tmp_path / "dup.csv"
+    dup.write_text("\n".join([",".join(head[:2] + head[1:2] + head[2:3])]
+                             + [",".join(r.split(",")[:2] + r.split(",")[1:3]) for r in lines[1:]]) + "\n")
+    code, err = run([dup, "--op-range", "0,100", *FAST], capsys)
+    assert code == 2 and "the header names 'OP' 2 times (columns 2, 3)" in err
+    code, err = run([loop, "--op-range", "0,100", "--columns", "t=OP", *FAST], capsys)
+    assert code == 2 and "its default column 'OP' is mapped to t" in err
+    huge = tmp_path / "huge.csv"
+    huge.write_text("\n".join([lines[0]] + [",".join(c if j < 2 else f"{float(c) * 1e20:.6e}" for j, c in
+                                                     enumerate(r.split(","))) for r in lines[1:]]) + "\n")
+    code, err = run([huge, "--op-range", "0,100", *FAST], capsys)
+    assert code == 2 and "'PV' (pv), 'SP' (sp) have no usable value" in err and "beyond 1e15" in err

@@ -121,6 +121,19 @@ def _default(lower: dict[str, list[int]], role: str, taken: set[int]) -> int | N
     return None
 
 
+def _default_blocked(lower: dict[str, list[int]], role: str, header: list[str], out: dict[str, int]) -> str:
+    """Why a default name of `role` that is in the header was not taken (repeated, or mapped to another role)."""
+    for cand in DEFAULT_COLUMN_NAMES[role]:
+        hits = lower.get(cand, [])
+        if len(hits) > 1:
+            return (f"the header names {header[hits[0]]!r} {len(hits)} times (columns "
+                    f"{', '.join(str(j + 1) for j in hits)}); give each column its own name")
+        other = [r for r, j in out.items() if hits and j == hits[0]]
+        if other:
+            return f"its default column {header[hits[0]]!r} is mapped to {other[0]}"
+    return ""
+
+
 def resolve_columns(
     header: Sequence[str], columns: Mapping[str, str | None] | None, src: str
 ) -> ColumnMap:
@@ -161,11 +174,11 @@ def resolve_columns(
         if role not in columns:
             j = _default(lower, role, set(out.values()))
             if j is None and role in REQUIRED:
-                raise RecordingError(
-                    f"{src}: no column for the {ROLE_WORDS[role]} ({role}): none of the default "
-                    f"names {', '.join(DEFAULT_COLUMN_NAMES[role])} is among the columns {avail}; "
-                    f"pass columns={{'{role}': NAME}} (CLI: --columns {role}=NAME)"
-                )
+                why = _default_blocked(lower, role, header, out) or (
+                    f"none of the default names {', '.join(DEFAULT_COLUMN_NAMES[role])} is among the "
+                    f"columns {avail}")
+                raise RecordingError(f"{src}: no column for the {ROLE_WORDS[role]} ({role}): {why}; "
+                                     f"pass columns={{'{role}': NAME}} (CLI: --columns {role}=NAME)")
         elif columns[role] is None or not str(columns[role]).strip():
             if role in REQUIRED:
                 raise RecordingError(

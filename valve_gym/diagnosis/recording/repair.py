@@ -252,6 +252,13 @@ def _trim_edges(g: Grid, names: dict[str, str], src: str, repairs: list[str], pr
         any_miss |= np.isnan(v)
     ok = np.flatnonzero(~any_miss)
     if ok.size == 0:
+        empty = [f"{names[r]!r} ({r})" for r, v in g.values.items() if np.isnan(v).all()]
+        if empty:
+            raise RecordingError(
+                f"{src}: {', '.join(empty)} {'have' if len(empty) > 1 else 'has'} no usable value: every one "
+                f"is missing, non-finite or absurd "
+                f"(a magnitude beyond 1e15 is read as a historian's error code); check the column and its units"
+            )
         raise RecordingError(
             f"{src}: no sample has all of {', '.join(names[r] for r in g.values)} present; "
             f"check the column mapping"
