@@ -5,7 +5,7 @@ import os
 import tempfile
 from collections.abc import Callable
 
-__all__ = ["write_atomic"]
+__all__ = ["write_atomic", "existing_part", "folder_problem"]
 
 
 def write_atomic(path, write: Callable) -> str:
@@ -32,3 +32,21 @@ def write_atomic(path, write: Callable) -> str:
             pass
         raise
     return path
+
+
+def existing_part(path) -> str:
+    """The longest leading part of ``path`` (made absolute) that exists."""
+    part = os.path.abspath(os.fspath(path))
+    while not os.path.exists(part):
+        part = os.path.dirname(part)
+    return part
+
+
+def folder_problem(path) -> str:
+    """Why no folder can be made or used at ``path`` (a file on the way), or ``''`` if one can.
+
+    Checked by every command before its work starts, so that an output option naming a file fails at
+    once and not when the results are written.
+    """
+    part = existing_part(path)
+    return "" if os.path.isdir(part) else f"{part} is a file, not a folder"

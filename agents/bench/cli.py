@@ -8,6 +8,7 @@ import sys
 import time
 from pathlib import Path
 
+from valve_gym._io import existing_part, folder_problem
 from valve_gym.config import ConfigError
 
 from .config import BenchConfig, load_bench_config
@@ -40,14 +41,11 @@ def check_out(out: str) -> None:
     """
     if not str(out).strip():
         raise ConfigError("--out must not be empty; give an output folder (default: results)")
-    p = Path(out)
-    if p.exists() and not p.is_dir():
-        raise ConfigError(f"--out {out} is a file, not a folder; give a folder (it is created if it does "
-                          f"not exist) or move the file")
-    parent = p if p.exists() else next((q for q in p.absolute().parents if q.exists()), None)
-    if parent is not None and not parent.is_dir():
-        raise ConfigError(f"--out {out}: {parent} is a file, not a folder; give a folder path")
-    if parent is not None and not os.access(parent, os.W_OK | os.X_OK):
+    why = folder_problem(out)
+    if why:
+        raise ConfigError(f"--out {out}: {why}; give a folder (it is created if it does not exist) or move the file")
+    parent = existing_part(out)
+    if not os.access(parent, os.W_OK | os.X_OK):
         raise ConfigError(f"--out {out}: cannot write into {parent} (permission denied); give another folder")
 
 

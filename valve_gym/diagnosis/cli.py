@@ -29,6 +29,7 @@ import re
 import sys
 import time
 
+from .._io import folder_problem
 from ..effects import candidate_effects
 from .model import ACTUATORS, CANDIDATE_EFFECTS, PLANTS
 from .recording import RecordingError, load_recording, parse_columns, parse_range
@@ -170,15 +171,11 @@ def _check_out(path: str | None, what: str, is_dir: bool):
     if not path.strip():
         raise _UsageError(f"{what} is empty; give a {'folder' if is_dir else 'file'} name or leave the option out")
     target = os.path.abspath(path)
-    if is_dir and os.path.exists(target) and not os.path.isdir(target):
-        raise _UsageError(f"{what} {path!r} exists and is not a folder")
     if not is_dir and os.path.isdir(target):
         raise _UsageError(f"{what} {path!r} is a folder; give a file name such as out.json")
-    parent = target if is_dir else os.path.dirname(target)
-    while not os.path.exists(parent):            # the first part of the path that exists must be a folder
-        parent = os.path.dirname(parent)
-    if not os.path.isdir(parent):
-        raise _UsageError(f"{what} {path!r}: {parent!r} is a file, not a folder")
+    why = folder_problem(target if is_dir else os.path.dirname(target))
+    if why:
+        raise _UsageError(f"{what} {path!r}: {why}")
     if not is_dir and not os.path.isdir(os.path.dirname(target)):
         raise _UsageError(f"{what}: folder {os.path.dirname(target)!r} does not exist; create it first")
 
