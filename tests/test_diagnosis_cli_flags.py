@@ -127,7 +127,7 @@ def test_max_gap_and_gaps(rec_dir, tmp_path, capsys):
     code, _, err = run([p, "--op-range", "0,100", "--max-gap", "abc", *FAST], capsys)
     assert code == 2 and "--max-gap must be a whole number" in err
     code, _, err = run([p, "--op-range", "0,100", "--gaps", "longest", "--out", tmp_path / "fl", *FAST], capsys)
-    assert code == 2 and "not in fleet mode" in err
+    assert code == 2 and "not in fleet mode" in err and "longest stretch" in err
 
 
 def test_plant(rec_dir, tmp_path, capsys):
@@ -280,18 +280,24 @@ def test_fleet_only_flags_need_out(rec_dir, capsys):
 
 @pytest.mark.slow
 def test_fleet_flags(tmp_path):
-    """--out, --max-loops, --full, --top, --op-lag (and --address's local default) in one fleet run on Ray."""
+    """--out, --max-loops, --full, --top, --op-lag, --max-gap (and --address's local default) in one fleet run."""
     pytest.importorskip("ray")
     src = tmp_path / "loops"
     src.mkdir()
     for i, e in enumerate(("none", "slip_jump")):
         write_csv(make_recording(e, seed=4 + i, n=300), src / f"loop{i}.csv")
+    for f in src.iterdir():         # op, pv, sp blank for 8 samples in each: bridged by --max-gap 10
+        lines = f.read_text().splitlines()
+        f.write_text("\n".join([lines[0]] + [",".join(
+            c if j == 0 or k not in range(100, 108) else "" for j, c in enumerate(row.split(",")))
+            for k, row in enumerate(lines[1:])]) + "\n")
     out = tmp_path / "fleet"
     exe = Path(sys.executable).with_name("valve-gym")
     cmd = [str(exe)] if exe.exists() else [sys.executable, "-m", "valve_gym.cli"]
     r = subprocess.run(cmd + ["diagnose", str(src), "--out", str(out), "--op-range", "0,100", "--effects", "none",
                               "--effort", "fast", "--jobs", "1", "--full", "--top", "1", "--max-loops", "1",
-                              "--op-lag", "1", "--quiet"], capture_output=True, text=True, timeout=300)
+                              "--op-lag", "1", "--max-gap", "10", "--quiet"], capture_output=True, text=True,
+                       timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
     assert len(os.listdir(out / "loops")) == 1  # --max-loops 1
     assert {"loops.csv", "loops.parquet", "worklist.md", "worklist.html"} <= set(os.listdir(out))
@@ -299,6 +305,7 @@ def test_fleet_flags(tmp_path):
 
     table = pd.read_csv(out / "loops.csv")
     assert list(table["stage"]) == ["full"]  # --full: diagnosed, not only screened
+    assert list(table["n"]) == [300]  # --max-gap 10 bridged the 8-sample hole (the default keeps 192 samples)
     assert "1 left" in r.stdout
 
 

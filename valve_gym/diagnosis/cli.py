@@ -71,7 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
                                       "--op-range); the position column is read by the stem test")
     p.add_argument("--max-gap", default="5", metavar="N",
                    help="longest run of missing samples filled by interpolation (default 5); longer gaps "
-                        "are an error unless --gaps longest")
+                        "are an error unless --gaps longest (fleet mode: the longest stretch without one is kept)")
     p.add_argument("--gaps", default="error", choices=("error", "longest"),
                    help="a gap longer than --max-gap: error (default), or keep the longest stretch without one "
                         "(single files and folders)")
@@ -253,9 +253,10 @@ def _main(argv: list[str]) -> int:
                "op_lag": op_lag_value(a.op_lag)}
     path = a.path
     if a.out:
-        if (max_gap, a.gaps) != (5, "error"):
-            raise _UsageError("--max-gap and --gaps work with single files and folders, not in fleet mode (--out)")
-        return _fleet(a, path, jobs, seed, holdout, cands, op_range, say)
+        if a.gaps != "error":
+            raise _UsageError("--gaps works with single files and folders, not in fleet mode (--out): a fleet "
+                              "always keeps each loop's longest stretch free of gaps longer than --max-gap")
+        return _fleet(a, path, jobs, seed, holdout, cands, op_range, max_gap, say)
     if a.address or a.full or a.max_loops or a.top != "10":
         raise _UsageError("--address, --full, --max-loops and --top work in fleet mode only: add --out OUTDIR")
     if os.path.isdir(path):
@@ -301,7 +302,7 @@ def _main(argv: list[str]) -> int:
     return 0
 
 
-def _fleet(a, path, jobs, seed, holdout, cands, op_range, say) -> int:
+def _fleet(a, path, jobs, seed, holdout, cands, op_range, max_gap, say) -> int:
     """Fleet mode: ``path`` (folder or wide export) on Ray into ``a.out``."""
     from ..fleet import FleetSettings, run_fleet
     if a.validate:
@@ -318,7 +319,7 @@ def _fleet(a, path, jobs, seed, holdout, cands, op_range, say) -> int:
                              op_lag=op_lag_value(a.op_lag),
                              columns=tuple(sorted(cols.items())) if cols else None, op_range=op_range,
                              mv_range=parse_range(a.mv_range, "--mv-range") if a.mv_range else None,
-                             report_dir=a.report)
+                             max_gap=max_gap, report_dir=a.report)
 
     run = run_fleet(path, a.out, settings, jobs=jobs, address=a.address, max_loops=max_loops,
                     stream=None if a.quiet else sys.stderr, top=top)
