@@ -160,7 +160,7 @@ def _run_one(item):
     out["op_lag_chosen"] = res.settings["op_lag"]
     out["version"] = SIZE_VERSION           # a cached record is reused only by the same version
     out.update({"verdict": {k: s.get(k) for k in ("tested", "present", "delta_ic", "band", "band_needed",
-                                                   "kstep_delta_ic", "kstep_horizon")},
+                                                   "kstep_delta_ic", "kstep_horizon", "n_eff")},
                 "features": s["features"], "sizes": s["sizes"],
                 "model_based_present": s["model_based_present"],
                 "seconds": time.perf_counter() - t0, "n": len(rec)})
@@ -486,9 +486,12 @@ def _sim_tables(sims, hidden, by_valve):
 
 def _public(r):
     """The public verdict (``stiction.present``, :func:`stiction_present`): the combination says stiction,
-    or the free-run model-based verdict finds friction that the k-step test does not contradict; otherwise
-    the combination's verdict (undecided stays a miss)."""
-    present = stiction_present(r["verdict_heldout"], r["model_based_present"], r["verdict"].get("kstep_delta_ic"))
+    or the free-run model-based verdict finds friction that the k-step test does not contradict, or the k-step
+    test finds a friction band that matters on its own; otherwise the combination's verdict (undecided stays a
+    miss)."""
+    v = r["verdict"]
+    present = stiction_present(r["verdict_heldout"], r["model_based_present"], v.get("kstep_delta_ic"),
+                               bool(v.get("tested", True)) and v["band"] >= v["band_needed"])
     return "stiction" if present else r["verdict_heldout"]
 
 
@@ -523,7 +526,8 @@ def report(data, n_sim, seconds):
                for k, v in sorted(chosen_real.items(), key=lambda kv: -kv[1])) + "; simulated folds: "
            + "; ".join(f"{k} ({v})" for k, v in chosen_sim.items()) + ".\n",
            "**Public verdict** (`stiction.present`: the methods combined say stiction, or the free-run "
-           "model-based verdict finds friction that the k-step test does not contradict), held out (real loops "
+           "model-based verdict finds friction that the k-step test does not contradict, or the k-step test "
+           "finds a friction band that matters on its own), held out (real loops "
            "leave-one-tag-out, simulated loops two-fold):\n"]
     out += _verdict_tables(real, sims, "Public verdict", _public)
     out.append("**Methods combined** (`stiction.verdict`, the logistic model alone), held out:\n")

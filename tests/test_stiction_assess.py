@@ -24,9 +24,10 @@ def test_diagnosis_reports_probability_and_sizes(sticky_result):
     assert 0.0 <= s["probability"] <= 1.0
     assert s["verdict"] in ("stiction", "no stiction", "undecided")
     # the public verdict: the combination says stiction, or the free-run model-based verdict finds friction
-    # that the k-step test does not contradict
+    # that the k-step test does not contradict, or the k-step test finds a band that matters on its own
     k = s["kstep_delta_ic"]
-    assert s["present"] is (s["verdict"] == "stiction" or (s["model_based_present"] and k < 0))
+    assert s["present"] is (s["verdict"] == "stiction" or (s["model_based_present"] and k < 0)
+                            or (k < -2 and s["band"] >= s["band_needed"]))
     assert {e["method"] for e in s["evidence"]} == {"horch", "bicoherence", "ellipse", "waveform", "episodes",
                                                    "hammerstein", "kstep"}
     # the k-step friction test ran beside the free-run one (integrating loop, valve, no measurement effect)
@@ -138,10 +139,8 @@ def test_two_size_methods_combine_on_the_log_scale_with_the_union_interval():
     assert combine_size_estimates([ham]) == (ham, None)
 
 
-def test_kstep_test_finds_a_sticky_valve_under_a_drifting_load():
-    """The compensator benchmark's cycling Choudhury valve (S 9.3 %) under its Ornstein-Uhlenbeck load: the
-    free-run friction test is blind to it (the load's error outweighs the friction's), the k-step one is not
-    (docs/diagnosis.md, 'The k-step friction test')."""
+def _benchmark_loop(i: int, seed=None):
+    """Regulation loop ``i`` of the benchmark (``benchmarks/sizes_on_benchmark_loops.py``) as a Recording."""
     import importlib.util
     from pathlib import Path
 
@@ -151,15 +150,36 @@ def test_kstep_test_finds_a_sticky_valve_under_a_drifting_load():
     spec = importlib.util.spec_from_file_location("sizes_on_benchmark_loops", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
-    loop = mod.benchmark_loops(36, None)[25]
+    loop = mod.benchmark_loops(36, seed)[i]
+    return loop, Recording(t=loop["t"], op=loop["op"], pv=loop["pv"], sp=loop["sp"], dt=loop["dt"],
+                           name=loop["name"])
+
+
+def test_kstep_test_finds_a_sticky_valve_under_a_drifting_load():
+    """The compensator benchmark's cycling Choudhury valve (S 9.3 %) under its Ornstein-Uhlenbeck load: the
+    free-run friction test is blind to it (the load's error outweighs the friction's), the k-step one is not
+    (docs/diagnosis.md, 'The k-step friction test')."""
+    loop, rec = _benchmark_loop(25)
     assert loop["name"] == "choudhury_severe_25" and loop["S_true"] > 0.09
-    rec = Recording(t=loop["t"], op=loop["op"], pv=loop["pv"], sp=loop["sp"], dt=loop["dt"], name=loop["name"])
     s = diagnose(rec, plant="tank", candidates=(), effort="fast").stiction
     assert s["delta_ic"] > 0 and not s["model_based_present"]
     assert s["kstep_delta_ic"] < -2
     assert s["kstep_rmse"]["friction"] < 0.95 * s["kstep_rmse"]["frictionless"]
     ks = next(e for e in s["evidence"] if e["method"] == "kstep")
     assert ks["verdict"] == "stiction"              # its own verdict; the public one reads it as a check only
+
+
+def test_kstep_test_alone_calls_a_sticky_valve_the_load_hides():
+    """A sticky Riihilahti valve (stick band above 5 %) under the benchmark's Ornstein-Uhlenbeck load: neither the
+    free run (criterion up with friction) nor the methods combined call it; the k-step predictions want a friction
+    band that matters, and the public verdict follows them, saying why."""
+    loop, rec = _benchmark_loop(14)
+    assert loop["name"] == "riihilahti_sticky_14" and loop["label"] == 1
+    s = diagnose(rec, plant="tank", candidates=(), effort="fast").stiction
+    assert s["delta_ic"] > 0 and not s["model_based_present"] and s["verdict"] != "stiction"
+    assert s["kstep_delta_ic"] < -2 and s["band"] >= s["band_needed"]
+    assert s["present"] is True
+    assert "the load hid it from the free-run test" in s["explanation"]
 
 
 def test_naming_and_verdict_conflict_is_reported():

@@ -480,7 +480,8 @@ def _combine_verdict(stiction: dict, rec: Recording, logged: Recording, plant: s
     ``evidence``, ``features`` and ``contributions``.  ``present`` becomes True
     when the combination says ``'stiction'``, or when the free-run model-based verdict
     (kept under ``model_based_present``) finds friction that the k-step test does not
-    contradict (:func:`~valve_gym.diagnosis.stiction.combine.stiction_present`);
+    contradict, or the k-step test finds a friction band that matters on its own
+    (:func:`~valve_gym.diagnosis.stiction.combine.stiction_present`);
     ``'undecided'`` alone is False.  Held out, this beats the model-based verdict alone
     (``docs/diagnosis.md``, section 4).  Where the record holds the valve's position (``mv``)
     and the stem test applies (:mod:`~valve_gym.diagnosis.stiction.stem`), ``present`` is the
@@ -492,7 +493,14 @@ def _combine_verdict(stiction: dict, rec: Recording, logged: Recording, plant: s
                         fit_data=None if logged is rec else (rec.op, rec.pv), mv=logged.mv)
     d = a.to_dict()
     stiction["model_based_present"] = bool(stiction["present"])
-    stiction["present"] = stiction_present(a.verdict, stiction["present"], stiction.get("kstep_delta_ic"))
+    stiction["present"] = stiction_present(a.verdict, stiction["present"], stiction.get("kstep_delta_ic"),
+                                           _band_matters(stiction))
+    if stiction["present"] and a.verdict != "stiction" and not stiction["model_based_present"]:
+        stiction["explanation"] += (
+            f" On {stiction['kstep_horizon']}-sample-ahead predictions, where a slow unmeasured load cannot "
+            f"accumulate, friction pays (criterion change {stiction['kstep_delta_ic']:.1f}) with a band of "
+            f"{100 * stiction['band']:.2g} % of the stroke: the valve sticks, and the load hid it from the "
+            f"free-run test.")
     stem = next((e for e in a.evidence if e.method == "stem"), None)
     stiction["verdict_source"] = "methods"
     if stem is not None and stem.applicable:
@@ -509,6 +517,12 @@ def _combine_verdict(stiction: dict, rec: Recording, logged: Recording, plant: s
     elif stem is not None:
         stiction["explanation"] += (f" Recorded valve position: {stem.reason}" + (
             "; the verdict reads the stem." if stem.applicable else "; the verdict rests on the other methods."))
+
+
+def _band_matters(stiction: dict) -> bool:
+    """Whether the friction verdict's band (dead band or stick band) is at least the one it asks for."""
+    return bool(stiction.get("tested")) and float(stiction.get("band", 0.0)) >= float(stiction.get("band_needed",
+                                                                                                 np.inf))
 
 
 #: Output travel (working range, fraction of stroke) above which a position that never moved and a

@@ -31,7 +31,7 @@ from ._base import Evidence
 from .hammerstein import NAN_SIZE, SizeEstimate
 
 __all__ = ["FEATURES", "features", "LogisticModel", "fit_logistic", "StictionAssessment",
-           "combine_sizes", "MARGIN", "stiction_present"]
+           "combine_sizes", "MARGIN", "KSTEP_FINDS", "stiction_present"]
 
 #: Names of the features, in the order of :func:`features`.
 FEATURES = ("horch_ccf", "horch_int", "bicoherence", "ellipse", "waveform", "episodes", "hammerstein",
@@ -184,19 +184,37 @@ def verdict_of(p: float, margin: float = MARGIN) -> str:
     return "undecided"
 
 
-def stiction_present(verdict: str, model_based_present: bool, kstep_delta_ic: float | None) -> bool:
+#: Criterion change of the k-step test (:mod:`.kstep`) below which it finds friction on its own:
+#: the usual margin of the information criterion (``SelectionRule.ic_margin``).
+KSTEP_FINDS = -2.0
+
+
+def stiction_present(verdict: str, model_based_present: bool, kstep_delta_ic: float | None,
+                     band_matters: bool = False) -> bool:
     """The public verdict ``stiction.present`` of a diagnosis.
 
-    True when the methods combined say ``'stiction'``, or when the free-run model-based verdict
-    finds friction and the k-step test (:mod:`.kstep`) does not contradict it: friction also lowers
-    the information criterion of the k-step-ahead predictions (``kstep_delta_ic < 0``).  Without a
-    k-step test (``None``: a pump, a measurement effect in the model) the free-run verdict counts
-    alone.  ``'undecided'`` alone is not stiction.
+    True when the methods combined say ``'stiction'``, or when a model-based friction test finds
+    friction:
 
-    A friction that the free run needs but the k-step predictions do not is most often a slow
-    unmeasured load that the free run cannot follow: the k-step test restarts the level from the
-    record every few samples, so a load does not accumulate there, while a sticking valve still
-    shows after each controller move.
+    * the free-run verdict finds it and the k-step test (:mod:`.kstep`) does not contradict it:
+      friction also lowers the information criterion of the k-step-ahead predictions
+      (``kstep_delta_ic < 0``);
+    * or the k-step test finds it on its own (``kstep_delta_ic`` below :data:`KSTEP_FINDS`) and the
+      friction band is one that matters (``band_matters``: the free-run fit's band is at least the
+      one the free-run verdict asks for, ``band >= band_needed``).
+
+    Without a k-step test (``None``: a pump, a measurement effect in the model) the free-run
+    verdict counts alone.  ``'undecided'`` alone is not stiction.
+
+    The two model-based tests see a slow unmeasured load differently.  The free run must
+    reproduce the load from the controller output alone: a load can outweigh what friction
+    explains (few effective samples, no criterion gain) or be taken for friction.  The k-step test
+    restarts the level from the record every few samples, so a load does not accumulate there,
+    while a sticking valve still shows after each controller move.  So a free-run friction that the
+    k-step predictions do not want is most often a load, and a friction that the k-step predictions
+    want is believed even where the free run, swamped by the load, cannot show it, provided its
+    band is one the free-run verdict would call (a small band that helps the predictions is
+    not a sticking valve an engineer has to act on).
 
     Examples
     --------
@@ -204,13 +222,17 @@ def stiction_present(verdict: str, model_based_present: bool, kstep_delta_ic: fl
     (True, True)
     >>> stiction_present("no stiction", True, 4.0), stiction_present("undecided", True, None)
     (False, True)
-    >>> stiction_present("no stiction", False, -13.5)
+    >>> stiction_present("no stiction", False, -13.5), stiction_present("no stiction", False, -13.5, True)
+    (False, True)
+    >>> stiction_present("no stiction", False, -1.5, True)
     False
     """
     if verdict == "stiction":
         return True
     if kstep_delta_ic is None or not np.isfinite(kstep_delta_ic):
         return bool(model_based_present)
+    if band_matters and float(kstep_delta_ic) < KSTEP_FINDS:
+        return True
     return bool(model_based_present and float(kstep_delta_ic) < 0.0)
 
 
