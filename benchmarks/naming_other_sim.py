@@ -25,6 +25,10 @@ the highest level the same loop reaches without one, so that it does spill in th
 that half opening gives the same flow) and ``oscillating_disturbance`` (a sinusoidal load of
 6-12 % of the mean inflow, period 60-200 samples).
 
+``--no-load`` diagnoses the same loops without their slowly drifting unmeasured load (the load's
+draw is kept, so every other value of a case stays the same): the difference is what that load
+costs the naming and the verdict.
+
 Sampling convention: the textbook simulator logs ``op[k]`` computed from the ``pv[k]`` logged
 with it, so ``op[k]`` acts only after ``pv[k]``; the diagnosis (like the package's own loop
 generator) reads ``pv[k]`` as measured after ``op[k]`` has acted for one sample. Taken as they
@@ -34,7 +38,7 @@ recording to the diagnosis' convention first (pairs ``op[k-1]``, ``pv[k]``; one 
 Usage::
 
     nice -n 10 python benchmarks/naming_other_sim.py [--per-effect 6] [--jobs 2] [--fixed-plant] [--pv-after-op]
-        [--op-lag 0|1|auto] [--all-effects] [--first 0]
+        [--op-lag 0|1|auto] [--all-effects] [--first 0] [--no-load]
 """
 from __future__ import annotations
 
@@ -84,9 +88,14 @@ def make_spec(effect: str, seed: int, vary: bool = True) -> LoopSpec:
                     noise_pole=noise_pole, load=load, sp_moves=float(0.25 * y0), shape=shape, **p, **extra)
 
 
-def make_case(effect: str, seed: int, vary: bool = True) -> tuple[LoopSpec, Recording]:
-    """The spec of case ``seed`` and its recording; an overflow rim is placed where the level reaches it."""
+def make_case(effect: str, seed: int, vary: bool = True, load: bool = True) -> tuple[LoopSpec, Recording]:
+    """The spec of case ``seed`` and its recording; an overflow rim is placed where the level reaches it.
+
+    ``load=False``: the same loop without its drifting load (every other drawn value kept).
+    """
     spec = make_spec(effect, seed, vary)
+    if not load:
+        spec = replace(spec, load=0.0)
     name = f"{effect}_{seed}"
     if effect == "overflow":
         free = simulate_loop(replace(spec, level_max=0.0), seed=seed, name=name).pv
@@ -122,8 +131,8 @@ def _more_effect(effect: str, rng, p: dict, y0: float) -> dict:
 
 def run_case(args):
     """Diagnose one case; returns (effect, seed, effects named, seconds, stiction present, probability)."""
-    effect, seed, vary, align, op_lag = args
-    spec, rec = make_case(effect, seed, vary)
+    effect, seed, vary, align, op_lag, load = args
+    spec, rec = make_case(effect, seed, vary, load)
     if align:
         rec = rec.with_op_lag(1)                 # op[k-1] with pv[k], before the diagnosis sees it
     t0 = time.perf_counter()
@@ -150,6 +159,9 @@ def main(argv=None):
     ap.add_argument("--op-lag", default="auto", choices=OP_LAG_CHOICES,
                     help="diagnose(op_lag=...): 1 pairs op[k-1] with pv[k] inside the diagnosis (this simulator's "
                          "convention), auto lets the diagnosis test it")
+    ap.add_argument("--no-load", action="store_true",
+                    help="the same loops without their slowly drifting unmeasured load (every other drawn value kept): "
+                         "what the load costs the naming and the verdict")
     ap.add_argument("--all-effects", action="store_true",
                     help=f"also conceal {', '.join(MORE_EFFECTS)} (seeds 70100 on)")
     ap.add_argument("--first", type=int, default=0,
@@ -161,10 +173,11 @@ def main(argv=None):
     if a.per_effect < 1:
         raise SystemExit("--per-effect must be at least 1")
     op_lag = op_lag_value(a.op_lag)
-    tasks = [(e, a.first + i, not a.fixed_plant, a.pv_after_op, op_lag) for i, e in enumerate(EFFECTS * a.per_effect)]
+    tasks = [(e, a.first + i, not a.fixed_plant, a.pv_after_op, op_lag, not a.no_load)
+             for i, e in enumerate(EFFECTS * a.per_effect)]
     effects = EFFECTS + (MORE_EFFECTS if a.all_effects else ())
     if a.all_effects:
-        tasks += [(e, a.first + 100 + i, not a.fixed_plant, a.pv_after_op, op_lag)
+        tasks += [(e, a.first + 100 + i, not a.fixed_plant, a.pv_after_op, op_lag, not a.no_load)
                   for i, e in enumerate(MORE_EFFECTS * a.per_effect)]
     t0 = time.perf_counter()
     with process_pool(a.jobs) as ex:
@@ -190,6 +203,7 @@ def main(argv=None):
     print(f"\n**{right} of {len(out)} named right** ({time.perf_counter() - t0:.0f} s, {a.jobs} workers). "
           f"Command: `nice -n 10 python benchmarks/naming_other_sim.py --per-effect {a.per_effect}"
           f"{' --fixed-plant' if a.fixed_plant else ''}{' --pv-after-op' if a.pv_after_op else ''}"
+          f"{' --no-load' if a.no_load else ''}"
           f"{' --op-lag ' + a.op_lag if a.op_lag != 'auto' else ''}{' --all-effects' if a.all_effects else ''}"
           f"{f' --first {a.first}' if a.first else ''}`.")
     return 0

@@ -179,7 +179,7 @@ def test_kstep_test_alone_calls_a_sticky_valve_the_load_hides():
     assert s["delta_ic"] > 0 and not s["model_based_present"] and s["verdict"] != "stiction"
     assert s["kstep_delta_ic"] < -2 and s["band"] >= s["band_needed"]
     assert s["present"] is True
-    assert "the load hid it from the free-run test" in s["explanation"]
+    assert "the load hid it from the free-run test, and the verdict is that the valve sticks" in s["explanation"]
 
 
 def test_naming_and_verdict_conflict_is_reported():

@@ -497,10 +497,10 @@ def _combine_verdict(stiction: dict, rec: Recording, logged: Recording, plant: s
                                            _band_matters(stiction))
     if stiction["present"] and a.verdict != "stiction" and not stiction["model_based_present"]:
         stiction["explanation"] += (
-            f" On {stiction['kstep_horizon']}-sample-ahead predictions, where a slow unmeasured load cannot "
+            f" Yet on {stiction['kstep_horizon']}-sample-ahead predictions, where a slow unmeasured load cannot "
             f"accumulate, friction pays (criterion change {stiction['kstep_delta_ic']:.1f}) with a band of "
-            f"{100 * stiction['band']:.2g} % of the stroke: the valve sticks, and the load hid it from the "
-            f"free-run test.")
+            f"{100 * stiction['band']:.2g} % of the stroke: the load hid it from the free-run test, and the "
+            f"verdict is that the valve sticks.")
     stem = next((e for e in a.evidence if e.method == "stem"), None)
     stiction["verdict_source"] = "methods"
     if stem is not None and stem.applicable:
