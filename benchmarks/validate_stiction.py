@@ -68,7 +68,7 @@ from valve_gym.diagnosis.stiction import (
     oscillation,
 )
 from valve_gym.diagnosis.stiction.assess import combine_size_estimates
-from valve_gym.diagnosis.stiction.combine import features, stiction_present, verdict_of
+from valve_gym.diagnosis.stiction.combine import band_matters, features, stiction_present, verdict_of
 from valve_gym.diagnosis.stiction.hammerstein import hammerstein_evidence
 from valve_gym.diagnosis.stiction.kstep import kstep_evidence
 from valve_gym.diagnosis.stiction.loops import LoopSpec, random_spec, simulate_loop
@@ -491,7 +491,7 @@ def _public(r):
     miss)."""
     v = r["verdict"]
     present = stiction_present(r["verdict_heldout"], r["model_based_present"], v.get("kstep_delta_ic"),
-                               bool(v.get("tested", True)) and v["band"] >= v["band_needed"])
+                               band_matters({"tested": True, **v}))
     return "stiction" if present else r["verdict_heldout"]
 
 

@@ -48,7 +48,7 @@ from .plant_choice import resolve_plant
 from .recording import Recording, RecordingError
 from .select import Selection, SelectionRule, select_effects
 from .stiction import assess_stiction
-from .stiction.combine import stiction_present
+from .stiction.combine import band_matters, stiction_present
 
 __all__ = ["DiagnosisResult", "diagnose", "diagnose_many", "validate_on", "simulate_same_state",
            "JSON_SCHEMA_KEYS", "AUTO_THOROUGH_SAMPLES", "coarse_factor"]
@@ -494,7 +494,7 @@ def _combine_verdict(stiction: dict, rec: Recording, logged: Recording, plant: s
     d = a.to_dict()
     stiction["model_based_present"] = bool(stiction["present"])
     stiction["present"] = stiction_present(a.verdict, stiction["present"], stiction.get("kstep_delta_ic"),
-                                           _band_matters(stiction))
+                                           band_matters(stiction))
     if stiction["present"] and a.verdict != "stiction" and not stiction["model_based_present"]:
         stiction["explanation"] += (
             f" Yet on {stiction['kstep_horizon']}-sample-ahead predictions, where a slow unmeasured load cannot "
@@ -517,12 +517,6 @@ def _combine_verdict(stiction: dict, rec: Recording, logged: Recording, plant: s
     elif stem is not None:
         stiction["explanation"] += (f" Recorded valve position: {stem.reason}" + (
             "; the verdict reads the stem." if stem.applicable else "; the verdict rests on the other methods."))
-
-
-def _band_matters(stiction: dict) -> bool:
-    """Whether the friction verdict's band (dead band or stick band) is at least the one it asks for."""
-    return bool(stiction.get("tested")) and float(stiction.get("band", 0.0)) >= float(stiction.get("band_needed",
-                                                                                                 np.inf))
 
 
 #: Output travel (working range, fraction of stroke) above which a position that never moved and a

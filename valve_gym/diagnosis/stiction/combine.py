@@ -22,7 +22,7 @@ weights ``c_k`` that give both classes the same total weight.  Verdict:
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,7 +31,7 @@ from ._base import Evidence
 from .hammerstein import NAN_SIZE, SizeEstimate
 
 __all__ = ["FEATURES", "features", "LogisticModel", "fit_logistic", "StictionAssessment",
-           "combine_sizes", "MARGIN", "KSTEP_FINDS", "stiction_present"]
+           "combine_sizes", "MARGIN", "KSTEP_FINDS", "band_matters", "stiction_present"]
 
 #: Names of the features, in the order of :func:`features`.
 FEATURES = ("horch_ccf", "horch_int", "bicoherence", "ellipse", "waveform", "episodes", "hammerstein",
@@ -187,6 +187,15 @@ def verdict_of(p: float, margin: float = MARGIN) -> str:
 #: Criterion change of the k-step test (:mod:`.kstep`) below which it finds friction on its own:
 #: the usual margin of the information criterion (``SelectionRule.ic_margin``).
 KSTEP_FINDS = -2.0
+
+
+def band_matters(verdict: Mapping) -> bool:
+    """Whether a tested friction verdict's band (``band``: dead band or stick band) reaches ``band_needed``.
+
+    >>> band_matters({"tested": True, "band": 0.012, "band_needed": 0.01}), band_matters({"tested": False})
+    (True, False)
+    """
+    return bool(verdict.get("tested")) and float(verdict.get("band", 0.0)) >= float(verdict.get("band_needed", np.inf))
 
 
 def stiction_present(verdict: str, model_based_present: bool, kstep_delta_ic: float | None,
