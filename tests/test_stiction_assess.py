@@ -210,3 +210,13 @@ def test_naming_and_verdict_conflict_is_reported():
 def test_diagnosis_reports_whether_naming_agrees(sticky_result):
     s = sticky_result.to_dict()["stiction"]
     assert s["naming_agrees"] is True               # nothing named (no candidates): no conflict
+
+
+def test_report_states_both_model_based_readings():
+    """The report's verdict line names the free-run reading and the k-step one, which can decide alone."""
+    from valve_gym.diagnosis.report import _verdict_basis
+
+    t = _verdict_basis({"probability": 0.03, "verdict": "no stiction", "model_based_present": False,
+                        "kstep_delta_ic": -25.3, "kstep_horizon": 60})
+    assert "free-run model-based test: no friction" in t
+    assert "on 60-sample-ahead predictions friction lowers the criterion (-25.3)" in t

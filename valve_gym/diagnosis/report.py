@@ -259,7 +259,7 @@ def _verdict_basis(s: dict) -> str:
     kstep = "" if k is None else (f"; on {s.get('kstep_horizon')}-sample-ahead predictions friction "
                                   f"{'lowers' if k < 0 else 'does not lower'} the criterion ({k:+.1f})")
     return (f" (methods combined: {s.get('verdict')}, probability of stiction {s['probability']:.2f}; "
-            f"model-based test: {'friction' if s.get('model_based_present') else 'no friction'}{kstep})")
+            f"free-run model-based test: {'friction' if s.get('model_based_present') else 'no friction'}{kstep})")
 
 
 def _md_op_lag(settings: dict) -> list[str]:
