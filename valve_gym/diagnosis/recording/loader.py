@@ -21,6 +21,10 @@ from .validate import LoadOptions, check_constant, check_options, check_time_ord
 
 __all__ = ["load_recording"]
 
+#: Least travel of the controller output over a record (fraction of the range that maps to 0..1) that
+#: the loader accepts: an output that moves less is effectively constant, or its range is wrong.
+MIN_OP_TRAVEL = 1e-4
+
 
 def load_recording(
     path: str | os.PathLike,
@@ -235,7 +239,3 @@ def _normalised(grid: Grid, p: Parsed, opts: LoadOptions,
         )
     return out, op_range
 
-
-#: Least travel of the controller output over a record (fraction of the range that maps to 0..1) that
-#: the loader accepts: an output that moves less is effectively constant, or its range is wrong.
-MIN_OP_TRAVEL = 1e-4
