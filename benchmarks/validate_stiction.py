@@ -68,7 +68,7 @@ from valve_gym.diagnosis.stiction import (
     oscillation,
 )
 from valve_gym.diagnosis.stiction.assess import combine_size_estimates
-from valve_gym.diagnosis.stiction.combine import band_matters, features, stiction_present, verdict_of
+from valve_gym.diagnosis.stiction.combine import KSTEP_BANDS, band_matters, features, stiction_present, verdict_of
 from valve_gym.diagnosis.stiction.hammerstein import hammerstein_evidence
 from valve_gym.diagnosis.stiction.kstep import kstep_evidence
 from valve_gym.diagnosis.stiction.loops import LoopSpec, random_spec, simulate_loop
@@ -135,8 +135,8 @@ def _spec_key(spec: dict) -> str:
 
 
 #: Version of the cached diagnoses (2: profile re-optimising the other parameters, widened; 4: with the
-#: k-step friction test).
-SIZE_VERSION = 4
+#: k-step friction test; 5: with the k-step fit's band).
+SIZE_VERSION = 5
 
 
 def _key(item) -> str:
@@ -160,7 +160,7 @@ def _run_one(item):
     out["op_lag_chosen"] = res.settings["op_lag"]
     out["version"] = SIZE_VERSION           # a cached record is reused only by the same version
     out.update({"verdict": {k: s.get(k) for k in ("tested", "present", "delta_ic", "band", "band_needed",
-                                                   "kstep_delta_ic", "kstep_horizon", "n_eff")},
+                                                   "kstep_delta_ic", "kstep_horizon", "kstep_band", "n_eff")},
                 "features": s["features"], "sizes": s["sizes"],
                 "model_based_present": s["model_based_present"],
                 "seconds": time.perf_counter() - t0, "n": len(rec)})
@@ -491,7 +491,7 @@ def _public(r):
     miss)."""
     v = r["verdict"]
     present = stiction_present(r["verdict_heldout"], r["model_based_present"], v.get("kstep_delta_ic"),
-                               band_matters({"tested": True, **v}))
+                               band_matters({"tested": True, **v}, KSTEP_BANDS))
     return "stiction" if present else r["verdict_heldout"]
 
 

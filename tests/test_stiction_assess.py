@@ -27,7 +27,7 @@ def test_diagnosis_reports_probability_and_sizes(sticky_result):
     # that the k-step test does not contradict, or the k-step test finds a band that matters on its own
     k = s["kstep_delta_ic"]
     assert s["present"] is (s["verdict"] == "stiction" or (s["model_based_present"] and k < 0)
-                            or (k < -2 and s["band"] >= s["band_needed"]))
+                            or (k < -2 and max(s["band"], s["kstep_band"]) >= s["band_needed"]))
     assert {e["method"] for e in s["evidence"]} == {"horch", "bicoherence", "ellipse", "waveform", "episodes",
                                                    "hammerstein", "kstep"}
     # the k-step friction test ran beside the free-run one (integrating loop, valve, no measurement effect)
@@ -179,7 +179,23 @@ def test_kstep_test_alone_calls_a_sticky_valve_the_load_hides():
     assert s["delta_ic"] > 0 and not s["model_based_present"] and s["verdict"] != "stiction"
     assert s["kstep_delta_ic"] < -2 and s["band"] >= s["band_needed"]
     assert s["present"] is True
-    assert "the load hid it from the free-run test, and the verdict is that the valve sticks" in s["explanation"]
+    assert "missed it, and the verdict is that the valve sticks" in s["explanation"]
+
+
+def test_kstep_fit_band_calls_a_sticky_valve_the_free_run_fit_sets_free():
+    """A Choudhury valve (S 4.6 %) on an integrating loop, loop 44 of ``validate_stiction.py``'s textbook loops:
+    the free-run friction fit puts the band at almost zero and raises the criterion, the methods combined do not
+    call it, and the k-step fit finds a band close to the true S; the public verdict reads that fit's own band."""
+    from valve_gym.diagnosis.stiction.loops import random_spec
+
+    spec = random_spec(np.random.default_rng(50_044), True)
+    assert spec.valve == "choudhury" and spec.process == "integrating" and spec.S > 0.04
+    s = diagnose(simulate_loop(spec, seed=44), plant="integrating", candidates=()).stiction
+    assert s["delta_ic"] > 0 and s["band"] < 0.1 * s["band_needed"] and s["verdict"] != "stiction"
+    assert s["kstep_delta_ic"] < -2 and s["kstep_band"] >= s["band_needed"]
+    assert abs(s["kstep_band"] / spec.S - 1.0) < 0.25
+    assert s["present"] is True
+    assert "missed it, and the verdict is that the valve sticks" in s["explanation"]
 
 
 def test_naming_and_verdict_conflict_is_reported():

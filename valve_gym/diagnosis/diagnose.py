@@ -48,7 +48,7 @@ from .plant_choice import resolve_plant
 from .recording import Recording, RecordingError
 from .select import Selection, SelectionRule, select_effects
 from .stiction import assess_stiction
-from .stiction.combine import band_matters, stiction_present
+from .stiction.combine import KSTEP_BANDS, band_matters, stiction_present
 
 __all__ = ["DiagnosisResult", "diagnose", "diagnose_many", "validate_on", "simulate_same_state",
            "JSON_SCHEMA_KEYS", "AUTO_THOROUGH_SAMPLES", "coarse_factor"]
@@ -385,6 +385,7 @@ def _kstep_verdict(frictionless: list[FitResult], friction: list[FitResult], rul
 
     best0, best1 = min(frictionless, key=ic), min(friction, key=ic)
     return {"kstep_delta_ic": float(ic(best1) - ic(best0)), "kstep_horizon": int(horizon),
+            "kstep_band": _friction_band(best1),
             "kstep_rmse": {"frictionless": float(best0.rmse_all), "friction": float(best1.rmse_all)},
             "kstep_models": {"frictionless": best0.label, "friction": best1.label}}
 
@@ -494,12 +495,14 @@ def _combine_verdict(stiction: dict, rec: Recording, logged: Recording, plant: s
     d = a.to_dict()
     stiction["model_based_present"] = bool(stiction["present"])
     stiction["present"] = stiction_present(a.verdict, stiction["present"], stiction.get("kstep_delta_ic"),
-                                           band_matters(stiction))
+                                           band_matters(stiction, KSTEP_BANDS))
     if stiction["present"] and a.verdict != "stiction" and not stiction["model_based_present"]:
         stiction["explanation"] += (
             f" Yet on {stiction['kstep_horizon']}-sample-ahead predictions, where a slow unmeasured load cannot "
             f"accumulate, friction pays (criterion change {stiction['kstep_delta_ic']:.1f}) with a band of "
-            f"{100 * stiction['band']:.2g} % of the stroke: the load hid it from the free-run test, and the "
+            f"{100 * max(stiction['band'], stiction['kstep_band']):.2g} % of the stroke (free-run fit "
+            f"{100 * stiction['band']:.2g} %, k-step fit {100 * stiction['kstep_band']:.2g} %): the free run, which "
+            f"must reproduce every slow load and drift from the controller output alone, missed it, and the "
             f"verdict is that the valve sticks.")
     stem = next((e for e in a.evidence if e.method == "stem"), None)
     stiction["verdict_source"] = "methods"

@@ -31,7 +31,7 @@ from ._base import Evidence
 from .hammerstein import NAN_SIZE, SizeEstimate
 
 __all__ = ["FEATURES", "features", "LogisticModel", "fit_logistic", "StictionAssessment",
-           "combine_sizes", "MARGIN", "KSTEP_FINDS", "band_matters", "stiction_present"]
+           "combine_sizes", "MARGIN", "KSTEP_FINDS", "KSTEP_BANDS", "band_matters", "stiction_present"]
 
 #: Names of the features, in the order of :func:`features`.
 FEATURES = ("horch_ccf", "horch_int", "bicoherence", "ellipse", "waveform", "episodes", "hammerstein",
@@ -189,13 +189,24 @@ def verdict_of(p: float, margin: float = MARGIN) -> str:
 KSTEP_FINDS = -2.0
 
 
-def band_matters(verdict: Mapping) -> bool:
-    """Whether a tested friction verdict's band (``band``: dead band or stick band) reaches ``band_needed``.
+def band_matters(verdict: Mapping, bands: Sequence[str] = ("band",)) -> bool:
+    """Whether a tested friction verdict's band reaches ``band_needed``.
+
+    ``bands`` names the bands read, any of which may reach it: ``'band'`` (the free-run fit's dead
+    band or stick band) and ``'kstep_band'`` (the k-step fit's, see :func:`stiction_present`).
 
     >>> band_matters({"tested": True, "band": 0.012, "band_needed": 0.01}), band_matters({"tested": False})
     (True, False)
+    >>> v = {"tested": True, "band": 0.002, "kstep_band": 0.015, "band_needed": 0.01}
+    >>> band_matters(v), band_matters(v, ("band", "kstep_band"))
+    (False, True)
     """
-    return bool(verdict.get("tested")) and float(verdict.get("band", 0.0)) >= float(verdict.get("band_needed", np.inf))
+    need = float(verdict.get("band_needed", np.inf))
+    return bool(verdict.get("tested")) and any(float(verdict.get(b, 0.0)) >= need for b in bands)
+
+
+#: The bands the k-step branch of :func:`stiction_present` reads (:func:`band_matters`).
+KSTEP_BANDS = ("band", "kstep_band")
 
 
 def stiction_present(verdict: str, model_based_present: bool, kstep_delta_ic: float | None,
@@ -209,8 +220,9 @@ def stiction_present(verdict: str, model_based_present: bool, kstep_delta_ic: fl
       friction also lowers the information criterion of the k-step-ahead predictions
       (``kstep_delta_ic < 0``);
     * or the k-step test finds it on its own (``kstep_delta_ic`` below :data:`KSTEP_FINDS`) and the
-      friction band is one that matters (``band_matters``: the free-run fit's band is at least the
-      one the free-run verdict asks for, ``band >= band_needed``).
+      friction band is one that matters (``band_matters``: the free-run fit's band or the k-step
+      fit's own is at least the one the free-run verdict asks for, :func:`band_matters` with
+      :data:`KSTEP_BANDS`).
 
     Without a k-step test (``None``: a pump, a measurement effect in the model) the free-run
     verdict counts alone.  ``'undecided'`` alone is not stiction.
