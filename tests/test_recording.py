@@ -275,6 +275,28 @@ def test_default_column_not_found(tmp_path):
     assert rec.columns["op"] == "valve_cmd"
 
 
+def test_one_loops_tag_prefixed_columns_are_read(tmp_path):
+    """A historian's export of one loop (``TAG.OP``, ``TAG.PV``, ``TAG.SP``) needs no --columns; several tags,
+    or signals of different tags, are refused with a message that names them and the way out."""
+    t, op, pv = signals()
+    p = write_csv(tmp_path / "loop.csv", ["timestamp", "FIC101.OP", "FIC101.PV", "FIC101.SP"],
+                  zip(t, op, pv, pv))
+    rec = load_recording(p, op_range=(0, 100))
+    assert rec.columns["op"] == "FIC101.OP" and rec.columns["pv"] == "FIC101.PV" and rec.columns["sp"] == "FIC101.SP"
+    np.testing.assert_allclose(rec.pv, pv)
+    p2 = write_csv(tmp_path / "two.csv", ["t", "FIC101.OP", "FIC101.PV", "LIC7.OP", "LIC7.PV"],
+                   zip(t, op, pv, op, pv))
+    with pytest.raises(RecordingError, match=r"several loops' controller output \(FIC101, LIC7\).*--out OUTDIR"):
+        load_recording(p2, op_range=(0, 100))
+    p3 = write_csv(tmp_path / "mixed.csv", ["t", "FIC101.OP", "LIC7.PV"], zip(t, op, pv))
+    with pytest.raises(RecordingError, match=r"different tags \(op from 'FIC101.OP', pv from 'LIC7.PV'\)"):
+        load_recording(p3, op_range=(0, 100))
+    p4 = write_csv(tmp_path / "named.csv", ["t", "op", "FIC101.PV", "FIC102.PV"], zip(t, op, pv, pv))
+    with pytest.raises(RecordingError, match=r"several loops' process variable \(FIC101, FIC102\)"):
+        load_recording(p4, op_range=(0, 100))
+    assert load_recording(p4, columns={"pv": "FIC102.PV"}, op_range=(0, 100)).columns["pv"] == "FIC102.PV"
+
+
 def test_unknown_role(tmp_path):
     with pytest.raises(RecordingError, match="unknown role 'flow'"):
         load_recording(write_loop(tmp_path), columns={"flow": "pv"})

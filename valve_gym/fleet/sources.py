@@ -43,19 +43,17 @@ from typing import NamedTuple
 import numpy as np
 
 from ..diagnosis.recording import MIN_SAMPLES, Recording, RecordingError, load_recording
+from ..diagnosis.recording.columns import WIDE_COLUMN_RE, WIDE_SUFFIXES
 from ..diagnosis.recording.sniff import recording_files
 
 __all__ = ["LoopSource", "LoadedLoop", "Gap", "discover_loops", "load_loop", "resample_loop",
            "file_fingerprint", "safe_name", "WIDE_SUFFIXES", "TIME_COLUMN_NAMES"]
 
-#: Column suffixes of a wide export and the signal role of each.
-WIDE_SUFFIXES = {"PV": "pv", "OP": "op", "SP": "sp", "MODE": "mode"}
 #: Names recognised (case-insensitively) as the time-stamp column of a wide export.
 TIME_COLUMN_NAMES = ("timestamp", "time", "t", "t_s", "datetime", "date", "ts")
 #: MODE values (upper-cased) that mean the loop is in automatic (anything else is manual).
 AUTO_MODES = frozenset({"AUTO", "AUT", "A", "CAS", "CASCADE", "RCAS", "1", "1.0", "TRUE"})
 
-_WIDE_RE = re.compile(r"^(?P<tag>.+)\.(?P<role>PV|OP|SP|MODE)$", re.IGNORECASE)
 _GAP_FACTOR = 1.5
 
 
@@ -161,7 +159,7 @@ def _header(path: str) -> list[str]:
 def _wide_tags(header: list[str]) -> dict[str, dict[str, str]]:
     tags: dict[str, dict[str, str]] = {}
     for col in header:
-        m = _WIDE_RE.match(col)
+        m = WIDE_COLUMN_RE.match(col)
         if m:
             tags.setdefault(m["tag"], {})[WIDE_SUFFIXES[m["role"].upper()]] = col
     return tags

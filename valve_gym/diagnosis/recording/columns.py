@@ -7,12 +7,19 @@ names given or by :data:`DEFAULT_COLUMN_NAMES`, into a :class:`ColumnMap`.
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from ._base import DEFAULT_COLUMN_NAMES, REQUIRED, ROLE_WORDS, ROLES, RecordingError
 
-__all__ = ["ColumnMap", "parse_columns", "resolve_columns"]
+__all__ = ["ColumnMap", "parse_columns", "resolve_columns", "WIDE_COLUMN_RE", "WIDE_SUFFIXES"]
+
+#: A historian's tag-prefixed column (``FIC101.PV``, ``FIC101.OP``, ``FIC101.SP``, ``FIC101.MODE``) and
+#: the signal role of each suffix. Fleet mode reads every tag of such a wide export as a loop; a single
+#: recording whose columns have no default name takes the columns of its one tag.
+WIDE_COLUMN_RE = re.compile(r"^(?P<tag>.+)\.(?P<role>PV|OP|SP|MODE)$", re.IGNORECASE)
+WIDE_SUFFIXES = {"PV": "pv", "OP": "op", "SP": "sp", "MODE": "mode"}
 
 
 @dataclass(frozen=True)
@@ -121,6 +128,22 @@ def _default(lower: dict[str, list[int]], role: str, taken: set[int]) -> int | N
     return None
 
 
+def _tagged(header: list[str], role: str, taken: set[int]) -> tuple[int | None, str, list[str]]:
+    """The one ``TAG.<ROLE>`` column of `role` (:data:`WIDE_COLUMN_RE`).
+
+    Returns ``(position, tag, [])``, or ``(None, '', tags)`` with the tags found when there is
+    not exactly one.
+    """
+    hits = []
+    for j, h in enumerate(header):
+        m = WIDE_COLUMN_RE.match(h.strip())
+        if m and WIDE_SUFFIXES[m["role"].upper()] == role and j not in taken:
+            hits.append((j, m["tag"]))
+    if len(hits) == 1:
+        return hits[0][0], hits[0][1], []
+    return None, "", sorted({t for _, t in hits})
+
+
 def _default_blocked(lower: dict[str, list[int]], role: str, header: list[str], out: dict[str, int]) -> str:
     """Why a default name of `role` that is in the header was not taken (repeated, or mapped to another role)."""
     for cand in DEFAULT_COLUMN_NAMES[role]:
@@ -132,6 +155,39 @@ def _default_blocked(lower: dict[str, list[int]], role: str, header: list[str], 
         if other:
             return f"its default column {header[hits[0]]!r} is mapped to {other[0]}"
     return ""
+
+
+def _by_default(header: list[str], lower: dict[str, list[int]], role: str, out: dict[str, int],
+                tags: dict[str, str], src: str) -> int | None:
+    """Position of `role`'s column found without a name given (None: an optional role not found).
+
+    A default name (:data:`DEFAULT_COLUMN_NAMES`), else the one ``TAG.<ROLE>`` column (its tag
+    noted in `tags`).
+
+    Raises
+    ------
+    RecordingError
+        A required role not found, or found for several tags.
+    """
+    j = _default(lower, role, set(out.values()))
+    several: list[str] = []
+    if j is None and role in ("op", "pv", "sp"):
+        j, tag, several = _tagged(header, role, set(out.values()))
+        if j is not None:
+            tags[role] = tag
+    if j is not None or role not in REQUIRED:
+        return j
+    if len(several) > 1:
+        raise RecordingError(
+            f"{src}: the columns hold several loops' {ROLE_WORDS[role]} ({', '.join(several)}); "
+            f"diagnose them all in fleet mode (valve-gym diagnose FILE --out OUTDIR reads each tag as "
+            f"a loop), or pick one loop's columns with --columns {role}=NAME,...")
+    avail = ", ".join(repr(h) for h in header)
+    why = _default_blocked(lower, role, header, out) or (
+        f"none of the default names {', '.join(DEFAULT_COLUMN_NAMES[role])} (or one TAG.{role.upper()} "
+        f"column) is among the columns {avail}")
+    raise RecordingError(f"{src}: no column for the {ROLE_WORDS[role]} ({role}): {why}; "
+                         f"pass columns={{'{role}': NAME}} (CLI: --columns {role}=NAME)")
 
 
 def resolve_columns(
@@ -170,15 +226,10 @@ def resolve_columns(
     for j, h in enumerate(header):
         lower.setdefault(h.lower(), []).append(j)
     out: dict[str, int] = {}
+    tags: dict[str, str] = {}           # role -> tag, for the roles read from a TAG.<ROLE> column
     for role in ROLES:
         if role not in columns:
-            j = _default(lower, role, set(out.values()))
-            if j is None and role in REQUIRED:
-                why = _default_blocked(lower, role, header, out) or (
-                    f"none of the default names {', '.join(DEFAULT_COLUMN_NAMES[role])} is among the "
-                    f"columns {avail}")
-                raise RecordingError(f"{src}: no column for the {ROLE_WORDS[role]} ({role}): {why}; "
-                                     f"pass columns={{'{role}': NAME}} (CLI: --columns {role}=NAME)")
+            j = _by_default(header, lower, role, out, tags, src)
         elif columns[role] is None or not str(columns[role]).strip():
             if role in REQUIRED:
                 raise RecordingError(
@@ -190,6 +241,10 @@ def resolve_columns(
             j = _named(header, lower, role, str(columns[role]).strip(), src)
         if j is not None:
             out[role] = j
+    if len(set(tags.values())) > 1:
+        pairs = ", ".join(f"{r} from {header[out[r]]!r}" for r in tags)
+        raise RecordingError(f"{src}: the signals would come from different tags ({pairs}); name the loop's "
+                             f"columns with --columns op=NAME,pv=NAME")
     seen: dict[int, str] = {}
     for role, j in out.items():
         if j in seen:
