@@ -68,7 +68,7 @@ from valve_gym.diagnosis.stiction import (
     oscillation,
 )
 from valve_gym.diagnosis.stiction.assess import combine_size_estimates
-from valve_gym.diagnosis.stiction.combine import KSTEP_BANDS, band_matters, features, stiction_present, verdict_of
+from valve_gym.diagnosis.stiction.combine import features, public_present, verdict_of
 from valve_gym.diagnosis.stiction.hammerstein import hammerstein_evidence
 from valve_gym.diagnosis.stiction.kstep import kstep_evidence
 from valve_gym.diagnosis.stiction.loops import LoopSpec, random_spec, simulate_loop
@@ -485,13 +485,14 @@ def _sim_tables(sims, hidden, by_valve):
 
 
 def _public(r):
-    """The public verdict (``stiction.present``, :func:`stiction_present`): the combination says stiction,
-    or the free-run model-based verdict finds friction that the k-step test does not contradict, or the k-step
-    test finds a friction band that matters on its own; otherwise the combination's verdict (undecided stays a
-    miss)."""
-    v = r["verdict"]
-    present = stiction_present(r["verdict_heldout"], r["model_based_present"], v.get("kstep_delta_ic"),
-                               band_matters({"tested": True, **v}, KSTEP_BANDS))
+    """The public verdict (``stiction.present``, :func:`~valve_gym.diagnosis.stiction.combine.public_present`).
+
+    The combination says stiction, or the free-run model-based verdict finds friction that the k-step test
+    does not contradict, or the k-step test finds a friction band that matters on its own; otherwise the
+    combination's verdict (undecided stays a miss).
+    """
+    present = public_present(r["verdict_heldout"], {**r["verdict"], "tested": True,
+                                                    "model_based_present": r["model_based_present"]})
     return "stiction" if present else r["verdict_heldout"]
 
 

@@ -48,7 +48,7 @@ from .plant_choice import resolve_plant
 from .recording import Recording, RecordingError
 from .select import Selection, SelectionRule, select_effects
 from .stiction import assess_stiction
-from .stiction.combine import KSTEP_BANDS, band_matters, stiction_present
+from .stiction.combine import public_present
 
 __all__ = ["DiagnosisResult", "diagnose", "diagnose_many", "validate_on", "simulate_same_state",
            "JSON_SCHEMA_KEYS", "AUTO_THOROUGH_SAMPLES", "coarse_factor"]
@@ -482,7 +482,7 @@ def _combine_verdict(stiction: dict, rec: Recording, logged: Recording, plant: s
     when the combination says ``'stiction'``, or when the free-run model-based verdict
     (kept under ``model_based_present``) finds friction that the k-step test does not
     contradict, or the k-step test finds a friction band that matters on its own
-    (:func:`~valve_gym.diagnosis.stiction.combine.stiction_present`);
+    (:func:`~valve_gym.diagnosis.stiction.combine.public_present`);
     ``'undecided'`` alone is False.  Held out, this beats the model-based verdict alone
     (``docs/diagnosis.md``, section 4).  Where the record holds the valve's position (``mv``)
     and the stem test applies (:mod:`~valve_gym.diagnosis.stiction.stem`), ``present`` is the
@@ -494,8 +494,7 @@ def _combine_verdict(stiction: dict, rec: Recording, logged: Recording, plant: s
                         fit_data=None if logged is rec else (rec.op, rec.pv), mv=logged.mv)
     d = a.to_dict()
     stiction["model_based_present"] = bool(stiction["present"])
-    stiction["present"] = stiction_present(a.verdict, stiction["present"], stiction.get("kstep_delta_ic"),
-                                           band_matters(stiction, KSTEP_BANDS))
+    stiction["present"] = public_present(a.verdict, stiction)
     if stiction["present"] and a.verdict != "stiction" and not stiction["model_based_present"]:
         stiction["explanation"] += (
             f" Yet on {stiction['kstep_horizon']}-sample-ahead predictions, where a slow unmeasured load cannot "

@@ -43,7 +43,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..diagnosis.recording import MIN_SAMPLES, Recording, RecordingError, load_recording
-from ..diagnosis.recording.columns import WIDE_COLUMN_RE, WIDE_SUFFIXES
+from ..diagnosis.recording.columns import WIDE_SUFFIXES, wide_tags
 from ..diagnosis.recording.sniff import recording_files
 
 __all__ = ["LoopSource", "LoadedLoop", "Gap", "discover_loops", "load_loop", "resample_loop",
@@ -156,13 +156,6 @@ def _header(path: str) -> list[str]:
     return [c.strip() for c in next(csv.reader([line], delimiter=delim))]
 
 
-def _wide_tags(header: list[str]) -> dict[str, dict[str, str]]:
-    tags: dict[str, dict[str, str]] = {}
-    for col in header:
-        m = WIDE_COLUMN_RE.match(col)
-        if m:
-            tags.setdefault(m["tag"], {})[WIDE_SUFFIXES[m["role"].upper()]] = col
-    return tags
 
 
 def _time_column(header: list[str], tags: dict[str, dict[str, str]]) -> str:
@@ -181,7 +174,7 @@ def _file_sources(path: str, fp: str) -> list[LoopSource]:
         header = _header(path)
     except (RecordingError, OSError) as e:
         return [LoopSource(stem, "bad", path, fingerprint=fp, problem=str(e))]
-    tags = _wide_tags(header)
+    tags = wide_tags(header)
     if not tags:
         if path.lower().endswith(".parquet"):
             return [LoopSource(stem, "bad", path, fingerprint=fp,

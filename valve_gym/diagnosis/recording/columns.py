@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 from ._base import DEFAULT_COLUMN_NAMES, REQUIRED, ROLE_WORDS, ROLES, RecordingError
 
-__all__ = ["ColumnMap", "parse_columns", "resolve_columns", "WIDE_COLUMN_RE", "WIDE_SUFFIXES"]
+__all__ = ["ColumnMap", "parse_columns", "resolve_columns", "WIDE_COLUMN_RE", "WIDE_SUFFIXES", "wide_tags"]
 
 #: A historian's tag-prefixed column (``FIC101.PV``, ``FIC101.OP``, ``FIC101.SP``, ``FIC101.MODE``) and
 #: the signal role of each suffix. Fleet mode reads every tag of such a wide export as a loop; a single
@@ -128,17 +128,28 @@ def _default(lower: dict[str, list[int]], role: str, taken: set[int]) -> int | N
     return None
 
 
+def wide_tags(header: Sequence[str]) -> dict[str, dict[str, str]]:
+    """The ``TAG.<ROLE>`` columns of a header (:data:`WIDE_COLUMN_RE`): ``{tag: {role: column}}``.
+
+    >>> wide_tags(["timestamp", "FIC1.PV", "FIC1.OP", "LIC2.pv"])
+    {'FIC1': {'pv': 'FIC1.PV', 'op': 'FIC1.OP'}, 'LIC2': {'pv': 'LIC2.pv'}}
+    """
+    tags: dict[str, dict[str, str]] = {}
+    for col in header:
+        m = WIDE_COLUMN_RE.match(col)
+        if m:
+            tags.setdefault(m["tag"], {})[WIDE_SUFFIXES[m["role"].upper()]] = col
+    return tags
+
+
 def _tagged(header: list[str], role: str, taken: set[int]) -> tuple[int | None, str, list[str]]:
-    """The one ``TAG.<ROLE>`` column of `role` (:data:`WIDE_COLUMN_RE`).
+    """The one ``TAG.<ROLE>`` column of `role` (:func:`wide_tags`).
 
     Returns ``(position, tag, [])``, or ``(None, '', tags)`` with the tags found when there is
     not exactly one.
     """
-    hits = []
-    for j, h in enumerate(header):
-        m = WIDE_COLUMN_RE.match(h.strip())
-        if m and WIDE_SUFFIXES[m["role"].upper()] == role and j not in taken:
-            hits.append((j, m["tag"]))
+    hits = [(header.index(cols[role]), tag) for tag, cols in wide_tags(header).items() if role in cols]
+    hits = [(j, tag) for j, tag in hits if j not in taken]
     if len(hits) == 1:
         return hits[0][0], hits[0][1], []
     return None, "", sorted({t for _, t in hits})
@@ -171,7 +182,7 @@ def _by_default(header: list[str], lower: dict[str, list[int]], role: str, out: 
     """
     j = _default(lower, role, set(out.values()))
     several: list[str] = []
-    if j is None and role in ("op", "pv", "sp"):
+    if j is None and role in WIDE_SUFFIXES.values():
         j, tag, several = _tagged(header, role, set(out.values()))
         if j is not None:
             tags[role] = tag

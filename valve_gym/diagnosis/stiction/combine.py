@@ -31,7 +31,8 @@ from ._base import Evidence
 from .hammerstein import NAN_SIZE, SizeEstimate
 
 __all__ = ["FEATURES", "features", "LogisticModel", "fit_logistic", "StictionAssessment",
-           "combine_sizes", "MARGIN", "KSTEP_FINDS", "KSTEP_BANDS", "band_matters", "stiction_present"]
+           "combine_sizes", "MARGIN", "KSTEP_FINDS", "KSTEP_BANDS", "band_matters", "stiction_present",
+           "public_present"]
 
 #: Names of the features, in the order of :func:`features`.
 FEATURES = ("horch_ccf", "horch_int", "bicoherence", "ellipse", "waveform", "episodes", "hammerstein",
@@ -210,7 +211,7 @@ KSTEP_BANDS = ("band", "kstep_band")
 
 
 def stiction_present(verdict: str, model_based_present: bool, kstep_delta_ic: float | None,
-                     band_matters: bool = False) -> bool:
+                     band_ok: bool = False) -> bool:
     """The public verdict ``stiction.present`` of a diagnosis.
 
     True when the methods combined say ``'stiction'``, or when a model-based friction test finds
@@ -220,7 +221,7 @@ def stiction_present(verdict: str, model_based_present: bool, kstep_delta_ic: fl
       friction also lowers the information criterion of the k-step-ahead predictions
       (``kstep_delta_ic < 0``);
     * or the k-step test finds it on its own (``kstep_delta_ic`` below :data:`KSTEP_FINDS`) and the
-      friction band is one that matters (``band_matters``: the free-run fit's band or the k-step
+      friction band is one that matters (``band_ok``: the free-run fit's band or the k-step
       fit's own is at least the one the free-run verdict asks for, :func:`band_matters` with
       :data:`KSTEP_BANDS`).
 
@@ -252,9 +253,23 @@ def stiction_present(verdict: str, model_based_present: bool, kstep_delta_ic: fl
         return True
     if kstep_delta_ic is None or not np.isfinite(kstep_delta_ic):
         return bool(model_based_present)
-    if band_matters and float(kstep_delta_ic) < KSTEP_FINDS:
+    if band_ok and float(kstep_delta_ic) < KSTEP_FINDS:
         return True
     return bool(model_based_present and float(kstep_delta_ic) < 0.0)
+
+
+def public_present(verdict: str, friction: Mapping) -> bool:
+    """:func:`stiction_present` of a diagnosis' friction verdict ``friction`` (its ``stiction`` dict).
+
+    Reads ``model_based_present`` (the free-run verdict), ``kstep_delta_ic`` and the bands of
+    :data:`KSTEP_BANDS` against ``band_needed``; ``verdict`` is the methods' combined verdict.
+
+    >>> public_present("no stiction", {"tested": True, "model_based_present": False, "kstep_delta_ic": -5.0,
+    ...                                "band": 0.001, "kstep_band": 0.02, "band_needed": 0.01})
+    True
+    """
+    return stiction_present(verdict, bool(friction.get("model_based_present")), friction.get("kstep_delta_ic"),
+                            band_matters(friction, KSTEP_BANDS))
 
 
 def combine_sizes(sizes: Sequence[SizeEstimate]) -> tuple[SizeEstimate, bool | None]:
