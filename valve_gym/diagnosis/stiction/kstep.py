@@ -59,7 +59,7 @@ def kstep_evidence(verdict: Mapping) -> Evidence:
     --------
     >>> e = kstep_evidence({"kstep_delta_ic": -16.5, "kstep_horizon": 60})
     >>> e.verdict, round(e.value, 2)
-    ('stiction', 2.12)
+    ('stiction', 2.81)
     >>> kstep_evidence({}).applicable
     False
     """
