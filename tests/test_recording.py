@@ -297,6 +297,45 @@ def test_one_loops_tag_prefixed_columns_are_read(tmp_path):
     assert load_recording(p4, columns={"pv": "FIC102.PV"}, op_range=(0, 100)).columns["pv"] == "FIC102.PV"
 
 
+@pytest.mark.parametrize("engine", ["rows", "columns"])
+def test_loop_mode_column_keeps_the_longest_automatic_stretch(tmp_path, engine):
+    """A ``TAG.MODE`` (or ``mode``) column: the manual rows are cut off, the longest automatic stretch
+    is kept and the repair names the column and the file lines; a blank cell holds the mode above it."""
+    t, op, pv = signals(n=300)
+    mode = ["AUTO"] * 300
+    mode[60:100] = ["MAN"] * 40
+    mode[101:] = [""] * 199                       # stored on change: AUTO from line 103 on
+    p = write_csv(tmp_path / "FIC101.csv", ["t", "FIC101.OP", "FIC101.PV", "FIC101.MODE"],
+                  zip(t, op, pv, mode))
+    rec = load_recording(p, op_range=(0, 100), engine=engine)
+    assert len(rec) == 200
+    np.testing.assert_allclose(rec.pv, pv[100:])
+    np.testing.assert_allclose(rec.t, t[100:])          # the times of the file
+    assert rec.repairs == ("column 'FIC101.MODE': MODE manual in 40 of 300 samples: kept the longest automatic "
+                           "stretch, lines 102-301 of the file",)
+    assert "mode" not in rec.columns
+    # switched off: the whole record, as before
+    whole = load_recording(p, op_range=(0, 100), columns={"mode": ""}, engine=engine)
+    assert len(whole) == 300 and whole.repairs == ()
+
+
+def test_loop_mode_column_manual_throughout_and_unknown_codes(tmp_path):
+    t, op, pv = signals(n=200)
+    p = write_csv(tmp_path / "man.csv", ["t", "op", "pv", "mode"], zip(t, op, pv, ["MAN"] * 200))
+    with pytest.raises(RecordingError, match=r"column 'mode': the loop is in manual throughout.*--columns mode="):
+        load_recording(p, op_range=(0, 100))
+    # a code the table does not know is kept (read as automatic) and named, never dropped on a guess
+    p2 = write_csv(tmp_path / "codes.csv", ["t", "op", "pv", "mode"],
+                   zip(t, op, pv, [1] * 100 + [2] * 100))
+    rec = load_recording(p2, op_range=(0, 100))
+    assert len(rec) == 200
+    assert rec.repairs == ("column 'mode': MODE value(s) 2 not among the manual modes (0, 0.0, FALSE, IMAN, LO, M, "
+                           "MAN, MANUAL, OOS): read as automatic",)
+    # numeric codes 1 (automatic) and 0 (manual), as the labelled plant loops' exports write them
+    p3 = write_csv(tmp_path / "num.csv", ["t", "op", "pv", "mode"], zip(t, op, pv, [0] * 30 + [1] * 170))
+    assert len(load_recording(p3, op_range=(0, 100))) == 170
+
+
 def test_unknown_role(tmp_path):
     with pytest.raises(RecordingError, match="unknown role 'flow'"):
         load_recording(write_loop(tmp_path), columns={"flow": "pv"})

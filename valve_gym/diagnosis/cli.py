@@ -64,7 +64,9 @@ def build_parser() -> argparse.ArgumentParser:
                             "and judge whether the valve sticks.")
     p.add_argument("path", help="recording CSV file, or a folder of them")
     p.add_argument("--columns", help="column mapping, e.g. t=t_s,op=OP,pv=PV,sp=SP "
-                                     "(default: common names are recognised)")
+                                     "(default: common names are recognised); a loop-mode column (mode, "
+                                     "TAG.MODE) keeps the longest automatic stretch, mode= reads the "
+                                     "whole record")
     p.add_argument("--op-range", help="raw controller-output range LO,HI that maps to 0..1, "
                                       "e.g. 0,100 for percent")
     p.add_argument("--mv-range", help="raw valve-position range LO,HI that maps to 0..1 (default: the "

@@ -140,7 +140,7 @@ class DiagnosisResult:
             "recording": {"name": rec.name, "n": len(rec), "dt": rec.dt,
                           "duration": rec.duration, "op_range": list(rec.op_range),
                           "columns": dict(rec.columns), "repairs": list(rec.repairs),
-                          "start": rec.start},
+                          "notes": list(rec.notes), "start": rec.start},
             "settings": self.settings,
             "effects": list(self.effects),
             "base": self.base.summary(),

@@ -44,6 +44,7 @@ import numpy as np
 
 from ..diagnosis.recording import MIN_SAMPLES, Recording, RecordingError, load_recording
 from ..diagnosis.recording.columns import WIDE_SUFFIXES, wide_tags
+from ..diagnosis.recording.mode import automatic_stretch, longest_run
 from ..diagnosis.recording.sniff import recording_files
 
 __all__ = ["LoopSource", "LoadedLoop", "Gap", "discover_loops", "load_loop", "resample_loop",
@@ -51,8 +52,6 @@ __all__ = ["LoopSource", "LoadedLoop", "Gap", "discover_loops", "load_loop", "re
 
 #: Names recognised (case-insensitively) as the time-stamp column of a wide export.
 TIME_COLUMN_NAMES = ("timestamp", "time", "t", "t_s", "datetime", "date", "ts")
-#: MODE values (upper-cased) that mean the loop is in automatic (anything else is manual).
-AUTO_MODES = frozenset({"AUTO", "AUT", "A", "CAS", "CASCADE", "RCAS", "1", "1.0", "TRUE"})
 
 _GAP_FACTOR = 1.5
 
@@ -387,24 +386,15 @@ def _present(x: np.ndarray) -> np.ndarray:
 def _longest_run(mask: np.ndarray) -> tuple[int, int]:
     if not mask.any():
         raise RecordingError("no stretch of the record is free of gaps")
-    d = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
-    starts, stops = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
-    i = int(np.argmax(stops - starts))
-    return int(starts[i]), int(stops[i])
+    return longest_run(mask)
 
 
 def _automatic_stretch(values: dict[str, np.ndarray], grid: np.ndarray, notes: list[str]):
     mode = values.pop("mode", None)
     if mode is None:
         return grid, values
-    auto = np.array([str(v).strip().upper() in AUTO_MODES for v in mode], bool)
-    if auto.all():
-        return grid, values
-    if not auto.any():
-        raise RecordingError("the loop is never in automatic (MODE never AUTO/CAS): nothing closed-loop to diagnose")
-    a, b = _longest_run(auto)
-    notes.append(f"MODE manual in {int((~auto).sum())} of {len(auto)} samples: kept the longest automatic "
-                 f"stretch, {grid[a] - grid[0]:g}-{grid[b - 1] - grid[0]:g} s")
+    a, b, said = automatic_stretch(mode, lambda a, b: f"{grid[a] - grid[0]:g}-{grid[b - 1] - grid[0]:g} s")
+    notes.extend(said)
     return grid[a:b], {r: v[a:b] for r, v in values.items()}
 
 

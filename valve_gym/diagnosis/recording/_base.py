@@ -17,8 +17,9 @@ __all__ = [
 MIN_SAMPLES = 50
 
 #: Signal roles, in order: time, controller output, process variable,
-#: set point, valve stem position.
-ROLES = ("t", "op", "pv", "sp", "mv")
+#: set point, valve stem position, loop mode (automatic or manual; read to keep
+#: the longest automatic stretch, :mod:`.mode`, not kept as a signal).
+ROLES = ("t", "op", "pv", "sp", "mv", "mode")
 
 #: Roles every recording must have.
 REQUIRED = ("t", "op", "pv")
@@ -30,6 +31,7 @@ ROLE_WORDS = {
     "pv": "process variable",
     "sp": "set point",
     "mv": "valve stem position",
+    "mode": "loop mode",
 }
 
 #: Column names tried (case-insensitively, first match wins) for each role
@@ -42,6 +44,7 @@ DEFAULT_COLUMN_NAMES: dict[str, tuple[str, ...]] = {
     "pv": ("pv", "y", "y_v", "level"),
     "sp": ("sp", "sv", "setpoint", "set_point"),
     "mv": ("stem", "valve_position", "pos"),
+    "mode": ("mode", "loop_mode"),
 }
 
 #: Cells read as "missing" (case-insensitive, after stripping blanks).

@@ -5,13 +5,16 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping
+from dataclasses import replace
 from datetime import datetime, timezone
 
 import numpy as np
 
 from ._base import RecordingError
+from .columns import ColumnMap
 from .data import data_path  # noqa: F401  (used in the docstring's example)
 from .decimate import DEFAULT_MAX_SAMPLES, condition
+from .mode import automatic_stretch
 from .parse import Parsed, parse_raw
 from .read import CHUNK_ROWS, RawColumns, read_columns
 from .record import Recording
@@ -145,9 +148,10 @@ def load_recording(
     opts = check_options(src, max_gap, resample, gaps, op_range, mv_range, max_samples, engine)
     sn = sniff(src, opts.engine)
     raw = read_columns(sn, columns)
+    raw, said = _automatic_rows(raw, src)
     dc = _decimal_comma_file(sn, raw)
     p = parse_raw(raw, src, decimal_comma=dc)
-    repairs: list[str] = []
+    repairs: list[str] = said
     notes = _reader_notes(sn, raw)
     if dc:
         notes.append(f"numbers with a decimal comma read as decimal points (columns separated by "
@@ -170,6 +174,33 @@ def load_recording(
         name=name if name is not None else sn.path.stem, op_range=op_range_used,
         repairs=tuple(repairs), columns=dict(p.columns.names), start=p.start, notes=tuple(notes),
     )
+
+
+def _automatic_rows(raw: RawColumns, src: str) -> tuple[RawColumns, list[str]]:
+    """``raw`` without its loop-mode column, cut to the longest automatic stretch, and what was done.
+
+    The mode is a state: a blank cell holds the mode above it (:func:`~.mode.automatic`).
+    """
+    if "mode" not in raw.columns.index:
+        return raw, []
+    name = raw.columns.names["mode"]
+    data = dict(raw.data)
+    mode = data.pop("mode")
+    cmap = ColumnMap({r: j for r, j in raw.columns.index.items() if r != "mode"},
+                     {r: c for r, c in raw.columns.names.items() if r != "mode"})
+    try:
+        a, b, said = automatic_stretch(
+            mode, lambda a, b: f"{raw.unit}s {raw.lines[a]}-{raw.lines[b - 1]} of the file")
+    except RecordingError as e:
+        raise RecordingError(f"{src}: column {name!r}: {e}, or pass --columns mode= to read the record "
+                             f"as it is") from None
+    said = [f"column {name!r}: {s}" for s in said]
+    if (a, b) != (0, len(mode)):
+        data = {r: v[a:b] for r, v in data.items()}
+        raw = replace(raw, data=data, lines=raw.lines[a:b], columns=cmap)
+    else:
+        raw = replace(raw, data=data, columns=cmap)
+    return raw, said
 
 
 def _decimal_comma_file(sn: Sniffed, raw: RawColumns) -> bool:

@@ -136,7 +136,7 @@ class Recording:
         return int(self.t.shape[0])
 
     def __repr__(self) -> str:
-        roles = ", ".join(r for r in ROLES[1:] if getattr(self, r) is not None)
+        roles = ", ".join(r for r in ROLES[1:] if getattr(self, r, None) is not None)
         return (
             f"Recording(name={self.name!r}, n={len(self)}, dt={self.dt:g} s, "
             f"signals=[{roles}], op_range={self.op_range}, repairs={len(self.repairs)})"
