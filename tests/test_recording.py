@@ -882,7 +882,7 @@ def test_decimation_coarser_to_fit_the_budget():
 # --------------------------------------------------------------------------
 
 
-def write_dcs_export(path, csv_path, tag="2411AIC90201", eol="\r\n", columns_engine=False):
+def write_dcs_export(path, csv_path, tag="2411AIC90201", eol="\r\n", columns_engine=False, mode=None):
     """The shipped CSV record ``csv_path`` written as the plant's DCS export: a title line, the sampling
     line, the ``tagname`` line, a description line (UTF-8 Chinese text) and a parameter line, then
     tab-separated rows ``time stamp, TAG.MV, TAG.PV, TAG.SV, TAG.MODE, flags``."""
@@ -896,9 +896,9 @@ def write_dcs_export(path, csv_path, tag="2411AIC90201", eol="\r\n", columns_eng
              "desc\t" + "\t".join(["分析仪_OP", "分析仪_PV", "分析仪_SP", "Aut", "bOpOFL", "bPvOFL", "bSpOFL",
                                    "bAutOFL"]),
              "fsMax=1.3\tfsMin=0\tfsGridNum=10\tL=24"]
-    for r in d.itertuples():
+    for i, r in enumerate(d.itertuples()):
         values = [repr(float(v)) for v in (r.OP, r.PV, r.SP)]
-        lines.append("\t".join([r.timestamp] + values + ["1", "0", "0", "0", "0"]))
+        lines.append("\t".join([r.timestamp] + values + ["1" if mode is None else str(mode[i]), "0", "0", "0", "0"]))
     path.write_bytes((eol.join(lines) + eol).encode("utf-8"))
     return path
 
@@ -925,6 +925,18 @@ def test_dcs_export_reads_like_its_csv(tmp_path):
     # the user's mapping wins over the format's
     own = load_recording(txt, op_range=(0, 100), columns={"sp": None})
     assert own.sp is None
+
+
+def test_dcs_export_mode_zero_is_manual(tmp_path):
+    """The export's ``TAG.MODE`` (1 automatic, as every shipped record; 0 manual) cuts a manual start off."""
+    src = data_path("stictiongpt_plant_loops/csv/stiction__2411AIC90201_1002_0004.csv")
+    txt = write_dcs_export(tmp_path / "stic_2411AIC90201.txt", src, mode=[0] * 100 + [1] * 651)
+    rec = load_recording(txt, op_range=(0, 100))
+    ref = load_recording(src, op_range=(0, 100))
+    assert len(rec) == 651
+    np.testing.assert_array_equal(rec.pv, ref.pv[100:])
+    assert rec.repairs == ("column '2411AIC90201.MODE': MODE manual in 100 of 751 samples: kept the longest "
+                           "automatic stretch, lines 106-756 of the file",)
 
 
 def test_dcs_export_errors_name_the_problem(tmp_path):
