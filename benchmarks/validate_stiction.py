@@ -136,7 +136,7 @@ def _spec_key(spec: dict) -> str:
 
 #: Version of the cached diagnoses (2: profile re-optimising the other parameters, widened; 4: with the
 #: k-step friction test; 5: with the k-step fit's band).
-SIZE_VERSION = 5
+SIZE_VERSION = 6
 
 
 def _key(item) -> str:
@@ -160,7 +160,8 @@ def _run_one(item):
     out["op_lag_chosen"] = res.settings["op_lag"]
     out["version"] = SIZE_VERSION           # a cached record is reused only by the same version
     out.update({"verdict": {k: s.get(k) for k in ("tested", "present", "delta_ic", "band", "band_needed",
-                                                   "kstep_delta_ic", "kstep_horizon", "kstep_band", "n_eff")},
+                                                   "kstep_delta_ic", "kstep_horizon", "kstep_band", "n_eff", "slips",
+                                                   "kstep_slips", "op_working_range")},
                 "features": s["features"], "sizes": s["sizes"],
                 "model_based_present": s["model_based_present"],
                 "seconds": time.perf_counter() - t0, "n": len(rec)})

@@ -48,7 +48,7 @@ from .plant_choice import resolve_plant
 from .recording import Recording, RecordingError
 from .select import Selection, SelectionRule, select_effects
 from .stiction import assess_stiction
-from .stiction.combine import public_present
+from .stiction.combine import SEIZED_TRAVEL, friction_moves, public_present
 
 __all__ = ["DiagnosisResult", "diagnose", "diagnose_many", "validate_on", "simulate_same_state",
            "JSON_SCHEMA_KEYS", "AUTO_THOROUGH_SAMPLES", "coarse_factor"]
@@ -353,7 +353,7 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
                             lag_alt=[e for e in best0.structure.effects if e not in base_eff])
     if kfits:
         n_kf = len(ks) - (len(tasks) - n_frictionless)
-        verdict.update(_kstep_verdict(kfits[:n_kf], kfits[n_kf:], rule, horizon))
+        verdict.update(_kstep_verdict(kfits[:n_kf], kfits[n_kf:], rule, horizon, u))
     # keep the nested optimum as the final model when it is the same structure and better
     new_final = final
     for f in fric:
@@ -364,7 +364,7 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
 
 
 def _kstep_verdict(frictionless: list[FitResult], friction: list[FitResult], rule: SelectionRule,
-                   horizon: int) -> dict:
+                   horizon: int, u: np.ndarray) -> dict:
     """The friction test on k-step-ahead predictions: criterion change from the best frictionless fit.
 
     Each list holds fits on k-step predictions (``frictionless``: the frictionless valve, and with a
@@ -385,7 +385,7 @@ def _kstep_verdict(frictionless: list[FitResult], friction: list[FitResult], rul
 
     best0, best1 = min(frictionless, key=ic), min(friction, key=ic)
     return {"kstep_delta_ic": float(ic(best1) - ic(best0)), "kstep_horizon": int(horizon),
-            "kstep_band": _friction_band(best1),
+            "kstep_band": _friction_band(best1), "kstep_slips": valve_slips(best1, u),
             "kstep_rmse": {"frictionless": float(best0.rmse_all), "friction": float(best1.rmse_all)},
             "kstep_models": {"frictionless": best0.label, "friction": best1.label}}
 
@@ -435,6 +435,21 @@ def _nest_on_frictionless(fric: list[FitResult], fr0: FitResult, u: np.ndarray, 
             fric[i] = fit_structure(f.structure, u, y, None, seeds=w, w_fixed=w[0], free=[])
 
 
+#: Stem movement per sample (fraction of stroke) that counts as the fitted valve moving.
+SLIP_STEP = 1e-4
+
+
+def valve_slips(fit: FitResult, u: np.ndarray) -> int:
+    """How often the fitted valve of ``fit`` moves over the output ``u``: runs of moving samples.
+
+    The stem is simulated from the output alone (the friction block's own state), so the count
+    is the same for a free-run and a k-step fit of the same parameters.
+    """
+    h = fit.structure.stem(fit.w, np.asarray(u, float), n_sub=fit.n_sub)
+    moving = np.abs(np.diff(h)) > SLIP_STEP
+    return int(np.count_nonzero(moving[1:] & ~moving[:-1]) + (1 if moving.size and moving[0] else 0))
+
+
 def _verdict_dict(best0: FitResult, best1: FitResult, d_ic: float, n_eff: float,
                   compared: list[FitResult], u: np.ndarray, rule: SelectionRule, mm: MismatchReport,
                   lag_alt: list[str]) -> dict:
@@ -448,14 +463,16 @@ def _verdict_dict(best0: FitResult, best1: FitResult, d_ic: float, n_eff: float,
     need = max(rule.min_band, min(rule.abs_band, rule.rel_band * op_range))
     significant = d_ic < -rule.ic_margin
     big = band >= need
-    present = bool(significant and big)
+    slips = valve_slips(best1, u)
+    moves = friction_moves(slips, op_range)
+    present = bool(significant and big and moves)
     params = _friction_params(best1)
     verdict = {"present": present, "tested": True, "model": params["model"],
                "parameters": params,
                "units": {"S": "fraction of stroke", "J": "fraction of stroke",
                          "z_max": "s (integrated error)", "e_dead": "fraction of stroke",
                          "dead_band": "fraction of stroke", "band": "fraction of stroke"},
-               "delta_ic": d_ic, "significant": bool(significant), "band": band,
+               "delta_ic": d_ic, "significant": bool(significant), "band": band, "slips": slips,
                "band_needed": need, "op_working_range": op_range, "n_eff": n_eff,
                "frictionless_model": best0.label, "frictionless_rmse": best0.rmse_all,
                "friction_rmse": best1.rmse_all,
@@ -465,7 +482,20 @@ def _verdict_dict(best0: FitResult, best1: FitResult, d_ic: float, n_eff: float,
                                               min_band=need, lag_alt=lag_alt,
                                               op_range=op_range, abs_band=rule.abs_band,
                                               rel_band=rule.rel_band, floor=rule.min_band)
+    if significant and big and not moves:
+        verdict["explanation"] = _still_valve_sentence(d_ic, band, slips, op_range)
     return verdict
+
+
+def _still_valve_sentence(d_ic: float, band: float, slips: int, op_range: float) -> str:
+    """Why a friction fit that lowers the criterion with a band that matters is no sticking valve."""
+    moved = "never moves" if slips == 0 else "moves only once"
+    return (f"No sticking valve shown: friction lowers the criterion ({d_ic:+.1f}) with a band of "
+            f"{100 * band:.2g} % of the stroke, but the fitted valve {moved} over the record (the controller "
+            f"output's working range is {100 * op_range:.2g} %): the model explains the process without the "
+            f"output's moves, as it does a quiet healthy loop whose output moves answer the measurement noise. "
+            f"A sticking valve slips; a seized one would be told only over an output travel of "
+            f"{100 * SEIZED_TRAVEL:.0f} % or more.")
 
 
 def _combine_verdict(stiction: dict, rec: Recording, logged: Recording, plant: str, slip: FitResult | None,
@@ -519,13 +549,6 @@ def _combine_verdict(stiction: dict, rec: Recording, logged: Recording, plant: s
     elif stem is not None:
         stiction["explanation"] += (f" Recorded valve position: {stem.reason}" + (
             "; the verdict reads the stem." if stem.applicable else "; the verdict rests on the other methods."))
-
-
-#: Output travel (working range, fraction of stroke) above which a position that never moved and a
-#: process model that needs a band of half that travel call the valve seized: a valve with less than
-#: 10 % stiction moves over such a travel (``benchmarks/stem_verdict.py``: healthy textbook loops with a
-#: frozen position signal and 2.5-8 % of travel fitted bands of 3-6 %).
-SEIZED_TRAVEL = 0.1
 
 
 def _seized(stem, stiction: dict) -> str | None:

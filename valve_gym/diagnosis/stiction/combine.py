@@ -28,11 +28,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._base import Evidence
-from .hammerstein import NAN_SIZE, SizeEstimate
+from .hammerstein import MIN_SLIPS, NAN_SIZE, SEIZED_TRAVEL, SizeEstimate, friction_moves
 
 __all__ = ["FEATURES", "features", "LogisticModel", "fit_logistic", "StictionAssessment",
            "combine_sizes", "MARGIN", "KSTEP_FINDS", "KSTEP_BANDS", "band_matters", "stiction_present",
-           "public_present"]
+           "public_present", "MIN_SLIPS", "SEIZED_TRAVEL", "friction_moves"]
 
 #: Names of the features, in the order of :func:`features`.
 FEATURES = ("horch_ccf", "horch_int", "bicoherence", "ellipse", "waveform", "episodes", "hammerstein",
@@ -261,15 +261,18 @@ def stiction_present(verdict: str, model_based_present: bool, kstep_delta_ic: fl
 def public_present(verdict: str, friction: Mapping) -> bool:
     """:func:`stiction_present` of a diagnosis' friction verdict ``friction`` (its ``stiction`` dict).
 
-    Reads ``model_based_present`` (the free-run verdict), ``kstep_delta_ic`` and the bands of
-    :data:`KSTEP_BANDS` against ``band_needed``; ``verdict`` is the methods' combined verdict.
+    Reads ``model_based_present`` (the free-run verdict), ``kstep_delta_ic``, the bands of
+    :data:`KSTEP_BANDS` against ``band_needed`` and whether the k-step fit's valve slips
+    (``kstep_slips`` and ``op_working_range``, :func:`friction_moves`); ``verdict`` is the methods'
+    combined verdict.
 
     >>> public_present("no stiction", {"tested": True, "model_based_present": False, "kstep_delta_ic": -5.0,
     ...                                "band": 0.001, "kstep_band": 0.02, "band_needed": 0.01})
     True
     """
+    moves = friction_moves(int(friction.get("kstep_slips", MIN_SLIPS)), float(friction.get("op_working_range", 0.0)))
     return stiction_present(verdict, bool(friction.get("model_based_present")), friction.get("kstep_delta_ic"),
-                            band_matters(friction, KSTEP_BANDS))
+                            band_matters(friction, KSTEP_BANDS) and moves)
 
 
 def combine_sizes(sizes: Sequence[SizeEstimate]) -> tuple[SizeEstimate, bool | None]:

@@ -46,7 +46,8 @@ import numpy as np
 from ..fit import FitResult, effective_n
 from ._base import Evidence, not_applicable
 
-__all__ = ["SizeEstimate", "hammerstein_evidence", "profile_interval", "slip_jump_profile", "widen"]
+__all__ = ["SizeEstimate", "hammerstein_evidence", "profile_interval", "slip_jump_profile", "widen", "MIN_SLIPS",
+           "SEIZED_TRAVEL", "friction_moves"]
 
 CITE = "Jelali 2008, J. Process Control 18, 632-642; Choudhury, Jain & Shah 2008"
 DOC = ("asinh(-delta IC / 2) of the best friction model against the best frictionless one "
@@ -81,13 +82,42 @@ DISCREPANCY_HAMMERSTEIN = 1.1
 DISCREPANCY_HAMMERSTEIN_J = 1.5
 
 
+#: Output travel (working range, fraction of stroke) above which a valve that does not move is seized:
+#: a valve with less than 10 % stiction moves over such a travel (``benchmarks/stem_verdict.py``: healthy
+#: textbook loops with a frozen position signal and 2.5-8 % of travel fitted bands of 3-6 %).  Read by the
+#: stem test's frozen position (:func:`valve_gym.diagnosis.diagnose._seized`) and by :func:`friction_moves`.
+SEIZED_TRAVEL = 0.1
+
+#: Slips of a fitted friction valve below which the fit shows no stick-slip: a valve that sticks also
+#: slips, and a fit whose band holds the stem still through the record (or moves it once) explains the
+#: process without the controller output's moves.
+MIN_SLIPS = 2
+
+
+def friction_moves(slips: int, op_range: float) -> bool:
+    """Whether a friction fit whose valve slips ``slips`` times can show a sticking valve.
+
+    At least :data:`MIN_SLIPS` slips; or any number where the output's working range ``op_range``
+    reaches :data:`SEIZED_TRAVEL`: a valve that does not move while the output travels that far is
+    seized, the extreme of sticking.  Below that travel a band wider than the output's moves fits a
+    quiet healthy loop whose output moves answer the measurement noise as well as a stuck valve (the
+    closed-loop bias of an output-error fit: each output is correlated with the next PV noise).
+
+    >>> friction_moves(0, 0.012), friction_moves(3, 0.012), friction_moves(0, 0.2)
+    (False, True, True)
+    """
+    return slips >= MIN_SLIPS or op_range >= SEIZED_TRAVEL
+
+
 def hammerstein_evidence(verdict: Mapping, s_slip: float = float("nan")) -> Evidence:
     """Evidence from the friction verdict of :func:`valve_gym.diagnosis.diagnose`.
 
     Parameters
     ----------
     verdict : mapping with ``tested``, ``delta_ic``, ``band`` and ``band_needed``
-        (fractions of stroke) and ``present``
+        (fractions of stroke) and ``present``; optionally ``slips`` (how often the friction fit's
+        valve moves) and ``op_working_range``: a friction fit that lowers the criterion with a
+        valve that does not slip (:func:`friction_moves`) is no evidence (not applicable)
     s_slip : float, optional, S of the fitted slip-jump block (fraction of stroke).  The
         band of the paper's valve is its dead band ``2 e_dead`` only (its stick band
         ``z_max`` is in seconds of integrated error), so when that model wins, the
@@ -102,6 +132,11 @@ def hammerstein_evidence(verdict: Mapping, s_slip: float = float("nan")) -> Evid
     if not verdict.get("tested"):
         return not_applicable("hammerstein", CITE, str(verdict.get("reason", "not tested")), DOC)
     d_ic = float(verdict["delta_ic"])
+    if d_ic < 0 and "slips" in verdict and not friction_moves(int(verdict["slips"]),
+                                                              float(verdict.get("op_working_range", 0.0))):
+        return not_applicable("hammerstein", CITE, f"the friction fit lowers the criterion ({d_ic:+.1f}) but its "
+                              f"valve slips {int(verdict['slips'])} time(s) over the record: it explains the "
+                              f"process without the output's moves, which shows no stick-slip", DOC)
     band = float(verdict["band"])
     if np.isfinite(s_slip):
         band = max(band, float(s_slip))
