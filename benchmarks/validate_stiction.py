@@ -135,7 +135,7 @@ def _spec_key(spec: dict) -> str:
 
 
 #: Version of the cached diagnoses (2: profile re-optimising the other parameters, widened; 4: with the
-#: k-step friction test; 5: with the k-step fit's band).
+#: k-step friction test; 5: with the k-step fit's band; 6: with how often each friction fit's valve slips).
 SIZE_VERSION = 6
 
 

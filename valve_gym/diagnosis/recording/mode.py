@@ -29,7 +29,7 @@ from ._base import RecordingError
 
 __all__ = ["AUTO_MODES", "MANUAL_MODES", "automatic", "automatic_stretch", "longest_run", "unknown_modes"]
 
-#: MODE values (upper-cased) that mean the loop is in automatic (anything else is manual).
+#: MODE values (upper-cased) that mean the loop is in automatic (closed loop: AUTO, cascade).
 AUTO_MODES = frozenset({"AUTO", "AUT", "A", "CAS", "CASCADE", "RCAS", "1", "1.0", "TRUE"})
 
 #: MODE values (upper-cased) that mean the loop is in manual or out of service.
