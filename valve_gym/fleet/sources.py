@@ -155,8 +155,6 @@ def _header(path: str) -> list[str]:
     return [c.strip() for c in next(csv.reader([line], delimiter=delim))]
 
 
-
-
 def _time_column(header: list[str], tags: dict[str, dict[str, str]]) -> str:
     used = {c for roles in tags.values() for c in roles.values()}
     low = {c.lower(): c for c in header}

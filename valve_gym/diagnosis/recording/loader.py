@@ -194,13 +194,8 @@ def _automatic_rows(raw: RawColumns, src: str) -> tuple[RawColumns, list[str]]:
     except RecordingError as e:
         raise RecordingError(f"{src}: column {name!r}: {e}, or pass --columns mode= to read the record "
                              f"as it is") from None
-    said = [f"column {name!r}: {s}" for s in said]
-    if (a, b) != (0, len(mode)):
-        data = {r: v[a:b] for r, v in data.items()}
-        raw = replace(raw, data=data, lines=raw.lines[a:b], columns=cmap)
-    else:
-        raw = replace(raw, data=data, columns=cmap)
-    return raw, said
+    raw = replace(raw, data={r: v[a:b] for r, v in data.items()}, lines=raw.lines[a:b], columns=cmap)
+    return raw, [f"column {name!r}: {s}" for s in said]
 
 
 def _decimal_comma_file(sn: Sniffed, raw: RawColumns) -> bool:

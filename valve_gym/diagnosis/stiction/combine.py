@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._base import Evidence
-from .hammerstein import MIN_SLIPS, NAN_SIZE, SEIZED_TRAVEL, SizeEstimate, friction_moves
+from .hammerstein import MIN_SLIPS, NAN_SIZE, SEIZED_TRAVEL, SizeEstimate, fit_moves, friction_moves
 
 __all__ = ["FEATURES", "features", "LogisticModel", "fit_logistic", "StictionAssessment",
            "combine_sizes", "MARGIN", "KSTEP_FINDS", "KSTEP_BANDS", "band_matters", "stiction_present",
@@ -270,9 +270,8 @@ def public_present(verdict: str, friction: Mapping) -> bool:
     ...                                "band": 0.001, "kstep_band": 0.02, "band_needed": 0.01})
     True
     """
-    moves = friction_moves(int(friction.get("kstep_slips", MIN_SLIPS)), float(friction.get("op_working_range", 0.0)))
     return stiction_present(verdict, bool(friction.get("model_based_present")), friction.get("kstep_delta_ic"),
-                            band_matters(friction, KSTEP_BANDS) and moves)
+                            band_matters(friction, KSTEP_BANDS) and fit_moves(friction, "kstep_slips"))
 
 
 def combine_sizes(sizes: Sequence[SizeEstimate]) -> tuple[SizeEstimate, bool | None]:

@@ -47,7 +47,7 @@ from ..fit import FitResult, effective_n
 from ._base import Evidence, not_applicable
 
 __all__ = ["SizeEstimate", "hammerstein_evidence", "profile_interval", "slip_jump_profile", "widen", "MIN_SLIPS",
-           "SEIZED_TRAVEL", "friction_moves"]
+           "SEIZED_TRAVEL", "friction_moves", "fit_moves"]
 
 CITE = "Jelali 2008, J. Process Control 18, 632-642; Choudhury, Jain & Shah 2008"
 DOC = ("asinh(-delta IC / 2) of the best friction model against the best frictionless one "
@@ -109,6 +109,20 @@ def friction_moves(slips: int, op_range: float) -> bool:
     return slips >= MIN_SLIPS or op_range >= SEIZED_TRAVEL
 
 
+def fit_moves(verdict: Mapping, key: str = "slips") -> bool:
+    """:func:`friction_moves` of a friction verdict's slip count ``key`` (``'slips'``, ``'kstep_slips'``).
+
+    Reads ``op_working_range`` with it; True where the count is missing or None (no such fit).
+
+    >>> fit_moves({"slips": 0, "op_working_range": 0.02}), fit_moves({"slips": None}), fit_moves({})
+    (False, True, True)
+    """
+    slips = verdict.get(key)
+    if slips is None:
+        return True
+    return friction_moves(int(slips), float(verdict.get("op_working_range") or 0.0))
+
+
 def hammerstein_evidence(verdict: Mapping, s_slip: float = float("nan")) -> Evidence:
     """Evidence from the friction verdict of :func:`valve_gym.diagnosis.diagnose`.
 
@@ -132,8 +146,7 @@ def hammerstein_evidence(verdict: Mapping, s_slip: float = float("nan")) -> Evid
     if not verdict.get("tested"):
         return not_applicable("hammerstein", CITE, str(verdict.get("reason", "not tested")), DOC)
     d_ic = float(verdict["delta_ic"])
-    if d_ic < 0 and "slips" in verdict and not friction_moves(int(verdict["slips"]),
-                                                              float(verdict.get("op_working_range", 0.0))):
+    if d_ic < 0 and not fit_moves(verdict):
         return not_applicable("hammerstein", CITE, f"the friction fit lowers the criterion ({d_ic:+.1f}) but its "
                               f"valve slips {int(verdict['slips'])} time(s) over the record: it explains the "
                               f"process without the output's moves, which shows no stick-slip", DOC)
