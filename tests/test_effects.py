@@ -124,3 +124,23 @@ def test_sensor_curve_reads_the_cascade_level_through_a_power_curve():
     assert np.allclose(ms.simulate(curved, u, coords=False)[:, 0], c + X * ((lin - c) / X) ** 2)
     phys = ms.physical(ms.encode({k: float(a[0]) for k, a in curved.items()}))
     assert np.isclose(phys["sensor_curve.gamma"], 2.0) and np.isclose(phys["sensor_curve.scale"], X)
+
+
+def test_sensor_curve_zero_reads_the_curve_from_a_point_above_the_outlet():
+    """The curve's zero ``z``: the core's head ``H`` drives the outflow, the PV reads ``c + X ((H - z)/X)**g``."""
+    u = 0.3 + 0.2 * (np.arange(300) // 50 % 2)
+    y = 4.0 + 2.0 * np.sin(np.linspace(0, 6, 300))
+    sc = DataScales.from_signals(u, y, 4.0)
+    base = ModelStructure("cascade", "pump", (), sc, n_sub=2)
+    ms = ModelStructure("cascade", "pump", ("sensor_curve",), sc, n_sub=2)
+    v = base.decode(np.full((1, len(base.params)), 0.4))
+    c, z, g, X = float(v["c"][0]), 1.5, 1.7, sc.y_range
+    # the same core (head, outflow, initial head) is the linear model with offset c - z
+    head_pv = base.simulate(dict(v, c=np.array([c - z])), u, coords=False)[:, 0]
+    w = ms.encode({**{k: float(a[0]) for k, a in v.items()}, "gamma": g, "curve_zero": z})
+    curved = ms.simulate(w[None, :], u)[:, 0]
+    assert np.allclose(curved, c + X * (np.maximum(head_pv - c, 0.0) / X) ** g)
+    assert np.ptp(head_pv) > 0.5 and np.any(head_pv < c + 0.5)      # the curve's low end is exercised
+    phys = ms.physical(w)
+    assert phys["sensor_curve.zero"] == pytest.approx(z)
+    assert phys["measurement.offset"] == pytest.approx(c - z)        # the linear map of the head

@@ -513,6 +513,10 @@ class ModelStructure:
         fbar = self._fbar(v, n)
         sign = np.ones(n)
         offset = v["c"] if "c" in v else np.zeros(n)
+        if "curve_zero" in v:
+            # sensor_curve: the reading's zero c sits curve_zero above the outlet, so the level the
+            # core simulates (the head that drives the outflow) maps to the PV with offset c - z
+            offset = offset - v["curve_zero"]
         cas = None
         level2 = None
         proc: FirstOrderParams | IntegratingParams | TankParams
