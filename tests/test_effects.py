@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from valve_gym.diagnosis import diagnose
+from valve_gym.diagnosis import data_path, diagnose, load_recording
 from valve_gym.diagnosis.model import DataScales, ModelStructure, effect_applicability
 from valve_gym.diagnosis.synthetic import make_case
 from valve_gym.effects import CANDIDATE_EFFECTS, candidate_effects, effect_spec
@@ -144,3 +144,16 @@ def test_sensor_curve_zero_reads_the_curve_from_a_point_above_the_outlet():
     phys = ms.physical(w)
     assert phys["sensor_curve.zero"] == pytest.approx(z)
     assert phys["measurement.offset"] == pytest.approx(c - z)        # the linear map of the head
+
+
+def test_cascaded_tanks_held_out_with_overflow_and_the_curve_zero():
+    """README proof 1 on the real lab record: overflow, then the sensor curve with its zero above the outlet."""
+    rec = load_recording(data_path("cascaded_tanks/estimation.csv"), columns={"t": "t_s", "op": "u_V", "pv": "y_V"},
+                         op_range=(0, 10))
+    res = diagnose(rec, plant="cascade", actuator="pump", holdout=1 / 3, op_lag=1,
+                   candidates=("overflow", "sensor_curve"), effort="fast")
+    h = res.to_dict()["holdout"]
+    assert res.effects == ["overflow", "sensor_curve"]
+    assert h["final_rmse"] < 0.18 < 0.5 * h["base_rmse"]               # 0.172 V (0.188 V with the zero at 0)
+    assert 2.0 < res.final_split.physical["sensor_curve.zero"] < 6.0    # V of head above the outlet (4.2)
+    assert any("above the outlet" in p for p in res.explanation)
