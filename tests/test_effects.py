@@ -107,15 +107,20 @@ def test_one_file_effect_is_found_fitted_and_explained(sensor_drift):
     assert "sensor_drift" not in clean.effects
 
 
-def test_sensor_curve_reads_the_cascade_level_through_a_power_curve():
-    ok, why = effect_applicability("sensor_curve", "tank", "pump")
-    assert not ok and "cascade" in why
+def _cascade_with_curve():
+    """A pump-fed cascade without and with ``sensor_curve``, its input, scales and one base parameter set."""
     u = 0.3 + 0.2 * (np.arange(300) // 50 % 2)
     y = 4.0 + 2.0 * np.sin(np.linspace(0, 6, 300))
     sc = DataScales.from_signals(u, y, 4.0)
     base = ModelStructure("cascade", "pump", (), sc, n_sub=2)
     ms = ModelStructure("cascade", "pump", ("sensor_curve",), sc, n_sub=2)
-    v = base.decode(np.full((1, len(base.params)), 0.4))
+    return u, sc, base, ms, base.decode(np.full((1, len(base.params)), 0.4))
+
+
+def test_sensor_curve_reads_the_cascade_level_through_a_power_curve():
+    ok, why = effect_applicability("sensor_curve", "tank", "pump")
+    assert not ok and "cascade" in why
+    u, sc, base, ms, v = _cascade_with_curve()
     lin = base.simulate(v, u, coords=False)[:, 0]
     neutral = ms.decode(ms.encode({k: float(a[0]) for k, a in v.items()}))
     assert np.allclose(ms.simulate(neutral, u, coords=False)[:, 0], lin)      # gamma = 1: linear reading
@@ -128,12 +133,7 @@ def test_sensor_curve_reads_the_cascade_level_through_a_power_curve():
 
 def test_sensor_curve_zero_reads_the_curve_from_a_point_above_the_outlet():
     """The curve's zero ``z``: the core's head ``H`` drives the outflow, the PV reads ``c + X ((H - z)/X)**g``."""
-    u = 0.3 + 0.2 * (np.arange(300) // 50 % 2)
-    y = 4.0 + 2.0 * np.sin(np.linspace(0, 6, 300))
-    sc = DataScales.from_signals(u, y, 4.0)
-    base = ModelStructure("cascade", "pump", (), sc, n_sub=2)
-    ms = ModelStructure("cascade", "pump", ("sensor_curve",), sc, n_sub=2)
-    v = base.decode(np.full((1, len(base.params)), 0.4))
+    u, sc, base, ms, v = _cascade_with_curve()
     c, z, g, X = float(v["c"][0]), 1.5, 1.7, sc.y_range
     # the same core (head, outflow, initial head) is the linear model with offset c - z
     head_pv = base.simulate(dict(v, c=np.array([c - z])), u, coords=False)[:, 0]
