@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from valve_gym.diagnosis import data_path, diagnose, load_recording
+from valve_gym.diagnosis.fit import fit_structure
 from valve_gym.diagnosis.model import DataScales, ModelStructure, effect_applicability
+from valve_gym.diagnosis.recording import Recording
 from valve_gym.diagnosis.synthetic import make_case
 from valve_gym.effects import CANDIDATE_EFFECTS, candidate_effects, effect_spec
 from valve_gym.effects.spec import EffectSpec, register_effect, unregister_effect
@@ -157,3 +159,33 @@ def test_cascaded_tanks_held_out_with_overflow_and_the_curve_zero():
     assert h["final_rmse"] < 0.18 < 0.5 * h["base_rmse"]               # 0.172 V (0.188 V with the zero at 0)
     assert 2.0 < res.final_split.physical["sensor_curve.zero"] < 6.0    # V of head above the outlet (4.2)
     assert any("above the outlet" in p for p in res.explanation)
+
+
+def test_sensor_curve_zero_is_recovered_and_a_curve_from_the_outlet_misreads_it():
+    """A cascade read through a curve whose zero sits above the outlet: the curve is named, fits to the noise
+    with about the true exponent; with the zero held at the outlet the fit is worse and the exponent inflated
+    (as on the real cascaded tanks, where the zero took gamma from 2.19 to 1.49)."""
+    rng = np.random.default_rng(5)
+    n, noise = 900, 0.01
+    u = np.repeat(rng.uniform(0.2, 0.7, n // 30), 30)
+    sc = DataScales.from_signals(u, 4.0 + 2.0 * np.sin(np.linspace(0, 6, n)), 4.0)
+    ms = ModelStructure("cascade", "pump", ("sensor_curve",), sc, n_sub=1)
+    base = ModelStructure("cascade", "pump", (), sc, n_sub=1)
+    true = {k: float(a[0]) for k, a in base.decode(np.full((1, len(base.params)), 0.5)).items()}
+    true.update(gamma=1.6, curve_zero=1.5, c=-1.5)
+    y = ms.simulate(ms.encode(true)[None, :], u)[:, 0] + rng.normal(0.0, noise, n)
+    rec = Recording(name="curved_cascade", t=4.0 * np.arange(n), dt=4.0, op=u, pv=y)
+    res = diagnose(rec, plant="cascade", actuator="pump", holdout=1 / 3, op_lag=0, candidates=("sensor_curve",),
+                   effort="fast", jobs=1)
+    assert res.effects == ["sensor_curve"]
+    fit = res.final
+    assert fit.rmse < 1.5 * noise < 0.1 * res.base.rmse
+    assert abs(fit.physical["sensor_curve.gamma"] - 1.6) < 0.15
+    assert fit.physical["sensor_curve.zero"] > 0.5
+    st = fit.structure
+    w0 = fit.w.copy()
+    w0[st.index("curve_zero")] = 0.0
+    held = fit_structure(st, rec.op, rec.pv, seeds=w0[None, :], w_fixed=w0, rng=0, effort="fast",
+                         free=[p.name for p in st.params if p.name != "curve_zero"])
+    assert held.rmse > 1.5 * fit.rmse
+    assert held.physical["sensor_curve.gamma"] > 1.8
