@@ -112,8 +112,8 @@ SPEC = register_effect(EffectSpec(
             ParamSpec("scale", "PV", 1e-9, 1e9, 1.0, "lin", "scale X of the curve (the record's PV range)"),
             ParamSpec("zero", "PV", 0.0, 1e9, 0.0, "lin",
                       "zero z of the transmitter's curve above the outlet (the outflow's head at PV = c)")),
-    kernel="none: the simulated level is read through PV = c + X (max(PV_lin - c - z, 0)/X)**gamma after "
-           "the core (measurement effect)",
+    kernel="none: the core's head H is read through PV = c + X (max(H - z, 0)/X)**gamma after the core "
+           "(measurement effect; the plant's linear map is PV_lin = H + c - z)",
     signature="the residual's sign and size follow the PV level: the model's gain from the stored level "
               "to the reading is too small at one end of the range and too large at the other",
     conditions=("pv_low", "pv_high"),
