@@ -99,7 +99,7 @@ def _run(folder: str, out: str, settings: FleetSettings, jobs: int, quiet: bool)
 
     shutil.rmtree(out, ignore_errors=True)
     t0 = time.perf_counter()
-    ray.init(num_cpus=jobs, include_dashboard=False, log_to_driver=False, configure_logging=True,
+    ray.init(address="local", num_cpus=jobs, include_dashboard=False, log_to_driver=False, configure_logging=True,
              logging_level="ERROR")
     t_ray = time.perf_counter() - t0
     stamps: list[float] = []

@@ -33,7 +33,7 @@ def ray_session():
     ray = pytest.importorskip("ray")
     started = not ray.is_initialized()
     if started:
-        ray.init(num_cpus=2, include_dashboard=False, log_to_driver=False, configure_logging=True,
+        ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False, configure_logging=True,
                  logging_level="ERROR")
     yield ray
     if started:
@@ -245,3 +245,31 @@ def test_csv_with_a_long_gap_keeps_the_longest_stretch(tmp_path):
     loop = load_loop(discover_loops(str(tmp_path))[0], op_range=(0, 100))
     assert len(loop.gaps) == 1 and len(loop.recording) == 280
     assert any("gap" in n for n in loop.notes)
+
+
+def test_check_address_refuses_at_once_what_cannot_be_a_cluster():
+    from valve_gym.fleet.runner import check_address
+    check_address(None)
+    check_address("auto")                                   # Ray finds a local cluster itself
+    with pytest.raises(ValueError, match="no Ray cluster answers there.*ray start --head"):
+        check_address("127.0.0.1:9")
+    with pytest.raises(ValueError, match="HOST:PORT"):
+        check_address("garbage")
+
+
+def test_in_process_ray_ignores_a_cluster_named_in_the_environment(folder, tmp_path):
+    """``RAY_ADDRESS`` (or a cluster started with ``ray start`` on this machine) must not capture the
+    default in-process run: plain ``ray.init(num_cpus=...)`` would join it and refuse ``num_cpus``."""
+    import shutil
+    import subprocess
+    import sys
+    recs, out = tmp_path / "recs", tmp_path / "fleet"
+    recs.mkdir()
+    for name in ("loop0.csv", "loop1.csv"):
+        shutil.copy(os.path.join(folder, name), recs / name)
+    env = dict(os.environ, RAY_ADDRESS="127.0.0.1:9")      # nothing listens there
+    cmd = [sys.executable, "-m", "valve_gym.cli", "diagnose", str(recs), "--op-range", "0,100", "--effects", "none",
+           "--effort", "fast", "--jobs", "1", "--quiet", "--out", str(out)]
+    p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=240)
+    assert p.returncode == 0, (p.stdout + p.stderr)[-2000:]
+    assert len(list((out / "loops").glob("*.json"))) == 2

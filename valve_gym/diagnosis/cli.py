@@ -193,20 +193,13 @@ def _check_outputs(a) -> None:
 
 
 def _check_address(address: str | None) -> None:
-    """Refuse a Ray address that is neither 'auto' nor a reachable host:port (Ray itself would retry for minutes)."""
-    if not address or address == "auto" or address.startswith("ray://"):
-        return
-    host, _, port = address.rpartition(":")
-    if not host or not port.isdigit() or not 0 < int(port) < 65536:
-        raise _UsageError(f"--address {address!r}: give 'auto' or HOST:PORT of a running Ray cluster's head "
-                          f"(e.g. 10.0.0.5:6379)")
-    import socket
+    """Refuse an unusable Ray address as a usage error (:func:`valve_gym.fleet.runner.check_address`)."""
+    from ..fleet.runner import check_address
 
     try:
-        socket.create_connection((host, int(port)), timeout=5.0).close()
-    except OSError as e:
-        raise _UsageError(f"--address {address!r}: no Ray cluster answers there ({e}); start one with "
-                          f"'ray start --head' or leave --address out to run Ray in this process") from None
+        check_address(address)
+    except ValueError as e:
+        raise _UsageError(f"--{e}") from None
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -10,10 +10,11 @@ atomic), the table ``loops.parquet``/``loops.csv`` every 30 s and at the end,
 then the worklist.  Ctrl-C (or SIGTERM through the CLI) cancels the loops in
 flight and keeps every finished one; running again continues.
 
-Ray runs in this process by default (``ray.init(num_cpus=jobs)``, no dashboard,
-nothing to start); ``address`` joins an existing cluster (``valve_gym`` must be
-installed on its nodes).  A Ray session already started by the caller is used
-as it is and left running.
+Ray runs in this process by default (``ray.init(address='local', num_cpus=jobs)``, no
+dashboard, nothing to start, whatever cluster runs nearby); ``address`` joins an existing
+cluster (``valve_gym`` must be installed on its nodes; a cluster with token authentication
+needs ``RAY_AUTH_MODE=token`` and its token in this process's environment).  A Ray session
+already started by the caller is used as it is and left running.
 """
 from __future__ import annotations
 
@@ -98,18 +99,57 @@ def _remote(settings: FleetSettings):
     return task
 
 
+#: Seconds a cluster's head node has to answer before ``address`` is reported unreachable.
+CONNECT_TIMEOUT = 5.0
+
+
+def check_address(address: str | None) -> None:
+    """Refuse, at once, a Ray address that is neither ``auto`` nor a reachable ``host:port``.
+
+    Ray itself retries an address that does not answer for minutes.  ``ray://`` (Ray Client)
+    addresses are left to Ray.  Raises ValueError naming the address and what to do.
+    """
+    if not address or address == "auto" or address.startswith("ray://"):
+        return
+    host, _, port = address.rpartition(":")
+    if not host or not port.isdigit() or not 0 < int(port) < 65536:
+        raise ValueError(f"address {address!r}: give 'auto' or HOST:PORT of a running Ray cluster's head "
+                         f"(e.g. 10.0.0.5:6379)")
+    import socket
+
+    try:
+        socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT).close()
+    except OSError as e:
+        raise ValueError(f"address {address!r}: no Ray cluster answers there ({e}); start one with "
+                         f"'ray start --head' or leave the address out to run Ray in this process") from None
+
+
 def _start_ray(jobs: int, address: str | None) -> bool:
-    """Start Ray unless a session exists; True if this call started it."""
+    """Start Ray unless a session exists; True if this call started it.
+
+    Without ``address`` a new Ray instance starts in this process (``address='local'``), even where
+    a cluster runs on this machine or ``RAY_ADDRESS`` names one: plain ``ray.init()`` would join it
+    and refuse ``num_cpus``.  With ``address`` a head node that does not answer, or refuses this
+    process (token authentication), is a ValueError that says what to do.
+    """
     import ray
 
     if ray.is_initialized():
         return False
     kw = {"include_dashboard": False, "configure_logging": True, "logging_level": logging.ERROR,
           "log_to_driver": False}
-    if address:
+    if not address:
+        ray.init(address="local", num_cpus=int(jobs), **kw)
+        return True
+    check_address(address)
+    try:
         ray.init(address=address, **kw)
-    else:
-        ray.init(num_cpus=int(jobs), **kw)
+    except ConnectionError as e:
+        raise ValueError(
+            f"could not join the Ray cluster at {address}: {e}. A cluster started with token "
+            f"authentication (what `ray start` does by default since Ray 2.59) admits only clients that "
+            f"run with RAY_AUTH_MODE=token and its token (~/.ray/auth_token on this machine, or "
+            f"RAY_AUTH_TOKEN; `ray get-auth-token` on the head node prints it)") from None
     return True
 
 
