@@ -49,9 +49,14 @@ from valve_gym.diagnosis.fit import parameter_uncertainty
 from valve_gym.diagnosis.plant_choice import plant_from_name
 
 
+def _tanks_record():
+    """The cascaded-tanks estimation record: pump voltage and level in V, 0-10 V."""
+    return load_recording(data_path("cascaded_tanks/estimation.csv"), columns={"t": "t_s", "op": "u_V", "pv": "y_V"},
+                          op_range=(0, 10))
+
+
 def cascaded_tanks(effort="auto", jobs=2):
-    path = data_path("cascaded_tanks/estimation.csv")
-    rec = load_recording(path, columns={"t": "t_s", "op": "u_V", "pv": "y_V"}, op_range=(0, 10))
+    rec = _tanks_record()
     t0 = time.perf_counter()
     # the benchmark samples u and y at the same instants and holds u until the next sample
     # (PROVENANCE.md: zero-order-hold input): y of a row has not seen that row's u yet, so op_lag=1
@@ -93,8 +98,7 @@ SPLITS = (0.5, 0.6, 2 / 3, 0.75, 0.85)
 
 def cascaded_tanks_splits(effort="auto", jobs=2):
     """The cascaded tanks diagnosed with each split of :data:`SPLITS`: effects, fit-part and held-out RMSE."""
-    rec = load_recording(data_path("cascaded_tanks/estimation.csv"), columns={"t": "t_s", "op": "u_V", "pv": "y_V"},
-                         op_range=(0, 10))
+    rec = _tanks_record()
     print("## Cascaded tanks: other splits of the estimation record\n")
     print("| fitted part | effects named | RMSE fit part [V] | RMSE held-out [V] | base held-out [V] | "
           "curve zero [V] | time [s] |")

@@ -48,7 +48,8 @@ from .plant_choice import resolve_plant
 from .recording import Recording, RecordingError
 from .select import Selection, SelectionRule, select_effects
 from .stiction import assess_stiction
-from .stiction.combine import SEIZED_TRAVEL, friction_moves, public_present
+from .stiction.combine import public_present
+from .stiction.hammerstein import SEIZED_TRAVEL, friction_moves
 
 __all__ = ["DiagnosisResult", "diagnose", "diagnose_many", "validate_on", "simulate_same_state",
            "JSON_SCHEMA_KEYS", "AUTO_THOROUGH_SAMPLES", "coarse_factor"]

@@ -513,10 +513,10 @@ class ModelStructure:
         fbar = self._fbar(v, n)
         sign = np.ones(n)
         offset = v["c"] if "c" in v else np.zeros(n)
-        if "curve_zero" in v:
-            # sensor_curve: the reading's zero c sits curve_zero above the outlet, so the level the
-            # core simulates (the head that drives the outflow) maps to the PV with offset c - z
-            offset = offset - v["curve_zero"]
+        for e in self.effects:
+            shift = effect_spec(e).map_offset          # e.g. sensor_curve: the reading's zero above the outlet
+            if shift is not None:
+                offset = offset - shift(self, v)
         cas = None
         level2 = None
         proc: FirstOrderParams | IntegratingParams | TankParams

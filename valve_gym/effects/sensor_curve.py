@@ -120,6 +120,6 @@ SPEC = register_effect(EffectSpec(
     citation="M. Schoukens, P. Mattsson, T. Wigren, J.-P. Noel, Cascaded tanks benchmark combining soft and "
              "hard nonlinearities, 2016, DOI 10.4121/12960104 (uncalibrated capacitive level sensor).",
     applies=_applies, free=_free, neutral={"gamma": float(np.log(1.0 / _LO) / np.log(_HI / _LO)), "curve_zero": 0.0},
-    measure=_measure, physical=_physical, seed=_seed,
+    measure=_measure, physical=_physical, seed=_seed, map_offset=lambda ctx, v: v["curve_zero"],
     units=lambda plant: {"sensor_curve.gamma": "-", "sensor_curve.scale": "PV", "sensor_curve.zero": "PV"},
     explain=_explain))

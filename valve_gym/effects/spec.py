@@ -134,6 +134,11 @@ class EffectSpec:
         installed characteristic; the fitter scales the plant at the mean opening).
     seed : callable ``(prev_values, structure, seeds) -> seeds``, optional
         Starting coordinates of a candidate fit from the values of the model without it.
+    map_offset : callable ``(ctx, v) -> (n,) array``, optional
+        For a measurement effect that reads the core's level from another zero than the
+        plant's map: the amount subtracted from the map's offset (``PV_lin = sign * y_core +
+        offset``), so that the levels the plant sets in PV terms (initial level, a tank's top)
+        follow it (``sensor_curve``: the curve's zero above the outlet).
     rivals_friction : bool
         The effect delays the response as valve friction does; the stiction
         verdict pits friction against a frictionless valve with this effect.
@@ -165,6 +170,7 @@ class EffectSpec:
     seed: Callable[..., np.ndarray] | None = None
     rivals_friction: bool = False
     rugged: bool = False
+    map_offset: Callable[..., np.ndarray] | None = None
 
     def __post_init__(self):
         if not self.name.isidentifier():

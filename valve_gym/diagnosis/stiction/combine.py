@@ -28,11 +28,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._base import Evidence
-from .hammerstein import MIN_SLIPS, NAN_SIZE, SEIZED_TRAVEL, SizeEstimate, fit_moves, friction_moves
+from .hammerstein import NAN_SIZE, SizeEstimate, fit_moves
 
 __all__ = ["FEATURES", "features", "LogisticModel", "fit_logistic", "StictionAssessment",
            "combine_sizes", "MARGIN", "KSTEP_FINDS", "KSTEP_BANDS", "band_matters", "stiction_present",
-           "public_present", "MIN_SLIPS", "SEIZED_TRAVEL", "friction_moves"]
+           "public_present"]
 
 #: Names of the features, in the order of :func:`features`.
 FEATURES = ("horch_ccf", "horch_int", "bicoherence", "ellipse", "waveform", "episodes", "hammerstein",
@@ -263,7 +263,7 @@ def public_present(verdict: str, friction: Mapping) -> bool:
 
     Reads ``model_based_present`` (the free-run verdict), ``kstep_delta_ic``, the bands of
     :data:`KSTEP_BANDS` against ``band_needed`` and whether the k-step fit's valve slips
-    (``kstep_slips`` and ``op_working_range``, :func:`friction_moves`); ``verdict`` is the methods'
+    (``kstep_slips`` and ``op_working_range``, :func:`~.hammerstein.friction_moves`); ``verdict`` is the methods'
     combined verdict.
 
     >>> public_present("no stiction", {"tested": True, "model_based_present": False, "kstep_delta_ic": -5.0,
