@@ -255,6 +255,11 @@ def test_check_address_refuses_at_once_what_cannot_be_a_cluster():
         check_address("127.0.0.1:9")
     with pytest.raises(ValueError, match="HOST:PORT"):
         check_address("garbage")
+    # a Ray Client address is checked as well (Ray would wait about 30 s, then blame the connection)
+    with pytest.raises(ValueError, match="no Ray Client server answers there"):
+        check_address("ray://127.0.0.1:9")
+    with pytest.raises(ValueError, match="HOST:PORT"):
+        check_address("ray://127.0.0.1:port")
 
 
 def test_in_process_ray_ignores_a_cluster_named_in_the_environment(folder, tmp_path):

@@ -112,8 +112,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run the loops of the folder / wide export as a fleet: results per loop in OUTDIR/loops/, "
                         "OUTDIR/loops.parquet + loops.csv, worklist.md + worklist.html; resumes a stopped run")
     g.add_argument("--address", metavar="ADDR",
-                   help="address of a running Ray cluster ('auto' or host:port); default: Ray in this process "
-                        "with --jobs workers")
+                   help="address of a running Ray cluster ('auto', host:port, or ray://host:port of its Ray "
+                        "Client); default: Ray in this process with --jobs workers")
     g.add_argument("--full", action="store_true",
                    help="full diagnosis of every loop (default: only of the loops that oscillate)")
     g.add_argument("--max-loops", metavar="N",

@@ -103,25 +103,38 @@ def _remote(settings: FleetSettings):
 CONNECT_TIMEOUT = 5.0
 
 
-def check_address(address: str | None) -> None:
-    """Refuse, at once, a Ray address that is neither ``auto`` nor a reachable ``host:port``.
+#: Port of a head node's Ray Client server (``ray://HOST`` without a port).
+RAY_CLIENT_PORT = 10001
 
-    Ray itself retries an address that does not answer for minutes.  ``ray://`` (Ray Client)
-    addresses are left to Ray.  Raises ValueError naming the address and what to do.
+
+def check_address(address: str | None) -> None:
+    """Refuse, at once, a Ray address that is neither ``auto`` nor a reachable ``[ray://]host:port``.
+
+    Ray itself retries an address that does not answer for minutes (a ``ray://`` Ray Client
+    address for about 30 s, then blames the connection).  ``ray://HOST`` without a port is checked
+    at the Ray Client's default port :data:`RAY_CLIENT_PORT`.  Raises ValueError naming the
+    address and what to do.
     """
-    if not address or address == "auto" or address.startswith("ray://"):
+    if not address or address == "auto":
         return
-    host, _, port = address.rpartition(":")
+    client = address.startswith("ray://")
+    rest = address[len("ray://"):] if client else address
+    host, sep, port = rest.rpartition(":")
+    if client and not sep:
+        host, port = rest, str(RAY_CLIENT_PORT)
     if not host or not port.isdigit() or not 0 < int(port) < 65536:
-        raise ValueError(f"address {address!r}: give 'auto' or HOST:PORT of a running Ray cluster's head "
-                         f"(e.g. 10.0.0.5:6379)")
+        raise ValueError(f"address {address!r}: give 'auto', HOST:PORT of a running Ray cluster's head "
+                         f"(e.g. 10.0.0.5:6379) or ray://HOST:PORT of its Ray Client server (e.g. "
+                         f"ray://10.0.0.5:{RAY_CLIENT_PORT})")
     import socket
 
     try:
         socket.create_connection((host, int(port)), timeout=CONNECT_TIMEOUT).close()
     except OSError as e:
-        raise ValueError(f"address {address!r}: no Ray cluster answers there ({e}); start one with "
-                         f"'ray start --head' or leave the address out to run Ray in this process") from None
+        what = "no Ray Client server answers there" if client else "no Ray cluster answers there"
+        raise ValueError(f"address {address!r}: {what} ({e}); start one with 'ray start --head' (its Ray "
+                         f"Client server listens on port {RAY_CLIENT_PORT}) or leave the address out to run "
+                         f"Ray in this process") from None
 
 
 def _start_ray(jobs: int, address: str | None) -> bool:
