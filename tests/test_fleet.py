@@ -226,6 +226,52 @@ def test_bad_recording_is_a_failed_row(ray_session, folder, tmp_path):
     assert not [f for f in os.listdir(os.path.join(out, "loops")) if f.endswith(".tmp")]
 
 
+def test_a_loop_a_node_cannot_see_is_analysed_from_the_bytes_its_task_carries(folder, tmp_path):
+    """On a cluster a node need not see the files of the machine that runs the fleet: the task carries the
+    file's bytes (a node without the files failed every loop with 'file not found' before)."""
+    from valve_gym.fleet.analyse import analyse_loop
+    from valve_gym.fleet.runner import analyse_shipped
+
+    srcs = {s.name: s for s in discover_loops(folder)}
+    elsewhere = tmp_path / "on_another_machine"
+
+    def moved(src):
+        return dataclasses.replace(src, path=str(elsewhere / os.path.basename(src.path)))
+
+    def data(src):
+        with open(src.path, "rb") as f:
+            return f.read()
+
+    good, broken = srcs["loop0"], srcs["broken"]
+    assert analyse_loop(moved(good), SETTINGS, "k").status == "failed"          # without its bytes: not found
+    here, shipped = analyse_loop(good, SETTINGS, "k"), analyse_shipped(moved(good), data(good), SETTINGS, "k")
+    assert shipped.status == "ok" and shipped.source == moved(good).path
+    differ = [f.name for f in dataclasses.fields(here) if f.name not in {"seconds", "cpu_seconds", "source"}
+              and repr(getattr(shipped, f.name)) != repr(getattr(here, f.name))]          # repr: nan == nan
+    assert not differ
+    bad = analyse_shipped(moved(broken), data(broken), SETTINGS, "k")
+    assert bad.status == "failed" and "samples" in bad.message
+    assert moved(broken).path in bad.message and "valve_gym-loop-" not in bad.message    # named as sent
+    assert not [d for d in os.listdir(tmp_path) if d.startswith("valve_gym-loop-")]
+
+
+def test_a_file_is_put_once_for_its_loops_in_flight_and_dropped_after_the_last(ray_session, tmp_path):
+    from valve_gym.fleet.runner import _Shipper
+
+    p = tmp_path / "export.parquet"
+    _wide_frame(n=200, seed=1).to_parquet(p, index=False)
+    a, b, bad = discover_loops(str(p))
+    ship = _Shipper(True)
+    ra, rb = ship.ref(a), ship.ref(b)
+    assert ra is rb and ship.refs[str(p)][1] == 2 and ship.ref(bad) is None     # one object for the file
+    assert ray_session.get(ra) == p.read_bytes()
+    ship.done(a)
+    assert ship.refs[str(p)][1] == 1
+    ship.done(b)
+    assert not ship.refs                                                         # the last loop back: dropped
+    assert _Shipper(False).ref(a) is None                                        # this process's own Ray
+
+
 def test_wide_export_fleet(ray_session, tmp_path):
     p = tmp_path / "export.parquet"
     _wide_frame(n=500, seed=3).to_parquet(p, index=False)

@@ -13,7 +13,9 @@ flight and keeps every finished one; running again continues.
 Ray runs in this process by default (``ray.init(address='local', num_cpus=jobs)``, no
 dashboard, nothing to start, whatever cluster runs nearby); ``address`` joins an existing
 cluster (``valve_gym`` must be installed on its nodes; a cluster with token authentication
-needs ``RAY_AUTH_MODE=token`` and its token in this process's environment).  A Ray session
+needs ``RAY_AUTH_MODE=token`` and its token in this process's environment).  On a cluster the
+data files travel with the tasks (each file's bytes put in Ray's object store once, while
+its loops are in flight): a node need not see this machine's files.  A Ray session
 already started by the caller is used as it is and left running.
 """
 from __future__ import annotations
@@ -21,8 +23,10 @@ from __future__ import annotations
 import logging
 import os
 import sys
+import tempfile
 import time
 from collections.abc import Callable
+from dataclasses import fields, replace
 from typing import NamedTuple
 
 from .analyse import analyse_loop, failed_result
@@ -88,15 +92,81 @@ def _remote(settings: FleetSettings):
     import ray
 
     @ray.remote(num_cpus=1, max_retries=1)
-    def task(src: LoopSource, key: str) -> LoopResult:
+    def task(src: LoopSource, key: str, data: bytes | None = None) -> LoopResult:
         try:
             from ..diagnosis.model import set_kernel_threads
             set_kernel_threads(1)          # one CPU per task: no threads on top
         except (ImportError, ValueError):
             pass
-        return analyse_loop(src, settings, key)
+        if data is None:
+            return analyse_loop(src, settings, key)
+        return analyse_shipped(src, data, settings, key)
 
     return task
+
+
+def analyse_shipped(src: LoopSource, data: bytes, settings: FleetSettings, key: str = "") -> LoopResult:
+    """:func:`~valve_gym.fleet.analyse.analyse_loop` of a loop whose file's bytes came with the task.
+
+    The bytes are written to a private temporary folder under the file's own name (its
+    extension decides how it is read) and removed afterwards; the result names the file
+    by its path on the machine that sent it, as a run without a cluster would.
+    """
+    with tempfile.TemporaryDirectory(prefix="valve_gym-loop-") as d:
+        local = os.path.join(d, os.path.basename(src.path) or "loop.csv")
+        with open(local, "wb") as f:
+            f.write(data)
+        res = analyse_loop(replace(src, path=local), settings, key)
+    return _renamed(res, local, src.path)
+
+
+def _renamed(res: LoopResult, local: str, path: str) -> LoopResult:
+    """``res`` with the temporary path ``local`` replaced by ``path`` in its text fields."""
+    kw: dict = {}
+    for f in fields(res):
+        v = getattr(res, f.name)
+        if isinstance(v, str) and local in v:
+            kw[f.name] = v.replace(local, path)
+        elif isinstance(v, tuple) and any(isinstance(x, str) and local in x for x in v):
+            kw[f.name] = tuple(x.replace(local, path) if isinstance(x, str) else x for x in v)
+    return replace(res, **kw) if kw else res
+
+
+class _Shipper:
+    """The file bytes of the loops in flight, one object per file in Ray's store (cluster runs).
+
+    ``ref(src)`` puts the file's bytes once and counts the loop; ``done(src)`` drops the object
+    when the file's last loop in flight is back.  Off (``None`` for every loop) in this
+    process's own Ray, whose workers read the files themselves.
+    """
+
+    def __init__(self, on: bool):
+        self.on = on
+        self.refs: dict[str, tuple[object, int]] = {}
+
+    def ref(self, src: LoopSource):
+        if not self.on or src.kind == "bad":
+            return None
+        import ray
+
+        obj, n = self.refs.get(src.path, (None, 0))
+        if obj is None:
+            try:
+                with open(src.path, "rb") as f:
+                    obj = ray.put(f.read())
+            except OSError:
+                return None                  # the worker reports the file as it finds it
+        self.refs[src.path] = (obj, n + 1)
+        return obj
+
+    def done(self, src: LoopSource) -> None:
+        obj, n = self.refs.get(src.path, (None, 0))
+        if obj is None:
+            return
+        if n <= 1:
+            del self.refs[src.path]
+        else:
+            self.refs[src.path] = (obj, n - 1)
 
 
 #: Seconds a cluster's head node has to answer before ``address`` is reported unreachable.
@@ -204,11 +274,16 @@ def _collect(ref, src_of: dict, keys: dict) -> LoopResult:
 
 
 def _stream(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs: int, out_dir: str,
-            results: dict, bar: Progress, on_result: Callable[[LoopResult], None] | None) -> list[LoopSource]:
-    """Submit ``todo`` with a bounded window, write each result as it comes; returns the loops not done."""
+            results: dict, bar: Progress, on_result: Callable[[LoopResult], None] | None,
+            ship: bool = False) -> list[LoopSource]:
+    """Submit ``todo`` with a bounded window, write each result as it comes; returns the loops not done.
+
+    ``ship``: send each file's bytes with its tasks (a cluster's nodes need not see the files).
+    """
     import ray
 
     task = _remote(settings)
+    shipper = _Shipper(ship)
     cpus = int(ray.cluster_resources().get("CPU", jobs)) or jobs
     window = max(2 * cpus, 4)
     pending = list(reversed(todo))
@@ -219,11 +294,12 @@ def _stream(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs: i
         while pending or src_of:
             while pending and len(src_of) < window:
                 s = pending.pop()
-                src_of[task.remote(s, keys[s.name])] = s
+                data = shipper.ref(s)
+                src_of[task.remote(s, keys[s.name]) if data is None else task.remote(s, keys[s.name], data)] = s
             ready, _ = ray.wait(list(src_of), num_returns=1, timeout=1.0)
             for ref in ready:
                 res = _collect(ref, src_of, keys)
-                del src_of[ref]
+                shipper.done(src_of.pop(ref))
                 write_result(res, os.path.join(out_dir, "loops", res.loop + ".json"))
                 results[res.loop] = res
                 bar.update(failed=res.status != "ok")
@@ -284,7 +360,8 @@ def run_fleet(path: str, out_dir: str, settings: FleetSettings = FleetSettings()
     if todo:
         started = _start_ray(jobs, address)
         try:
-            left = _stream(todo, keys, settings, jobs, out_dir, results, bar, on_result)
+            left = _stream(todo, keys, settings, jobs, out_dir, results, bar, on_result,
+                           ship=bool(address) or not started)
         finally:
             bar.close()
             if started:
