@@ -27,7 +27,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import fields, replace
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from .analyse import analyse_loop, failed_result
 from .progress import Progress
@@ -92,7 +92,7 @@ def _remote(settings: FleetSettings):
     import ray
 
     @ray.remote(num_cpus=1, max_retries=1)
-    def task(src: LoopSource, key: str, data: bytes | None = None) -> LoopResult:
+    def task(src: LoopSource, key: str, data: bytes | None) -> LoopResult:
         try:
             from ..diagnosis.model import set_kernel_threads
             set_kernel_threads(1)          # one CPU per task: no threads on top
@@ -142,9 +142,9 @@ class _Shipper:
 
     def __init__(self, on: bool):
         self.on = on
-        self.refs: dict[str, tuple[object, int]] = {}
+        self.refs: dict[str, tuple[Any, int]] = {}
 
-    def ref(self, src: LoopSource):
+    def ref(self, src: LoopSource) -> Any:
         if not self.on or src.kind == "bad":
             return None
         import ray
@@ -294,8 +294,7 @@ def _stream(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs: i
         while pending or src_of:
             while pending and len(src_of) < window:
                 s = pending.pop()
-                data = shipper.ref(s)
-                src_of[task.remote(s, keys[s.name]) if data is None else task.remote(s, keys[s.name], data)] = s
+                src_of[task.remote(s, keys[s.name], shipper.ref(s))] = s
             ready, _ = ray.wait(list(src_of), num_returns=1, timeout=1.0)
             for ref in ready:
                 res = _collect(ref, src_of, keys)
