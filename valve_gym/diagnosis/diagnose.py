@@ -620,7 +620,7 @@ def _validate_other(base: FitResult, final: FitResult, validate: Recording, seed
 
 # --------------------------------------------------------------------------- main API
 def diagnose(recording: Recording, plant: str = "auto", actuator: str = "valve", *,
-             candidates: Sequence[str] | None = None, holdout: float = 0.3,
+             candidates: Sequence[str] | str | None = None, holdout: float = 0.3,
              validate: Recording | None = None, rule: SelectionRule = SelectionRule(),
              effort: str = "auto", seed: int = 0, jobs: int = 1, saturation="auto",
              n_sub: int = 1, coarse: int | str = 1, search: str = "full", op_lag: int | str = "auto",
@@ -637,10 +637,11 @@ def diagnose(recording: Recording, plant: str = "auto", actuator: str = "valve",
         ``FIC``/``PIC``/``TIC``/``AIC...`` first order, no tag: ``'tank'``); the choice and
         its reason are in ``settings['plant_choice']``.
     actuator : {'valve', 'pump'}
-    candidates : sequence of str, optional
+    candidates : sequence of str, or str, optional
         Candidate effects (default all of
         :data:`~valve_gym.diagnosis.model.CANDIDATE_EFFECTS` that apply);
-        an empty sequence only fits the base model.
+        an empty sequence only fits the base model. A string names one
+        effect, or several separated by commas (``'leak,overflow'``).
     holdout : float
         Fraction at the end of the record left out of the selection fits
         (0 disables the held-out test; the information criterion decides
@@ -717,6 +718,7 @@ def diagnose(recording: Recording, plant: str = "auto", actuator: str = "valve",
     """
     t_all = time.perf_counter()
     plant, plant_choice, cands = _check_arguments(recording, plant, actuator, holdout, candidates)
+    _check_seed_and_range(seed, saturation)
     lags = _resolve_op_lag(op_lag)
     if not isinstance(n_sub, (int, np.integer)) or n_sub < 1:
         raise ValueError(f"n_sub must be a positive whole number, got {n_sub!r}")
@@ -835,11 +837,30 @@ def _base_task(args):
     rec, plant, actuator, holdout, saturation, n_sub, seed, effort, q, fast = args
     T = len(rec)
     n_fit = T - int(round(float(holdout) * T))
-    if n_fit < 40:
-        raise ValueError(f"{rec.name}: only {n_fit} samples to fit after the holdout; need >= 40")
+    _check_fit_part(rec, n_fit, holdout)
     st = ModelStructure(plant, actuator, (), _data_scales(rec, n_fit, saturation), n_sub=n_sub)
     base, _ = fit_with_friction(st, rec.op, rec.pv, n_fit, rng=seed, effort=effort, coarse=q, fast=fast)
     return rec, base, n_fit
+
+
+#: The fitted part's PV must take at least this many distinct values (a frozen or coarsely
+#: quantised transmitter, or a loop at rest, leaves nothing to identify).
+MIN_PV_LEVELS = 3
+
+
+def _check_fit_part(rec: Recording, n_fit: int, holdout: float) -> None:
+    """Refuse a fitted part too short, or one over which the PV does not move (ValueError saying what to do)."""
+    if n_fit < 40:
+        raise ValueError(f"{rec.name}: only {n_fit} samples to fit after the holdout of {float(holdout):g}; need "
+                         f">= 40: lower the holdout (--holdout 0.1, or 0 to fit the whole record) or use a "
+                         f"longer record")
+    levels = np.unique(rec.pv[:n_fit])
+    if len(levels) < MIN_PV_LEVELS:
+        shown = ", ".join(f"{v:.6g}" for v in levels)
+        raise ValueError(f"{rec.name}: the PV takes only {len(levels)} value(s) ({shown}) over the fitted part "
+                         f"(samples 0-{n_fit - 1} of {len(rec)}): a frozen or coarsely quantised transmitter, or a "
+                         f"loop at rest, leaves nothing to identify; use a stretch where the PV moves (or a "
+                         f"finer PV tag)")
 
 
 def _base_fits(recording: Recording, lags: tuple[int, ...], plant: str, actuator: str, holdout: float,
@@ -874,7 +895,8 @@ def _choose_op_lag(bases: dict[int, tuple[Recording, FitResult, int]], rule: Sel
     from .fit import effective_n
     f0, f1 = bases[0][1], bases[1][1]
     n_eff = effective_n(f0.residual[:f0.n_fit])
-    d_ic = float(n_eff * np.log(max(f1.rmse, 1e-300) ** 2 / max(f0.rmse, 1e-300) ** 2))
+    # a difference of logs: the ratio of squares underflows for tiny errors (PV in tiny units)
+    d_ic = float(2.0 * n_eff * (np.log(max(f1.rmse, 1e-300)) - np.log(max(f0.rmse, 1e-300))))
     lag = 1 if d_ic < -rule.ic_margin else 0
     test.update(chosen=lag, method="model fit", delta_ic=d_ic, n_eff=float(n_eff),
                 rmse_fit_part={"0": float(f0.rmse), "1": float(f1.rmse)})
@@ -882,7 +904,7 @@ def _choose_op_lag(bases: dict[int, tuple[Recording, FitResult, int]], rule: Sel
 
 
 def _check_arguments(recording: Recording, plant: str, actuator: str, holdout: float,
-                     candidates: Sequence[str] | None) -> tuple[str, dict, tuple[str, ...]]:
+                     candidates: Sequence[str] | str | None) -> tuple[str, dict, tuple[str, ...]]:
     """Check the arguments of :func:`diagnose`: the plant (``'auto'`` resolved), its choice, the candidates."""
     if not isinstance(recording, Recording):
         raise TypeError("diagnose() needs a Recording (see load_recording)")
@@ -894,11 +916,28 @@ def _check_arguments(recording: Recording, plant: str, actuator: str, holdout: f
     if not 0.0 <= float(holdout) <= 0.6:
         raise ValueError(f"holdout must be a fraction between 0 and 0.6, got {holdout!r}")
     known = candidate_effects()
+    if isinstance(candidates, str):              # 'leak' or 'leak,overflow', as the CLI's --effects
+        candidates = [c.strip() for c in candidates.split(",") if c.strip()]
     cands = tuple(known if candidates is None else candidates)
     for c in cands:
         if c not in known:
             raise ValueError(f"unknown effect {c!r}; candidates are {', '.join(known)}")
     return plant, plant_choice, cands
+
+
+def _check_seed_and_range(seed, saturation) -> None:
+    """Refuse a seed that is not a whole number >= 0 and a sensor range that is not ``(lo, hi)`` with lo < hi."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be a whole number >= 0, got {seed!r}")
+    if saturation is None or (isinstance(saturation, str) and saturation == "auto"):
+        return
+    try:
+        lo, hi = (float(v) for v in saturation)
+    except (TypeError, ValueError):
+        raise ValueError(f"saturation must be 'auto', None or a pair (lo, hi) of the PV's sensor range, "
+                         f"got {saturation!r}") from None
+    if not (np.isfinite(lo) and np.isfinite(hi) and lo < hi):
+        raise ValueError(f"saturation (lo, hi) must be finite with lo < hi (the PV's sensor range), got {saturation!r}")
 
 
 def _dt(rec: Recording) -> float:

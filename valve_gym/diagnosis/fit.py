@@ -78,6 +78,9 @@ def effective_n(residual, max_lag: int | None = None) -> float:
     n = len(r)
     if n < 4 or not np.any(r):
         return float(max(n, 1))
+    m = float(np.abs(r).max())
+    if not 1e-100 < m < 1e100:          # tiny or huge units: the squares would under- or overflow
+        r = r / m
     L = max_lag or min(n // 3, 500)
     f = np.fft.rfft(r, 2 * n)
     acf = np.fft.irfft(f * np.conj(f))[: L + 1]

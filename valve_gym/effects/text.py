@@ -14,8 +14,13 @@ __all__ = ["pct", "num", "derivative_correlation", "cond", "plateau_evidence", "
 
 
 def pct(x):
-    """``x`` (a fraction) as a percentage with two significant digits."""
-    return f"{100 * x:.2g} %"
+    """``x`` (a fraction) as a percentage with two significant digits (whole numbers from 100 % up).
+
+    >>> pct(0.0123), pct(1.0), pct(2.5)
+    ('1.2 %', '100 %', '250 %')
+    """
+    v = 100 * x
+    return f"{v:.0f} %" if abs(v) >= 99.5 else f"{v:.2g} %"     # .2g would write 100 as 1e+02
 
 
 def num(x, unit=""):
