@@ -13,7 +13,8 @@ from dataclasses import dataclass
 
 from ._base import DEFAULT_COLUMN_NAMES, REQUIRED, ROLE_WORDS, ROLES, RecordingError
 
-__all__ = ["ColumnMap", "parse_columns", "resolve_columns", "WIDE_COLUMN_RE", "WIDE_SUFFIXES", "wide_tags"]
+__all__ = ["ColumnMap", "as_column_mapping", "parse_columns", "resolve_columns", "WIDE_COLUMN_RE", "WIDE_SUFFIXES",
+           "wide_tags"]
 
 #: A historian's tag-prefixed column (``FIC101.PV``, ``FIC101.OP``, ``FIC101.SP``, ``FIC101.MODE``) and
 #: the signal role of each suffix. Fleet mode reads every tag of such a wide export as a loop; a single
@@ -55,7 +56,7 @@ def parse_columns(text: str) -> dict[str, str | None]:
     Parameters
     ----------
     text : str
-        Comma-separated ``role=COLUMN`` items; roles are ``t, op, pv, sp, mv``.
+        Comma-separated ``role=COLUMN`` items; roles are ``t, op, pv, sp, mv, mode``.
         An empty column (``sp=``) means "do not use this role".  Column names
         cannot contain commas.
 
@@ -75,7 +76,8 @@ def parse_columns(text: str) -> dict[str, str | None]:
     >>> parse_columns("t=t_s, op=OP, pv=PV, sp=")
     {'t': 't_s', 'op': 'OP', 'pv': 'PV', 'sp': None}
     """
-    usage = "expected --columns role=COLUMN[,role=COLUMN...] with roles t, op, pv, sp, mv, e.g. t=t_s,op=OP,pv=PV"
+    usage = ("expected --columns role=COLUMN[,role=COLUMN...] with roles t, op, pv, sp, mv, mode, "
+             "e.g. t=t_s,op=OP,pv=PV")
     if text is None or not str(text).strip():
         raise RecordingError(f"empty column mapping: {usage}")
     out: dict[str, str | None] = {}
@@ -99,6 +101,30 @@ def parse_columns(text: str) -> dict[str, str | None]:
     if not out:
         raise RecordingError(f"empty column mapping {text!r}: {usage}")
     return out
+
+
+def as_column_mapping(columns: object, src: str) -> Mapping[str, str | None] | None:
+    """The ``columns`` argument of :func:`load_recording` as a mapping.
+
+    A dict (any mapping) or None is returned as it is; a string is read as the CLI's
+    ``"role=COLUMN,role=COLUMN"`` (:func:`parse_columns`).
+
+    Raises
+    ------
+    RecordingError
+        Anything else, or a string that :func:`parse_columns` refuses.
+    """
+    if columns is None or isinstance(columns, Mapping):
+        return columns
+    if isinstance(columns, str):
+        try:
+            return parse_columns(columns)
+        except RecordingError as e:
+            raise RecordingError(f"{src}: columns: {e}") from None
+    raise RecordingError(
+        f"{src}: columns must be a dict of role to column name like {{'op': 'OP', 'pv': 'PV'}}, or the "
+        f"CLI's string form 'op=OP,pv=PV'; got {type(columns).__name__} {columns!r:.80}"
+    )
 
 
 def _named(header: Sequence[str], lower: dict[str, list[int]], role: str, name: str, src: str) -> int:
@@ -168,6 +194,32 @@ def _default_blocked(lower: dict[str, list[int]], role: str, header: list[str], 
     return ""
 
 
+def _refuse_taken_default(header: list[str], lower: dict[str, list[int]], role: str, out: dict[str, int],
+                          src: str) -> None:
+    """Refuse a mapping that gave another role the column an optional `role` would be found in by its name.
+
+    One column serves one role only: ``pv=SP`` would otherwise read the set point as the process variable
+    and drop the set point without a word.
+
+    Raises
+    ------
+    RecordingError
+        `role`'s default column (:data:`DEFAULT_COLUMN_NAMES`, or its one ``TAG.<ROLE>`` column) is
+        mapped to another role.
+    """
+    j = _default(lower, role, set())
+    if j is None and role in WIDE_SUFFIXES.values():
+        j = _tagged(header, role, set())[0]
+    other = [r for r, k in out.items() if k == j]
+    if j is not None and other:
+        raise RecordingError(
+            f"{src}: column {header[j]!r} is given for {other[0]} ({ROLE_WORDS[other[0]]}) but by its name holds "
+            f"the {ROLE_WORDS[role]} ({role}); one column may serve one role only: map {other[0]} to its own "
+            f"column, or if {header[j]!r} really holds the {ROLE_WORDS[other[0]]}, switch the {ROLE_WORDS[role]} "
+            f"off with --columns {role}= (columns={{'{role}': None}} in Python)"
+        )
+
+
 def _by_default(header: list[str], lower: dict[str, list[int]], role: str, out: dict[str, int],
                 tags: dict[str, str], src: str) -> int | None:
     """Position of `role`'s column found without a name given (None: an optional role not found).
@@ -186,6 +238,8 @@ def _by_default(header: list[str], lower: dict[str, list[int]], role: str, out: 
         j, tag, several = _tagged(header, role, set(out.values()))
         if j is not None:
             tags[role] = tag
+    if j is None and role not in REQUIRED:
+        _refuse_taken_default(header, lower, role, out, src)
     if j is not None or role not in REQUIRED:
         return j
     if len(several) > 1:
@@ -228,7 +282,7 @@ def resolve_columns(
         the header; one column used for two roles.
     """
     header = list(header)
-    columns = dict(columns or {})
+    columns = dict(as_column_mapping(columns, src) or {})
     avail = ", ".join(repr(h) for h in header)
     for role in columns:
         if role not in ROLES:

@@ -10,8 +10,8 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from ._base import RecordingError
-from .columns import ColumnMap
+from ._base import MIN_SAMPLES, RecordingError
+from .columns import ColumnMap, as_column_mapping
 from .data import data_path  # noqa: F401  (used in the docstring's example)
 from .decimate import DEFAULT_MAX_SAMPLES, condition
 from .mode import automatic_stretch
@@ -28,10 +28,15 @@ __all__ = ["load_recording"]
 #: the loader accepts: an output that moves less is effectively constant, or its range is wrong.
 MIN_OP_TRAVEL = 1e-4
 
+#: Largest share of a given output range (``--op-range``, ``--mv-range``) that 0..1 may be when every value
+#: lies in 0..1, before the loader refuses the range: the values are a fraction already (0..1 of 0..100 is
+#: 1 %; of 0..50, 2 %).
+FRACTION_SHARE = 0.02
+
 
 def load_recording(
     path: str | os.PathLike,
-    columns: Mapping[str, str | None] | None = None,
+    columns: Mapping[str, str | None] | str | None = None,
     op_range: tuple[float, float] | None = None,
     name: str | None = None,
     max_gap: int = 5,
@@ -54,19 +59,23 @@ def load_recording(
     Parameters
     ----------
     path : str or path-like
-        CSV file with a header row; comma, semicolon or tab separated, UTF-8
-        (a byte-order mark is fine).  Blank cells and ``nan``, ``NA``,
+        The file's path (not an open file).  CSV file with a header row;
+        comma, semicolon or tab separated, UTF-8 (a byte-order mark is fine).  Blank cells and ``nan``, ``NA``,
         ``null`` count as missing values.  Or a Parquet file (recognised by
         its content, any extension): numeric, time-stamp or text columns;
         nulls are missing values; messages count rows instead of lines.
         Numbers that are not finite (``inf``, ``1e309``) or absurd (beyond
         +-1e15, or a spike of at most 3 samples a million times the column's
-        typical size away from its median) count as missing values too, each
-        stated in `repairs`.
-    columns : dict, optional
+        typical size away from its median, or more than 20 times the span of
+        the column's other values outside their range: a historian's bad-value
+        code such as -9999 in a few rows, see :func:`~.validate.mark_absurd`)
+        count as missing values too, each stated in `repairs`.
+    columns : dict or str, optional
         Role to column name for the roles ``t`` (time), ``op`` (controller
         output), ``pv`` (process variable), ``sp`` (set point), ``mv`` (valve
-        stem position).  Names match exactly, else case-insensitively.  A
+        stem position), ``mode`` (loop mode), or the CLI's string form
+        ``"op=OP,pv=PV,sp="`` (:func:`~.columns.parse_columns`).  One column
+        serves one role only.  Names match exactly, else case-insensitively.  A
         role left out is looked up among :data:`DEFAULT_COLUMN_NAMES`
         (case-insensitive; ``t``, ``op``, ``pv`` are required, ``sp`` and
         ``mv`` optional); map a role to None to ignore it.
@@ -78,7 +87,10 @@ def load_recording(
         ``(0, 100)`` for percent.  May be omitted only when all op values lie
         in [0, 1]; otherwise an error asks for it.  Values outside the range
         by up to 5 % of its span are clipped (recorded as a repair); further
-        out is an error.
+        out is an error.  A range of which 0..1 is at most 2 % (e.g.
+        ``(0, 100)``) while every op value lies in 0..1 is an error too: the
+        output is a fraction already.  A string ``"LO,HI"`` is read as the
+        CLI's ``--op-range``.
     name : str, optional
         Label of the record; default the file name without extension.
     max_gap : int, default 5
@@ -132,7 +144,9 @@ def load_recording(
         time stamps that would leave the record mostly gaps; a gap longer than `max_gap` (with
         ``gaps='error'``); irregular sampling with ``resample=False``;
         op values outside [0, 1] without `op_range`, or far outside it
-        (the first time named);
+        (the first time named), or all in 0..1 with a percent-like range;
+        a loop-mode column that leaves fewer than 50 rows in automatic;
+        one column mapped to two roles; a `path` that is not a path;
         constant op or pv (nothing to identify); fewer than 50 samples.
 
     Examples
@@ -144,8 +158,16 @@ def load_recording(
     >>> len(rec), rec.dt, rec.columns["op"]
     (751, 10.0, 'OP')
     """
-    src = os.fspath(path)
+    if not isinstance(path, (str, bytes, os.PathLike)):
+        what = "an open file" if hasattr(path, "read") else f"a {type(path).__name__}"
+        named = f" ({path.name!r})" if isinstance(getattr(path, "name", None), str) else ""
+        raise RecordingError(
+            f"load_recording: pass the file's path (a str or pathlib.Path), not {what}{named}; "
+            f"load_recording opens and reads the file itself"
+        )
+    src = os.fsdecode(path)
     opts = check_options(src, max_gap, resample, gaps, op_range, mv_range, max_samples, engine)
+    columns = as_column_mapping(columns, src)
     sn = sniff(src, opts.engine)
     raw = read_columns(sn, columns)
     raw, said = _automatic_rows(raw, src)
@@ -158,7 +180,8 @@ def load_recording(
                      f"{sn.dialect.delimiter!r})")
     check_time_order(p)
     p = drop_duplicates(p, repairs)
-    p = mark_absurd(p, repairs)
+    op_valid = opts.op_range if opts.op_range is not None else (0.0, 1.0)
+    p = mark_absurd(p, repairs, {"op": op_valid, "mv": opts.mv_range if opts.mv_range is not None else op_valid})
     p, grid = regrid(p, opts, repairs)
     grid = fill_gaps(grid, opts, p.columns.names, src, repairs, _time_formatter(p.start, p.epoch0))
     signals, op_range_used = _normalised(grid, p, opts, repairs)
@@ -194,6 +217,13 @@ def _automatic_rows(raw: RawColumns, src: str) -> tuple[RawColumns, list[str]]:
     except RecordingError as e:
         raise RecordingError(f"{src}: column {name!r}: {e}, or pass --columns mode= to read the record "
                              f"as it is") from None
+    if b - a < MIN_SAMPLES <= len(mode):
+        raise RecordingError(
+            f"{src}: column {name!r} (mode): the loop mode leaves only {b - a} of the {len(mode)} data rows: "
+            f"the longest automatic stretch is {raw.unit}s {raw.lines[a]}-{raw.lines[b - 1]}, and a recording "
+            f"needs at least {MIN_SAMPLES} samples; export a longer stretch in automatic, or pass --columns "
+            f"mode= (columns={{'mode': None}} in Python) to read the whole record, manual stretches included"
+        )
     raw = replace(raw, data={r: v[a:b] for r, v in data.items()}, lines=raw.lines[a:b], columns=cmap)
     return raw, [f"column {name!r}: {s}" for s in said]
 
@@ -233,6 +263,22 @@ def _time_formatter(start: str | None, epoch0: float | None):
     return fmt_t
 
 
+def _check_not_fraction(x: np.ndarray, rng: tuple[float, float], where: str, label: str, noun: str,
+                        given: str, fix: str) -> None:
+    """Refuse a range `rng` of which 0..1 is at most :data:`FRACTION_SHARE` when all values `x` lie in 0..1.
+
+    An output logged as a fraction 0..1 but read with ``--op-range 0,100`` would move a hundredth of
+    what it does, and a stiction size read from it would be as much too small.
+    """
+    lo, hi = rng
+    share = 1.0 / (hi - lo)
+    if lo <= 0.0 and hi >= 1.0 and share <= FRACTION_SHARE and float(x.min()) >= 0.0 and float(x.max()) <= 1.0:
+        raise RecordingError(
+            f"{where}: all {label} values lie in 0..1 ({float(x.min()):g}..{float(x.max()):g}), at most "
+            f"{100 * share:.2g} % of {given}: the {noun} looks like a fraction already; {fix}"
+        )
+
+
 def _normalised(grid: Grid, p: Parsed, opts: LoadOptions,
                 repairs: list[str]) -> tuple[dict[str, np.ndarray], tuple[float, float]]:
     """Map op and mv to 0..1 (range errors and clipping); refuse a constant op or pv."""
@@ -248,10 +294,19 @@ def _normalised(grid: Grid, p: Parsed, opts: LoadOptions,
                 f"e.g. --op-range 0,100 for percent"
             )
         op_range = (0.0, 1.0)
+    else:
+        _check_not_fraction(op_raw, op_range, p.where("op"), "OP", "output",
+                            f"--op-range {op_range[0]:g},{op_range[1]:g}",
+                            "leave out --op-range (or give --op-range 0,1; op_range=None in Python)")
     out = dict(grid.values)
     out["op"] = normalise(op_raw, op_range, "op", p.where("op"), "--op-range", repairs, names["op"], grid.t)
     if "mv" in out:
         mvr = opts.mv_range if opts.mv_range is not None else op_range
+        if mvr != (0.0, 1.0):
+            given = (f"--mv-range {mvr[0]:g},{mvr[1]:g}" if opts.mv_range is not None else
+                     f"--op-range {mvr[0]:g},{mvr[1]:g} (the stem position's range when --mv-range is left out)")
+            _check_not_fraction(grid.values["mv"], mvr, p.where("mv"), "MV", "stem position", given,
+                                "give --mv-range 0,1 (mv_range=(0, 1) in Python)")
         out["mv"] = normalise(grid.values["mv"], mvr, "mv", p.where("mv"), "--mv-range", repairs,
                               names["mv"], grid.t)
     for r in ("op", "pv"):

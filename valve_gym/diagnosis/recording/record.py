@@ -123,7 +123,14 @@ class Recording:
                     f"Recording.{what} must be normalised to 0..1, "
                     f"got values {a.min():g}..{a.max():g}"
                 )
-        lo, hi = (float(v) for v in self.op_range)
+        try:
+            if isinstance(self.op_range, (str, bytes)):
+                raise TypeError
+            lo, hi = (float(v) for v in self.op_range)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"Recording.op_range must be a pair of numbers (lo, hi), e.g. (0, 100), got {self.op_range!r}"
+            ) from None
         if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
             raise ValueError(f"Recording.op_range must be (lo, hi) with lo < hi, got {self.op_range!r}")
         set_(self, "op_range", (lo, hi))

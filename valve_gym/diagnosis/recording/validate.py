@@ -22,6 +22,10 @@ __all__ = [
     "ABSURD_REL",
     "LoadOptions",
     "RANGE_TOLERANCE",
+    "SENTINEL_FRACTION",
+    "SENTINEL_MIN_SPAN",
+    "SENTINEL_PERCENTILES",
+    "SENTINEL_REL",
     "SPIKE_SAMPLES",
     "check_constant",
     "check_options",
@@ -46,8 +50,27 @@ ABSURD_ABS = 1e15
 #: that is not zero) is absurd.
 ABSURD_REL = 1e6
 
-#: Longest run of samples counted as a spike by the relative rule.
+#: Longest run of samples counted as a spike by the relative rules.
 SPIKE_SAMPLES = 3
+
+#: An isolated spike (at most :data:`SPIKE_SAMPLES` samples in a row) lying further outside the range of
+#: the column's other values than this many times their span is a historian's bad-value code (-9999,
+#: 9999, -999, -1e30 in a signal of a few units); see :data:`SENTINEL_FRACTION`.  A real excursion of a
+#: process signal is a few times its normal span at most.
+SENTINEL_REL = 20.0
+
+#: The bad-value rule of :data:`SENTINEL_REL` reads at most this fraction of a column's values (at least
+#: one) at either end of its value range as bad-value codes; the range of the other values is taken
+#: between their 0.1 and 99.9 percentiles (:data:`SENTINEL_PERCENTILES`).  A code in more rows than
+#: that is part of the column's range and is not repaired.
+SENTINEL_FRACTION = 0.01
+
+#: Percentiles of the other values that bound their range for :data:`SENTINEL_REL`.
+SENTINEL_PERCENTILES = (0.1, 99.9)
+
+#: The span of the other values is taken as at least this fraction of their magnitude, so that a
+#: column that is nearly constant (a set point) keeps its rare real steps.
+SENTINEL_MIN_SPAN = 0.01
 
 
 @dataclass(frozen=True)
@@ -126,7 +149,7 @@ def check_range(rng: Any, what: str, flag: str, src: str) -> tuple[float, float]
         Not two finite numbers with ``LO < HI``.
     """
     if isinstance(rng, str):
-        return parse_range(rng)
+        return parse_range(rng, flag)
     try:
         lo, hi = (float(v) for v in rng)
     except (TypeError, ValueError):
@@ -232,42 +255,87 @@ def check_time_order(p: Parsed) -> None:
         )
 
 
-def _absurd_mask(v: np.ndarray) -> tuple[np.ndarray, float]:
-    """Absurd values of one column and the threshold distance used."""
+def _spikes(far: np.ndarray) -> np.ndarray:
+    """The samples of `far` in runs of at most :data:`SPIKE_SAMPLES` samples."""
+    out = np.zeros(far.shape, dtype=bool)
+    d = np.diff(np.concatenate(([0], far.astype(np.int8), [0])))
+    for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
+        if b - a <= SPIKE_SAMPLES:
+            out[a:b] = True
+    return out
+
+
+def _absurd_mask(v: np.ndarray, valid: tuple[float, float] | None = None) -> tuple[np.ndarray, str]:
+    """Absurd values of one column, and the rules that found them, in words (empty when none).
+
+    ``valid``: the column's declared range (the controller output's ``op_range``); a value inside
+    it is never read as a bad-value code (an output that saturates for a sample or two is data).
+    """
     ok = v[np.isfinite(v)]
+    bad = np.zeros(v.shape, dtype=bool)
     if ok.size == 0:
-        return np.zeros(v.shape, dtype=bool), math.inf
+        return bad, ""
+    fin = np.isfinite(v)
+    with np.errstate(invalid="ignore", over="ignore"):
+        huge = fin & (np.abs(v) > ABSURD_ABS)
     mag = np.abs(ok) <= ABSURD_ABS
     base = ok[mag] if mag.any() else ok
+    # relative rule: a spike a million times the column's typical size from its median
     med = float(np.median(base))
     q25, q75 = (float(x) for x in np.percentile(base, [25.0, 75.0]))
     size = max(q75 - q25, abs(med))
     lim = ABSURD_REL * size if size > 0 else math.inf
     with np.errstate(invalid="ignore", over="ignore"):
-        far = np.isfinite(v) & (np.abs(v - med) > lim)
-        bad = np.isfinite(v) & (np.abs(v) > ABSURD_ABS)
-    if far.any():
-        d = np.diff(np.concatenate(([0], far.astype(np.int8), [0])))
-        for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
-            if b - a <= SPIKE_SAMPLES:
-                bad[a:b] = True
-    return bad, min(lim, ABSURD_ABS)
+        spike = _spikes(fin & (np.abs(v - med) > lim))
+    # bad-value codes: a few isolated values far outside the range of the others
+    code = np.zeros(v.shape, dtype=bool)
+    k = max(1, int(SENTINEL_FRACTION * base.size))
+    rest = np.sort(base)[k:base.size - k]
+    rng = ""
+    if rest.size >= 10:
+        lo, hi = (float(x) for x in np.percentile(rest, SENTINEL_PERCENTILES))
+        span = max(hi - lo, SENTINEL_MIN_SPAN * max(abs(lo), abs(hi)))
+        if span > 0 and math.isfinite(span):
+            with np.errstate(invalid="ignore", over="ignore"):
+                out = fin & ~huge & ((v < lo - SENTINEL_REL * span) | (v > hi + SENTINEL_REL * span))
+            if valid is not None:
+                out &= ~((v >= valid[0]) & (v <= valid[1]))
+            low, high = out & (v < lo), out & (v > hi)
+            if low.sum() <= k and high.sum() <= k:
+                code = _spikes(out)
+            rng = f"{lo:.4g}..{hi:.4g}"
+    rules = []
+    if huge.any():
+        rules.append(f"beyond +-{ABSURD_ABS:g}")
+    if (spike & ~huge).any():
+        rules.append(f"an isolated spike more than {lim:.3g} from the column's median")
+    if (code & ~huge & ~spike).any():
+        rules.append(f"an isolated spike of at most {SPIKE_SAMPLES} samples more than {SENTINEL_REL:g} times "
+                     f"the span of the other values ({rng}) outside their range")
+    bad = huge | spike | code
+    return bad, "; ".join(rules)
 
 
-def mark_absurd(p: Parsed, repairs: list[str]) -> Parsed:
+def mark_absurd(p: Parsed, repairs: list[str], ranges: dict[str, tuple[float, float]] | None = None) -> Parsed:
     """Non-finite and absurd values made missing, each stated in `repairs`.
 
     A value is absurd when its magnitude exceeds :data:`ABSURD_ABS`, or when
-    it is part of a spike of at most :data:`SPIKE_SAMPLES` samples further
-    than :data:`ABSURD_REL` times the column's typical size from the column's
-    median.  Missing values are then filled or reported by the
-    gap rules (see :func:`load_recording`'s ``max_gap``).
+    it is part of a spike of at most :data:`SPIKE_SAMPLES` samples either
+    further than :data:`ABSURD_REL` times the column's typical size from the
+    column's median, or further outside the range of the column's other
+    values than :data:`SENTINEL_REL` times their span (a historian's
+    bad-value code such as -9999 in a signal of a few units; at most
+    :data:`SENTINEL_FRACTION` of the values at either end).  Missing values
+    are then filled or reported by the gap rules (see
+    :func:`load_recording`'s ``max_gap``).
 
     Parameters
     ----------
     p : Parsed
     repairs : list of str
         Appended to.
+    ranges : dict of role to (lo, hi), optional
+        Declared ranges (``op``, ``mv``): values inside them are never read as bad-value codes.
 
     Returns
     -------
@@ -283,16 +351,17 @@ def mark_absurd(p: Parsed, repairs: list[str]) -> Parsed:
                 f"treated {nf.size} non-finite value(s) (inf or beyond the float range) of {col!r} ({r}) "
                 f"at {p.at(nf)} as missing"
             )
-        bad, lim = _absurd_mask(v)
+        bad, why = _absurd_mask(v, (ranges or {}).get(r))
         if bad.any():
             idx = np.flatnonzero(bad)
             v = v.copy()
-            ex = v[idx[0]]
+            seen = list(dict.fromkeys(float(x) for x in v[idx]))
+            vals = ", ".join(f"{x:g}" for x in seen[:5]) + (", ..." if len(seen) > 5 else "")
             v[idx] = np.nan
             values[r] = v
             repairs.append(
-                f"treated {idx.size} absurd value(s) of {col!r} ({r}) at {p.at(idx)} (e.g. {ex:g}; beyond "
-                f"+-{ABSURD_ABS:g}, or a spike more than {lim:.3g} from the column's median) as missing"
+                f"treated {idx.size} absurd value(s) of {col!r} ({r}) at {p.at(idx)} ({vals}) as missing, "
+                f"read as a historian's bad-value code: {why}"
             )
     return replace(p, values=values)
 
