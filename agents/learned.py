@@ -21,6 +21,7 @@ import numpy as np
 
 from valve_gym.envs.regulation import N_ACT, N_OBS, BlockLaw, BlockSettings, obs_names
 
+from .controllers.block import check_inputs, check_step_inputs
 from .safe_files import load_model_file, save_model_file
 
 __all__ = ["MLPSpec", "LearnedBlock", "load_learned", "save_learned", "mlp_forward", "mlp_shapes", "normalise",
@@ -136,31 +137,28 @@ class LearnedBlock:
         return {**asdict(self.block_settings), "policy": self.meta.get("policy_path")}
 
     def reset(self, sp, pv, op) -> None:
-        """Bumpless start from the current output ``op`` (fraction of stroke); ``sp``, ``pv`` in m."""
-        sp_a, pv_a, op_a = (np.asarray(v, dtype=float) for v in (sp, pv, op))
-        shape = tuple(np.broadcast_shapes(sp_a.shape, pv_a.shape, op_a.shape))
-        if len(shape) > 1:
-            raise ValueError(f"sp, pv and op must be scalars or (n,) arrays, got shape {shape}")
-        for nm, v in (("sp", sp_a), ("pv", pv_a), ("op", op_a)):
-            if not np.all(np.isfinite(v)):
-                raise ValueError(f"{nm} must be finite, got {v!r}")
+        """Bumpless start from the current output ``op`` (fraction of stroke); ``sp``, ``pv`` in m.
+
+        The signals are checked as every block's (:func:`~agents.controllers.block.check_inputs`).
+        """
+        (sp_a, pv_a, op_a), n, scalar = check_inputs(self.name, sp=sp, pv=pv, op=op)
         if np.any((op_a < 0) | (op_a > 1)):
-            raise ValueError(f"op must be the valve input as a fraction 0..1, got {op!r}")
-        self._scalar = shape == ()
-        n = 1 if self._scalar else int(np.prod(shape))
+            raise ValueError(f"{self.name}: op must be the valve input as a fraction 0..1, got {op!r}")
+        self._scalar = scalar
         self._law = BlockLaw(self.block_settings, n)
-        self._law.reset(np.broadcast_to(sp_a, (n,)), np.broadcast_to(pv_a, (n,)), np.broadcast_to(op_a, (n,)))
+        self._law.reset(sp_a, pv_a, op_a)
 
     def step(self, sp, pv):
-        """One scan: measurement ``pv`` [m] at set point ``sp`` [m]; returns the output (float or (n,))."""
+        """One scan: measurement ``pv`` [m] at set point ``sp`` [m]; returns the output (float or (n,)).
+
+        ``sp`` and ``pv`` are checked as every block's
+        (:func:`~agents.controllers.block.check_step_inputs`): finite, and as many loops as
+        :meth:`reset` was given (or scalars, shared by all loops).
+        """
         law = self._law
         if law is None:
             raise RuntimeError("call reset(sp, pv, op) before step()")
-        sp_a = np.broadcast_to(np.asarray(sp, float), (law.n,))
-        pv_a = np.broadcast_to(np.asarray(pv, float), (law.n,))
-        if not (np.all(np.isfinite(sp_a)) and np.all(np.isfinite(pv_a))):
-            raise ValueError("sp and pv must be finite numbers (a bad measurement should be handled by the "
-                             "DCS before the block)")
+        sp_a, pv_a, _ = check_step_inputs(self.name, law.n, sp, pv)
         obs = law.observe(sp_a, pv_a)
         a = mlp_forward(self.weights, normalise(obs, self.obs_mean, self.obs_std))
         u = law.act(a)

@@ -49,7 +49,7 @@ from .params import PROCESSES, ModelParams, ParameterError, ValveParams
 __all__ = [
     "ConfigError", "ValveRandomisation", "SetpointSchedule", "LoadSchedule", "PISettings",
     "RewardWeights", "EnvConfig", "PRESETS", "preset", "load_config", "config_to_dict",
-    "save_config",
+    "save_config", "MAX_EPISODE_STEPS", "check_episode_steps",
 ]
 
 Range = tuple[float, float]
@@ -89,6 +89,29 @@ def _check_num(path: str, v, lo=None, lo_open=False, hi=None) -> None:
         raise ConfigError(f"{path} must be {rel} {lo}, got {v!r}")
     if hi is not None and v > hi:
         raise ConfigError(f"{path} must be <= {hi}, got {v!r}")
+
+
+#: Most control steps in one episode.  An episode's measurement noise and schedules are drawn when
+#: it starts, as float arrays of one value per step (8 bytes each, several arrays per environment);
+#: 10^6 steps (11.6 days at a 1 s scan; the longest documented episode is 3600 s) keep them near
+#: 8 MB per array, where 10^12 s asked for 559 GiB.
+MAX_EPISODE_STEPS = 1_000_000
+
+
+def check_episode_steps(path: str, seconds: float, period: float, period_name: str) -> None:
+    """A :class:`ConfigError` naming ``path`` when an episode has more than :data:`MAX_EPISODE_STEPS` steps.
+
+    ``seconds`` is the episode length [s], ``period`` the time of one step [s] (``period_name``
+    its key).
+    """
+    steps = float(seconds) / float(period)
+    if steps > MAX_EPISODE_STEPS:
+        raise ConfigError(
+            f"{path} = {float(seconds):g} s is {steps:.3g} steps of {period_name} = {period:g} s; at most "
+            f"{MAX_EPISODE_STEPS:,} steps per episode ({MAX_EPISODE_STEPS * period:g} s at this {period_name}): "
+            f"each episode's noise and schedules are drawn when it starts as arrays of one value per step, "
+            f"which would need about {8 * steps / 2 ** 30:.3g} GiB each per environment; use a shorter "
+            f"{path} (run several episodes for a longer record) or a longer {period_name}")
 
 
 @dataclass(frozen=True)
@@ -314,6 +337,7 @@ class EnvConfig:
                 raise ConfigError(f"{name} must be a {cls.__name__}, got {getattr(self, name)!r}")
         _check_num("control_period", self.control_period, lo=0.0, lo_open=True)
         _check_num("episode_seconds", self.episode_seconds, lo=0.0, lo_open=True)
+        check_episode_steps("episode_seconds", self.episode_seconds, self.control_period, "control_period")
         _check_num("noise_std", self.noise_std, lo=0.0)
         _check_num("residual_scale", self.residual_scale, lo=0.0)
         if self.action_mode not in _ACTION_MODES:

@@ -83,7 +83,7 @@ def main(argv=None) -> int:
         files += list(write_figures(res, Path(args.out)))
     for n in res.notes:
         print(f"note: {n}", file=sys.stderr)
-    print(f"benchmark done in {time.perf_counter() - t0:.0f} s ({jobs} job(s)); wrote "
+    print(f"benchmark done in {time.perf_counter() - t0:.0f} s with {res.jobs_text()}; wrote "
           + ", ".join(str(f) for f in files))
     return 0
 

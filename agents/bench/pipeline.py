@@ -23,7 +23,7 @@ from .runner import ControllerSpec, lineup, make_controller, run_spec, valve_mod
 from .scenarios import PARTS, BenchScenarios, Scenarios, benchmark_scenarios
 from .scores import Comparison, LoopScores, SummaryRow, compare_learned, score_runs, summarise
 
-__all__ = ["Trend", "TaskResult", "BenchmarkResult", "run_benchmark", "example_loop"]
+__all__ = ["Trend", "TaskResult", "BenchmarkResult", "run_benchmark", "example_loop", "jobs_used", "jobs_text"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -78,6 +78,11 @@ class BenchmarkResult:
     seconds : float
         Wall time of the run [s].
     jobs : int
+        Worker processes used: the number asked, but at most one per task (:func:`jobs_used`).
+    jobs_asked : int
+        Worker processes asked for (``--jobs``); 0: not known (taken as ``jobs``).
+    n_tasks : int
+        Tasks run (controllers x parts).
     """
 
     config: BenchConfig
@@ -90,6 +95,12 @@ class BenchmarkResult:
     notes: tuple[str, ...]
     seconds: float
     jobs: int
+    jobs_asked: int = 0
+    n_tasks: int = 0
+
+    def jobs_text(self, unit: str = "job(s)") -> str:
+        """The workers used, and the number asked when fewer were used (:func:`jobs_text`)."""
+        return jobs_text(self.jobs, self.jobs_asked or self.jobs, self.n_tasks, unit)
 
     def part_scores(self, part: str) -> dict[str, LoopScores]:
         """``{label: LoopScores}`` of one part, in report order."""
@@ -161,6 +172,26 @@ def _progress_line(done: int, total: int, r: TaskResult, t0: float) -> str:
             f"(elapsed {el:5.0f} s, left ~{eta:4.0f} s)")
 
 
+def jobs_used(jobs: int, n_tasks: int) -> int:
+    """Worker processes a run of ``n_tasks`` tasks uses when ``jobs`` are asked: at most one per task."""
+    return max(1, min(int(jobs), int(n_tasks)))
+
+
+def jobs_text(used: int, asked: int, n_tasks: int, unit: str = "job(s)") -> str:
+    """``'8 job(s)'``, or ``'8 job(s) (1000 asked; only 8 tasks)'`` when fewer were used than asked.
+
+    Examples
+    --------
+    >>> jobs_text(2, 2, 22)
+    '2 job(s)'
+    >>> jobs_text(8, 1000, 8, "worker process(es)")
+    '8 worker process(es) (1000 asked; only 8 tasks)'
+    """
+    if used == asked:
+        return f"{used} {unit}"
+    return f"{used} {unit} ({asked} asked; only {n_tasks} tasks)"
+
+
 def _execute(tasks, jobs: int, progress: Callable[[str], None] | None) -> list:
     t0 = time.perf_counter()
     out = []
@@ -191,7 +222,8 @@ def run_benchmark(config: BenchConfig, jobs: int = 1, progress: Callable[[str], 
     config : BenchConfig
         Use :meth:`BenchConfig.quick_version` for ``--quick``.
     jobs : int, optional
-        Worker processes (default 1: in this process).
+        Worker processes (default 1: in this process); at most one per task is started
+        (``BenchmarkResult.jobs``: the number used, ``jobs_asked``: this number).
     progress : callable, optional
         Called with one line of text per finished task.
 
@@ -209,14 +241,16 @@ def run_benchmark(config: BenchConfig, jobs: int = 1, progress: Callable[[str], 
     tasks = [(s, p) for p in PARTS for s in specs]
     # the slowest tasks (banks of compensators) first, so that the workers finish together
     tasks.sort(key=lambda sp: sp[0].estimate <= 0.0)
-    results = tuple(_execute(tasks, min(int(jobs), len(tasks)), progress))
-    res = BenchmarkResult(config, scen, specs, results, (), None, _STATE["example"], notes, 0.0, int(jobs))
+    used = jobs_used(jobs, len(tasks))
+    results = tuple(_execute(tasks, used, progress))
+    res = BenchmarkResult(config, scen, specs, results, (), None, _STATE["example"], notes, 0.0, used,
+                          int(jobs), len(tasks))
     summary = tuple(row for p in PARTS for row in summarise(res.part_scores(p), scen.part(p), config))
     classical = tuple(s.label for s in specs if s.family in ("pi", "detuned")
                       or (s.family == "compensator" and s.estimate == 1.0))
     comp = compare_learned(res.part_scores("regulation"), scen.regulation, config, classical)
     return BenchmarkResult(config, scen, specs, results, summary, comp, res.example, notes,
-                           time.perf_counter() - t0, int(jobs))
+                           time.perf_counter() - t0, used, int(jobs), len(tasks))
 
 
 def default_jobs() -> int:

@@ -102,7 +102,8 @@ def results_markdown(res: BenchmarkResult, command: str = "") -> str:
     if command:
         out += [f"Command: `{command}`", ""]
     cpu = sum(r.cpu_seconds for r in res.scores)
-    out += [f"Run time {res.seconds:.0f} s with {res.jobs} worker process(es); CPU time of the runs {cpu:.0f} s "
+    out += [f"Run time {res.seconds:.0f} s with {res.jobs_text('worker process(es)')}; CPU time of the runs "
+            f"{cpu:.0f} s "
             f"(on {res.jobs} free core(s) about {cpu / max(res.jobs, 1):.0f} s). Seed {cfg.seed}. "
             f"Loops per part: {reg.n} ({counts}); friction models: {', '.join(cfg.models)}. "
             f"Regulation: {cfg.regulation.duration_s:g} s per loop; servo: {res.scenarios.servo.duration_s:g} s.",

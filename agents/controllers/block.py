@@ -31,7 +31,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-__all__ = ["Setting", "FunctionBlock", "resolve_settings", "check_inputs", "merge_rows",
+__all__ = ["Setting", "FunctionBlock", "resolve_settings", "check_inputs", "check_step_inputs", "merge_rows",
            "whole_scans", "json_settings", "fmt"]
 
 ArrayOrFloat = float | np.ndarray
@@ -201,6 +201,35 @@ def check_inputs(block: str, **signals) -> tuple[tuple[np.ndarray, ...], int, bo
     return out, n, not sizes
 
 
+def check_step_inputs(block: str, n_loops: int, sp, pv) -> tuple[np.ndarray, np.ndarray, bool]:
+    """``step()``'s set point and measurement as ``(n_loops,)`` arrays, for a block reset with ``n_loops`` loops.
+
+    Returns
+    -------
+    sp, pv : (n_loops,) float64 arrays (scalars are shared by all loops)
+    scalar : bool, True when both were scalars
+
+    Raises
+    ------
+    ValueError
+        As :func:`check_inputs`, and for arrays of another length than ``reset()`` was given.
+
+    Examples
+    --------
+    >>> check_step_inputs("pi", 1, 1.0, [0.9, 1.0])
+    Traceback (most recent call last):
+    ...
+    ValueError: pi: reset() was given 1 loop(s) but step() 2; call reset(sp, pv, op) again for the new set of loops
+    """
+    (sp, pv), n, scalar = check_inputs(block, sp=sp, pv=pv)
+    if scalar:                      # scalars are shared by all loops
+        return np.full(n_loops, sp[0]), np.full(n_loops, pv[0]), True
+    if n != n_loops:
+        raise ValueError(f"{block}: reset() was given {n_loops} loop(s) but step() {n}; "
+                         "call reset(sp, pv, op) again for the new set of loops")
+    return sp, pv, False
+
+
 def merge_rows(mask: np.ndarray, fresh, old):
     """Rows of state ``fresh`` where ``mask``, of ``old`` elsewhere (nested named tuples)."""
     if isinstance(fresh, tuple):
@@ -315,13 +344,7 @@ class FunctionBlock(ABC):
         if self._state is None:
             raise ValueError(f"{self.name}: step() called before reset(); call reset(sp, pv, op) first "
                              "with the valve input now applied (bumpless start)")
-        (sp, pv), n, scalar = check_inputs(self.name, sp=sp, pv=pv)
-        n_loops = int(self._n or 1)
-        if scalar:                      # scalars are shared by all loops
-            sp, pv = np.full(n_loops, sp[0]), np.full(n_loops, pv[0])
-        elif n != n_loops:
-            raise ValueError(f"{self.name}: reset() was given {n_loops} loop(s) but step() {n}; "
-                             "call reset(sp, pv, op) again for the new set of loops")
+        sp, pv, scalar = check_step_inputs(self.name, int(self._n or 1), sp, pv)
         self._state, op = self.advance(self._state, sp, pv)
         return float(op[0]) if (scalar and self._scalar) else op
 

@@ -305,6 +305,11 @@ def _fleet(a, path, jobs, seed, holdout, cands, op_range, max_gap, say) -> int:
     if not os.path.exists(path):
         raise RecordingError(f"{path}: no such file or folder")
     _check_out(a.out, "--out", True)
+    from ..fleet.runner import check_out_dir
+    try:
+        check_out_dir(path, a.out, "--out")
+    except ValueError as e:
+        raise _UsageError(str(e)) from None
     _check_address(a.address)
     max_loops = int(_number(a.max_loops, "--max-loops", int, 1, 10 ** 9)) if a.max_loops else None
     top = int(_number(a.top, "--top", int, 0, 1000))

@@ -39,7 +39,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import core
-from ..config import ConfigError
+from ..config import ConfigError, check_episode_steps
 from ..params import ModelParams, SlipJump, ValveParams
 
 __all__ = ["RegulationConfig", "BlockSettings", "RegulationDraw", "draw_scenarios", "friction_params",
@@ -163,6 +163,7 @@ class RegulationConfig:
     def __post_init__(self):
         if not (math.isfinite(self.episode_s) and self.episode_s >= self.block.scan_s):
             raise ConfigError(f"episode_s must be at least one scan, got {self.episode_s!r}")
+        check_episode_steps("episode_s", self.episode_s, self.block.scan_s, "block.scan_s")
         _range("levels", self.levels, 0.05, 10.0, open_lo=True)
         _range("noise_std", self.noise_std, 0.0, 1.0)
         _range("load_std", self.load_std, 0.0, 1.0)

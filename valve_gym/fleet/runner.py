@@ -32,10 +32,10 @@ from typing import Any, NamedTuple
 from .analyse import analyse_loop, failed_result
 from .progress import Progress
 from .result import FleetSettings, LoopResult, loop_key
-from .sources import LoopSource, discover_loops
+from .sources import FLEET_OUTPUT_FILES, LoopSource, discover_loops, fleet_outputs
 from .table import read_result, write_result, write_table
 
-__all__ = ["FleetRun", "run_fleet", "plan_fleet"]
+__all__ = ["FleetRun", "run_fleet", "plan_fleet", "check_out_dir"]
 
 _TABLE_EVERY_S = 30.0
 
@@ -236,6 +236,33 @@ def _start_ray(jobs: int, address: str | None) -> bool:
     return True
 
 
+def check_out_dir(path: str, out_dir: str, what: str = "out_dir") -> None:
+    """Refuse an output folder that is the input itself, before any work.
+
+    A fleet writes ``loops/``, ``loops.csv``, ``loops.parquet`` and ``worklist.*`` into
+    ``out_dir``: written into the input folder they would sit among the recordings, and a
+    wide export given as ``path`` could be overwritten by the table.  An ``out_dir`` *inside*
+    the input folder is fine: discovery does not look into subfolders.  Paths are compared
+    after resolving links (:func:`os.path.realpath`).
+
+    Raises
+    ------
+    ValueError
+        Naming ``what`` (``--out`` on the command line), the clash and what to do.
+    """
+    src, out = os.path.realpath(path), os.path.realpath(out_dir)
+    if os.path.isdir(src) and src == out:
+        other = os.path.relpath(os.path.join(os.path.dirname(src), os.path.basename(src) + "-fleet"))
+        sub = os.path.normpath(os.path.join(out_dir, "fleet"))
+        raise ValueError(f"{what} {out_dir!r} is the input folder itself: the fleet's outputs (loops/, "
+                         f"{', '.join(FLEET_OUTPUT_FILES)}) would be written among the recordings; give "
+                         f"another folder, e.g. {other!r} (a subfolder such as {sub!r} works too: the "
+                         f"loops are not looked for in subfolders)")
+    if os.path.isfile(src) and os.path.dirname(src) == out and os.path.basename(src).lower() in FLEET_OUTPUT_FILES:
+        raise ValueError(f"{what} {out_dir!r} would overwrite the input {path!r} with the fleet's "
+                         f"{os.path.basename(src)}; give another output folder")
+
+
 def _raise_interrupt(signum, frame):
     raise KeyboardInterrupt
 
@@ -341,13 +368,24 @@ def run_fleet(path: str, out_dir: str, settings: FleetSettings = FleetSettings()
     Returns
     -------
     FleetRun
+
+    Raises
+    ------
+    ValueError
+        ``jobs`` < 1, or ``out_dir`` is the input folder itself (:func:`check_out_dir`), before any work;
+        RecordingError (a ValueError) when ``path`` holds no loops.
     """
     from .worklist import write_worklist
 
     t0 = time.perf_counter()
     if jobs < 1:
         raise ValueError(f"jobs must be at least 1, got {jobs!r}")
+    check_out_dir(path, out_dir)
     sources = discover_loops(path)
+    skipped = fleet_outputs(path)
+    if skipped and stream is not None:
+        print(f"note: skipped {', '.join(os.path.basename(f) for f in skipped)} in {path}: the outputs of an "
+              f"earlier fleet run, not recordings", file=stream, flush=True)
     os.makedirs(os.path.join(out_dir, "loops"), exist_ok=True)
     keys, stored, todo = plan_fleet(sources, out_dir, settings)
     later: list[LoopSource] = []

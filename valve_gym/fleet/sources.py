@@ -46,9 +46,11 @@ from ..diagnosis.recording import MIN_SAMPLES, Recording, RecordingError, load_r
 from ..diagnosis.recording.columns import WIDE_SUFFIXES, wide_tags
 from ..diagnosis.recording.mode import automatic_stretch, longest_run
 from ..diagnosis.recording.sniff import recording_files
+from .result import TABLE_COLUMNS
 
 __all__ = ["LoopSource", "LoadedLoop", "Gap", "discover_loops", "load_loop", "resample_loop",
-           "file_fingerprint", "safe_name", "WIDE_SUFFIXES", "TIME_COLUMN_NAMES"]
+           "file_fingerprint", "safe_name", "fleet_outputs", "is_fleet_output", "FLEET_OUTPUT_FILES",
+           "WIDE_SUFFIXES", "TIME_COLUMN_NAMES"]
 
 #: Names recognised (case-insensitively) as the time-stamp column of a wide export.
 TIME_COLUMN_NAMES = ("timestamp", "time", "t", "t_s", "datetime", "date", "ts")
@@ -192,6 +194,40 @@ def _file_sources(path: str, fp: str) -> list[LoopSource]:
     return out
 
 
+#: The files a fleet run writes next to its ``loops/`` folder (:func:`~valve_gym.fleet.table.write_table`,
+#: :func:`~valve_gym.fleet.worklist.write_worklist`).
+FLEET_OUTPUT_FILES = ("loops.csv", "loops.parquet", "worklist.md", "worklist.html")
+
+
+def is_fleet_output(path: str) -> bool:
+    """True when ``path`` is recognisably an output of a fleet run, not a recording.
+
+    A file named as one of :data:`FLEET_OUTPUT_FILES` that lies next to a ``loops/`` folder (of
+    per-loop results), or a ``loops.csv``/``loops.parquet`` whose header is the fleet table's
+    (``loop, status, message, ...``).  A recording that happens to be called ``loops.csv`` has
+    neither, and is read as a recording.
+    """
+    name = os.path.basename(path).lower()
+    if name not in FLEET_OUTPUT_FILES:
+        return False
+    if os.path.isdir(os.path.join(os.path.dirname(path), "loops")):
+        return True
+    if name.startswith("worklist."):
+        return False
+    try:
+        header = _header(path)
+    except (RecordingError, OSError):
+        return False
+    return tuple(header[:3]) == TABLE_COLUMNS[:3]
+
+
+def fleet_outputs(folder: str) -> list[str]:
+    """The files of ``folder`` that :func:`discover_loops` skips as outputs of a fleet run (sorted)."""
+    if not os.path.isdir(folder):
+        return []
+    return [f for f in recording_files(folder, extra=(".parquet",)) if is_fleet_output(f)]
+
+
 def discover_loops(path: str) -> list[LoopSource]:
     """The loops of a file or a folder (``*.csv``, ``*.parquet``, ``*.txt`` DCS exports, sorted; not recursive).
 
@@ -203,18 +239,29 @@ def discover_loops(path: str) -> list[LoopSource]:
     -------
     list of LoopSource, names unique and file-safe (a name seen twice gets ``@file`` appended).
     A file that cannot be read becomes a source of kind ``'bad'`` (a failed row later), never an
-    exception, so one bad file does not stop a fleet.
+    exception, so one bad file does not stop a fleet.  The outputs of an earlier fleet run
+    written into the folder (``loops.csv``, ``loops.parquet`` next to ``loops/``:
+    :func:`is_fleet_output`) are not loops and are skipped (:func:`fleet_outputs` lists them).
 
     Raises
     ------
     RecordingError
-        ``path`` does not exist, or a folder holds no ``.csv``/``.parquet`` file.
+        ``path`` does not exist, a folder holds no ``.csv``/``.parquet`` file (or only a fleet
+        run's outputs), or ``path`` is itself a fleet run's table.
     """
     if os.path.isdir(path):
-        files = recording_files(path, extra=(".parquet",))
+        found = recording_files(path, extra=(".parquet",))
+        files = [f for f in found if not is_fleet_output(f)]
         if not files:
+            if found:
+                names = ", ".join(os.path.basename(f) for f in found)
+                raise RecordingError(f"folder {path!r} holds only the outputs of a fleet run ({names}), no "
+                                     f"recordings; give the folder of the recordings, and a separate --out folder")
             raise RecordingError(f"folder {path!r} holds no .csv or .parquet files (nor .txt DCS exports)")
     elif os.path.isfile(path):
+        if is_fleet_output(path):
+            raise RecordingError(f"{path}: this is the table of a fleet run (one row per loop's result), not a "
+                                 f"recording; give the folder of the recordings or a historian's export")
         files = [path]
     else:
         raise RecordingError(f"{path}: no such file or folder")
