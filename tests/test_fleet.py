@@ -272,6 +272,27 @@ def test_a_file_is_put_once_for_its_loops_in_flight_and_dropped_after_the_last(r
     assert _Shipper(False).ref(a) is None                                        # this process's own Ray
 
 
+def test_a_cluster_that_cannot_run_the_tasks_is_refused_before_any_loop(ray_session, monkeypatch):
+    """The probe task runs where the loops' tasks run: valve_gym must import there, in the same version."""
+    import valve_gym
+    from valve_gym.fleet.runner import _probe_cluster
+
+    _probe_cluster("here")                                  # this session's workers import valve_gym: fine
+    monkeypatch.setattr(valve_gym, "__version__", "9.9.9")   # as if the nodes ran another release
+    with pytest.raises(ValueError, match=r"runs valve_gym 0\.1\.0, this process 9\.9\.9: install the same version"):
+        _probe_cluster("here")
+
+
+def test_a_task_error_is_read_from_its_last_line_without_colour_codes():
+    from valve_gym.fleet.runner import task_error_cause
+
+    raw = ("\x1b[36mray::task()\x1b[39m (pid=1, ip=10.0.0.2)\nRuntimeError: The remote function failed to "
+           "import on the worker.\n\n\x1b[36mray::task()\x1b[39m (pid=1)\n               ^^^^^^^^^^^^\n"
+           "ModuleNotFoundError: No module named 'valve_gym'")
+    assert task_error_cause(RuntimeError(raw)) == "ModuleNotFoundError: No module named 'valve_gym'"
+    assert task_error_cause(RuntimeError("")) == "RuntimeError"
+
+
 def test_wide_export_fleet(ray_session, tmp_path):
     p = tmp_path / "export.parquet"
     _wide_frame(n=500, seed=3).to_parquet(p, index=False)

@@ -233,7 +233,59 @@ def _start_ray(jobs: int, address: str | None) -> bool:
             f"authentication (what `ray start` does by default since Ray 2.59) admits only clients that "
             f"run with RAY_AUTH_MODE=token and its token (~/.ray/auth_token on this machine, or "
             f"RAY_AUTH_TOKEN; `ray get-auth-token` on the head node prints it)") from None
+    try:
+        _probe_cluster(address)
+    except BaseException:
+        ray.shutdown()
+        raise
     return True
+
+
+#: Seconds the probe of a cluster (:func:`_probe_cluster`) waits for a free CPU before the run goes on unprobed.
+PROBE_TIMEOUT = 60.0
+
+
+def _probe_cluster(address: str) -> None:
+    """Run one small task where the loops' tasks run: valve_gym must import there, the same version as here.
+
+    Without it, a cluster whose nodes lack valve_gym (or one of its dependencies) turns every loop into an
+    error row that only a Ray traceback explains.  A cluster with no CPU free within
+    :data:`PROBE_TIMEOUT` is not probed (the run goes on).  Raises ValueError saying what to install.
+    """
+    import ray
+    import ray.exceptions
+
+    from .. import __version__
+
+    @ray.remote(num_cpus=1, max_retries=0)
+    def probe() -> str:
+        import valve_gym
+        from valve_gym.fleet import analyse  # noqa: F401  (the fleet's own imports: numba, scipy, pandas)
+        return valve_gym.__version__
+
+    ref = probe.remote()
+    try:
+        there = ray.get(ref, timeout=PROBE_TIMEOUT)
+    except ray.exceptions.GetTimeoutError:
+        ray.cancel(ref, force=True)
+        return
+    except ray.exceptions.RayError as e:
+        raise ValueError(f"the Ray cluster at {address} cannot run valve_gym's tasks ({task_error_cause(e)}): "
+                         f"install valve_gym {__version__} and its dependencies on every node (the same "
+                         f"Python environment as here), or leave out --address to run Ray in this "
+                         f"process") from None
+    if there != __version__:
+        raise ValueError(f"the Ray cluster at {address} runs valve_gym {there}, this process {__version__}: "
+                         f"install the same version on every node, or leave out --address")
+
+
+def task_error_cause(e: BaseException) -> str:
+    """The last line of a Ray task's error (``ExcType: message``), without the terminal's colour codes."""
+    import re
+
+    text = re.sub(r"\x1b\[[0-9;]*m", "", str(e)).strip()
+    lines = [ln.strip() for ln in text.splitlines() if ln.strip() and not set(ln.strip()) <= set("^~")]
+    return (lines[-1] if lines else type(e).__name__)[:300]
 
 
 def check_out_dir(path: str, out_dir: str, what: str = "out_dir") -> None:
@@ -294,9 +346,13 @@ def _collect(ref, src_of: dict, keys: dict) -> LoopResult:
     src = src_of[ref]
     try:
         return ray.get(ref)
-    except ray.exceptions.RayError as e:       # a lost worker or node, a cancelled task
-        text = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
-        return failed_result(src, keys[src.name], "error", f"worker lost ({type(e).__name__}): {text[:200]}; "
+    except ray.exceptions.RayError as e:       # a lost worker or node, a cancelled task, a node without valve_gym
+        cause = task_error_cause(e)
+        if "ModuleNotFoundError" in cause or "ImportError" in cause:
+            return failed_result(src, keys[src.name], "error", f"the worker cannot import valve_gym's task "
+                                                               f"({cause}); install valve_gym and its dependencies "
+                                                               f"on every node, then run again")
+        return failed_result(src, keys[src.name], "error", f"worker lost ({type(e).__name__}): {cause}; "
                                                            f"run again to retry")
 
 
