@@ -95,14 +95,40 @@ def test_genuine_excursion_is_kept(tmp_path):
     assert not any("absurd" in r for r in rec.repairs)
 
 
-def test_long_run_of_a_bad_value_code_is_not_a_spike(tmp_path):
-    """Past SPIKE_SAMPLES samples in a row the rule does not read a code (as the relative spike rule)."""
+def test_long_run_of_an_unknown_far_value_is_not_a_spike(tmp_path):
+    """Past SPIKE_SAMPLES samples in a row the spike rule does not read a code (as the relative spike rule)."""
     t, op, pv, sp = loop()
     odd = pv.copy()
-    odd[100:104] = -9999
+    odd[100:104] = -8888
     p = write(tmp_path / "x.csv", ["t", "OP", "PV", "SP"], [t, op, odd, sp])
     rec = load_recording(p, op_range=(0, 100))
-    assert rec.pv.min() == -9999 and not any("absurd" in r for r in rec.repairs)
+    assert rec.pv.min() == -8888 and not any("absurd" in r for r in rec.repairs)
+
+
+def test_a_known_code_in_a_long_run_is_an_outage(tmp_path):
+    """-9999 written for a stretch (a transmitter outage) is missing data: a short one filled, a long one a gap."""
+    t, op, pv, sp = loop()
+    short, long_ = pv.copy(), pv.copy()
+    short[100:104] = -9999                                    # 4 samples: within the default max_gap of 5
+    long_[100:130] = -9999                                    # 30 samples: a gap
+    rec = load_recording(write(tmp_path / "s.csv", ["t", "OP", "PV", "SP"], [t, op, short, sp]), op_range=(0, 100))
+    assert rec.pv.min() > 0.5 and np.allclose(rec.pv[100:104], np.interp(np.arange(100, 104), [99, 104],
+                                                                          [pv[99], pv[104]]))
+    assert any("4 absurd value(s) of 'PV' (pv)" in r and "a known bad-value code" in r for r in rec.repairs)
+    p = write(tmp_path / "l.csv", ["t", "OP", "PV", "SP"], [t, op, long_, sp])
+    with pytest.raises(RecordingError, match="gap"):
+        load_recording(p, op_range=(0, 100))
+    kept = load_recording(p, op_range=(0, 100), gaps="longest")
+    assert kept.pv.min() > 0.5 and len(kept) == 270                 # the 270 samples after the outage
+
+
+def test_a_known_code_inside_the_range_of_the_others_is_data(tmp_path):
+    """9999 in a signal that runs 9990..10010 is a value like the others."""
+    t, op, pv, sp = loop()
+    big = 10000.0 + 10.0 * (pv - pv.mean()) / np.ptp(pv)
+    big[50:60] = 9999.0
+    rec = load_recording(write(tmp_path / "b.csv", ["t", "OP", "PV", "SP"], [t, op, big, sp]), op_range=(0, 100))
+    assert np.all(rec.pv[50:60] == 9999.0) and not any("absurd" in r for r in rec.repairs)
 
 
 def test_frequent_short_pulses_are_part_of_the_range(tmp_path):

@@ -22,6 +22,7 @@ __all__ = [
     "ABSURD_REL",
     "LoadOptions",
     "RANGE_TOLERANCE",
+    "KNOWN_CODES",
     "SENTINEL_FRACTION",
     "SENTINEL_MIN_SPAN",
     "SENTINEL_PERCENTILES",
@@ -67,6 +68,12 @@ SENTINEL_FRACTION = 0.01
 
 #: Percentiles of the other values that bound their range for :data:`SENTINEL_REL`.
 SENTINEL_PERCENTILES = (0.1, 99.9)
+
+#: Bad-value codes historians write in place of a value (an outage, a failed transmitter, an unset
+#: point): read as missing in runs of any length, wherever the column's other values lie more than
+#: :data:`SENTINEL_REL` times their span away from the code (never inside an output's declared range).
+#: A run longer than ``max_gap`` is then a gap the loader refuses or, with ``gaps='longest'``, avoids.
+KNOWN_CODES = (-9999.0, 9999.0, -99999.0, 99999.0, -999999.0, 999999.0, -999.0, -32768.0, 32767.0, 65535.0)
 
 #: The span of the other values is taken as at least this fraction of their magnitude, so that a
 #: column that is nearly constant (a set point) keeps its rare real steps.
@@ -278,7 +285,10 @@ def _absurd_mask(v: np.ndarray, valid: tuple[float, float] | None = None) -> tup
     fin = np.isfinite(v)
     with np.errstate(invalid="ignore", over="ignore"):
         huge = fin & (np.abs(v) > ABSURD_ABS)
-    mag = np.abs(ok) <= ABSURD_ABS
+    known = fin & np.isin(v, KNOWN_CODES)
+    if valid is not None:
+        known &= ~((v >= valid[0]) & (v <= valid[1]))
+    mag = (np.abs(ok) <= ABSURD_ABS) & ~np.isin(ok, KNOWN_CODES)
     base = ok[mag] if mag.any() else ok
     # relative rule: a spike a million times the column's typical size from its median
     med = float(np.median(base))
@@ -302,8 +312,11 @@ def _absurd_mask(v: np.ndarray, valid: tuple[float, float] | None = None) -> tup
                 out &= ~((v >= valid[0]) & (v <= valid[1]))
             low, high = out & (v < lo), out & (v > hi)
             if low.sum() <= k and high.sum() <= k:
-                code = _spikes(out)
+                code = _spikes(out & ~known)
+            known &= out                         # a known code counts only far outside the other values
             rng = f"{lo:.4g}..{hi:.4g}"
+    else:
+        known[:] = False
     rules = []
     if huge.any():
         rules.append(f"beyond +-{ABSURD_ABS:g}")
@@ -312,7 +325,10 @@ def _absurd_mask(v: np.ndarray, valid: tuple[float, float] | None = None) -> tup
     if (code & ~huge & ~spike).any():
         rules.append(f"an isolated spike of at most {SPIKE_SAMPLES} samples more than {SENTINEL_REL:g} times "
                      f"the span of the other values ({rng}) outside their range")
-    bad = huge | spike | code
+    if (known & ~huge & ~spike & ~code).any():
+        rules.append(f"a known bad-value code more than {SENTINEL_REL:g} times the span of the other values "
+                     f"({rng}) outside their range")
+    bad = huge | spike | code | known
     return bad, "; ".join(rules)
 
 
