@@ -442,7 +442,6 @@ def run_fleet(path: str, out_dir: str, settings: FleetSettings = FleetSettings()
     if skipped and stream is not None:
         print(f"note: skipped {', '.join(os.path.basename(f) for f in skipped)} in {path}: the outputs of an "
               f"earlier fleet run, not recordings", file=stream, flush=True)
-    os.makedirs(os.path.join(out_dir, "loops"), exist_ok=True)
     keys, stored, todo = plan_fleet(sources, out_dir, settings)
     later: list[LoopSource] = []
     if max_loops is not None:
@@ -451,7 +450,8 @@ def run_fleet(path: str, out_dir: str, settings: FleetSettings = FleetSettings()
     bar = Progress(len(todo), skipped=len(stored), stream=stream)
     left: list[LoopSource] = []
     if todo:
-        started = _start_ray(jobs, address)
+        started = _start_ray(jobs, address)          # a refused cluster leaves nothing on disk
+        os.makedirs(os.path.join(out_dir, "loops"), exist_ok=True)
         try:
             left = _stream(todo, keys, settings, jobs, out_dir, results, bar, on_result,
                            ship=bool(address) or not started)
