@@ -277,10 +277,10 @@ def test_a_cluster_that_cannot_run_the_tasks_is_refused_before_any_loop(ray_sess
     import valve_gym
     from valve_gym.fleet.runner import _probe_cluster
 
-    _probe_cluster("here")                                  # this session's workers import valve_gym: fine
+    _probe_cluster("here", {})                              # this session's workers import valve_gym: fine
     monkeypatch.setattr(valve_gym, "__version__", "9.9.9")   # as if the nodes ran another release
     with pytest.raises(ValueError, match=r"runs valve_gym 0\.1\.0, this process 9\.9\.9: install the same version"):
-        _probe_cluster("here")
+        _probe_cluster("here", {})
 
 
 def test_a_task_error_is_read_from_its_last_line_without_colour_codes():

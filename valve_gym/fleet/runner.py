@@ -12,7 +12,8 @@ flight and keeps every finished one; running again continues.
 
 Ray runs in this process by default (``ray.init(address='local', num_cpus=jobs)``, no
 dashboard, nothing to start, whatever cluster runs nearby); ``address`` joins an existing
-cluster (``valve_gym`` must be installed on its nodes; a cluster with token authentication
+cluster (its nodes need valve_gym's dependencies; valve_gym itself is sent along where they lack it,
+see :func:`_probe_cluster`; a cluster with token authentication
 needs ``RAY_AUTH_MODE=token`` and its token in this process's environment).  On a cluster the
 data files travel with the tasks (each file's bytes put in Ray's object store once, while
 its loops are in flight): a node need not see this machine's files.  A Ray session
@@ -207,13 +208,14 @@ def check_address(address: str | None) -> None:
                          f"Ray in this process") from None
 
 
-def _start_ray(jobs: int, address: str | None) -> bool:
+def _start_ray(jobs: int, address: str | None, say: Callable[[str], None] | None = None) -> bool:
     """Start Ray unless a session exists; True if this call started it.
 
     Without ``address`` a new Ray instance starts in this process (``address='local'``), even where
     a cluster runs on this machine or ``RAY_ADDRESS`` names one: plain ``ray.init()`` would join it
     and refuse ``num_cpus``.  With ``address`` a head node that does not answer, or refuses this
-    process (token authentication), is a ValueError that says what to do.
+    process (token authentication), is a ValueError that says what to do; then the cluster is
+    probed (:func:`_probe_cluster`).
     """
     import ray
 
@@ -234,10 +236,13 @@ def _start_ray(jobs: int, address: str | None) -> bool:
             f"run with RAY_AUTH_MODE=token and its token (~/.ray/auth_token on this machine, or "
             f"RAY_AUTH_TOKEN; `ray get-auth-token` on the head node prints it)") from None
     try:
-        _probe_cluster(address)
+        sent = _probe_cluster(address, kw)
     except BaseException:
         ray.shutdown()
         raise
+    if sent and say is not None:
+        say(f"note: valve_gym is not installed on the nodes of {address}: sent along with this run (each "
+            f"node compiles its kernels first, about a minute)")
     return True
 
 
@@ -245,17 +250,43 @@ def _start_ray(jobs: int, address: str | None) -> bool:
 PROBE_TIMEOUT = 60.0
 
 
-def _probe_cluster(address: str) -> None:
+def _probe_cluster(address: str, init_kw: dict[str, Any]) -> bool:
     """Run one small task where the loops' tasks run: valve_gym must import there, the same version as here.
 
-    Without it, a cluster whose nodes lack valve_gym (or one of its dependencies) turns every loop into an
-    error row that only a Ray traceback explains.  A cluster with no CPU free within
-    :data:`PROBE_TIMEOUT` is not probed (the run goes on).  Raises ValueError saying what to install.
+    Where the nodes lack valve_gym itself (``No module named 'valve_gym'``) but have its dependencies,
+    this process joins the cluster again with the package sent along (Ray's job-level ``runtime_env``
+    ``py_modules``, without compiled caches) and probes again; returns True then.  Without the probe, a
+    cluster whose nodes lacked valve_gym (or one of its dependencies) turned every loop into an error row
+    that only a Ray traceback explained.  A cluster with no CPU free within :data:`PROBE_TIMEOUT` is not
+    probed (the run goes on).  Raises ValueError saying what to install.
     """
     import ray
-    import ray.exceptions
 
-    from .. import __version__
+    import valve_gym
+
+    cause, there = _probe()
+    sent = cause is not None and "No module named 'valve_gym'" in cause
+    if sent:
+        ray.shutdown()
+        ray.init(address=address, runtime_env={"py_modules": [valve_gym],
+                                               "excludes": ["__pycache__", "*.pyc", "*.nbi", "*.nbc"]}, **init_kw)
+        cause, there = _probe()
+    version = valve_gym.__version__
+    if cause is not None:
+        raise ValueError(f"the Ray cluster at {address} cannot run valve_gym's tasks ({cause}"
+                         f"{'; valve_gym itself was sent along' if sent else ''}): install valve_gym {version} "
+                         f"and its dependencies on every node (the same Python environment as here), or "
+                         f"leave out --address to run Ray in this process")
+    if there is not None and there != version:
+        raise ValueError(f"the Ray cluster at {address} runs valve_gym {there}, this process {version}: "
+                         f"install the same version on every node, or leave out --address")
+    return sent
+
+
+def _probe() -> tuple[str | None, str | None]:
+    """One probe task: ``(its error's cause or None, valve_gym's version there or None)``."""
+    import ray
+    import ray.exceptions
 
     @ray.remote(num_cpus=1, max_retries=0)
     def probe() -> str:
@@ -265,18 +296,12 @@ def _probe_cluster(address: str) -> None:
 
     ref = probe.remote()
     try:
-        there = ray.get(ref, timeout=PROBE_TIMEOUT)
+        return None, ray.get(ref, timeout=PROBE_TIMEOUT)
     except ray.exceptions.GetTimeoutError:
         ray.cancel(ref, force=True)
-        return
+        return None, None
     except ray.exceptions.RayError as e:
-        raise ValueError(f"the Ray cluster at {address} cannot run valve_gym's tasks ({task_error_cause(e)}): "
-                         f"install valve_gym {__version__} and its dependencies on every node (the same "
-                         f"Python environment as here), or leave out --address to run Ray in this "
-                         f"process") from None
-    if there != __version__:
-        raise ValueError(f"the Ray cluster at {address} runs valve_gym {there}, this process {__version__}: "
-                         f"install the same version on every node, or leave out --address")
+        return task_error_cause(e), None
 
 
 def task_error_cause(e: BaseException) -> str:
@@ -450,7 +475,8 @@ def run_fleet(path: str, out_dir: str, settings: FleetSettings = FleetSettings()
     bar = Progress(len(todo), skipped=len(stored), stream=stream)
     left: list[LoopSource] = []
     if todo:
-        started = _start_ray(jobs, address)          # a refused cluster leaves nothing on disk
+        say = None if stream is None else (lambda m: print(m, file=stream, flush=True))
+        started = _start_ray(jobs, address, say)     # a refused cluster leaves nothing on disk
         os.makedirs(os.path.join(out_dir, "loops"), exist_ok=True)
         try:
             left = _stream(todo, keys, settings, jobs, out_dir, results, bar, on_result,
