@@ -48,7 +48,7 @@ import numpy as np
 from valve_gym.config import ConfigError, config_to_dict, load_config
 from valve_gym.envs.regulation import N_ACT, RegulationConfig, obs_names, pi_action
 
-from .learned import MLPSpec, mlp_forward, normalise, save_learned, unflatten
+from .learned import MAX_LAYER, MLPSpec, mlp_forward, normalise, save_learned, unflatten
 from .lifecycle import STOP, stop_on_signals
 from .safe_files import load_model_file, save_model_file
 
@@ -119,8 +119,10 @@ class ESHyper:
         if min(self.weight_decay, self.travel_penalty, self.reversal_weight, self.lc_weight, self.lc_amp_weight) < 0:
             raise ConfigError("es.weight_decay, es.travel_penalty, es.reversal_weight, es.lc_weight and "
                               "es.lc_amp_weight must be >= 0")
-        if not self.hidden or any((not isinstance(h, int)) or h < 1 for h in self.hidden):
-            raise ConfigError(f"es.hidden must be a list of positive layer sizes, got {self.hidden!r}")
+        if not self.hidden or any((not isinstance(h, int)) or not 1 <= h <= MAX_LAYER for h in self.hidden):
+            raise ConfigError(f"es.hidden must be a list of layer sizes from 1 to {MAX_LAYER} (a compensator's "
+                              f"network needs tens; each layer's weights are held per population member), "
+                              f"got {self.hidden!r}")
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,10 @@ from .safe_files import load_model_file, save_model_file
 __all__ = ["MLPSpec", "LearnedBlock", "load_learned", "save_learned", "mlp_forward", "mlp_shapes", "normalise",
            "DEFAULT_POLICY", "FORMAT"]
 
+#: Largest layer of a learned policy's network (``es.hidden``, PPO's ``net_arch``): a compensator needs
+#: tens of units; far larger layers only exhaust memory.
+MAX_LAYER = 4096
+
 #: The shipped learned compensator.
 DEFAULT_POLICY = Path(__file__).resolve().parent / "policies" / "learned.json"
 #: Format tag in the JSON of a learned-block file.

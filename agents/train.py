@@ -49,6 +49,7 @@ import numpy as np
 
 from valve_gym.config import ConfigError, EnvConfig, config_to_dict, load_config, read_yaml
 
+from .learned import MAX_LAYER
 from .ppo import ObsTransform
 
 __all__ = ["TrainConfig", "PPOHyper", "PolicyKwargs", "ObsConfig", "CheckpointConfig", "EvalConfig",
@@ -282,9 +283,9 @@ def load_train_config(path_or_dict) -> TrainConfig:
         ppo["policy_kwargs"] = pk
         data["ppo"] = ppo
         if not (isinstance(net_arch, (list, tuple)) and len(net_arch) > 0
-                and all(isinstance(x, int) and not isinstance(x, bool) and x > 0 for x in net_arch)):
-            raise ConfigError(f"ppo.policy_kwargs.net_arch must be a non-empty list of positive "
-                              f"integers (layer sizes), got {net_arch!r}{src}")
+                and all(isinstance(x, int) and not isinstance(x, bool) and 0 < x <= MAX_LAYER for x in net_arch)):
+            raise ConfigError(f"ppo.policy_kwargs.net_arch must be a non-empty list of layer sizes from 1 to "
+                              f"{MAX_LAYER}, got {net_arch!r}{src}")
     try:
         cfg = load_config(data, cls=TrainConfig, base=TrainConfig())
     except ConfigError as exc:

@@ -210,3 +210,57 @@ def test_benchmark_reports_the_jobs_it_used(tmp_path, capsys):
     md = (out / "results.md").read_text()
     assert "with 4 worker process(es) (1000 asked; only 4 tasks); CPU time" in md
     assert "(on 4 free core(s)" in md and "1000 worker" not in md
+
+
+# --------------------------------------------------------------------------- second review
+def test_an_output_folder_without_write_permission_is_refused_before_any_work(tmp_path, monkeypatch, capsys):
+    """As root every folder is writable, so the permission is taken away where it is read (os.access)."""
+    import valve_gym._io as io
+    from valve_gym.diagnosis import cli as dcli
+
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    real = os.access
+    monkeypatch.setattr(io.os, "access", lambda p, mode: False if os.fspath(p) == str(ro) else real(p, mode))
+    assert "permission denied" in io.folder_problem(ro / "out")
+    rec = tmp_path / "r.csv"
+    rec.write_text("t,OP,PV\n" + "".join(f"{i},{50 + i % 7},{1 + 0.01 * (i % 5)}\n" for i in range(80)))
+    for opt in (["--json", str(ro / "x.json")], ["--report", str(ro / "rep")]):
+        code = dcli.main([str(rec), "--op-range", "0,100", *opt])
+        err = capsys.readouterr().err
+        assert code == 2 and f"cannot write into {ro} (permission denied)" in err and "fitting" not in err
+
+
+def test_the_regulation_env_accepts_render_mode_none_and_refuses_a_mode():
+    env = gym.make("valve_gym/ValveTankRegulation-v0", render_mode=None)
+    env.reset(seed=0)
+    assert env.render_mode is None
+    with pytest.raises(ValueError, match="the regulation env has no render modes, got 'ansi'"):
+        gym.make("valve_gym/ValveTankRegulation-v0", render_mode="ansi")
+    vec = gym.make_vec("valve_gym/ValveTankRegulation-v0", num_envs=2, vectorization_mode="vector_entry_point",
+                       render_mode=None)
+    assert vec.num_envs == 2
+
+
+def test_a_yaml_key_given_twice_is_refused_and_merge_keys_still_work(tmp_path):
+    from valve_gym.config import read_yaml
+
+    p = tmp_path / "c.yaml"
+    p.write_text("seed: 3\nother: {a: 1}\nseed: 5\n")
+    with pytest.raises(ConfigError, match=r"key 'seed' is given twice \(lines 1 and 3\); keep one"):
+        read_yaml(p)
+    p.write_text("base: &b\n  a: 1\n  b: 2\nother:\n  <<: *b\n  a: 3\n")
+    assert read_yaml(p) == {"base": {"a": 1, "b": 2}, "other": {"a": 3, "b": 2}}
+
+
+def test_layer_sizes_are_bounded_and_section_messages_are_not_prefixed_twice():
+    from agents.es import ESHyper, load_learned_train_config
+
+    with pytest.raises(ConfigError, match=r"es.hidden must be a list of layer sizes from 1 to 4096"):
+        ESHyper(hidden=(100_000_000, 8))
+    with pytest.raises(ConfigError) as e:                        # before: 'es.es.hidden', then a MemoryError
+        load_learned_train_config({"es": {"hidden": [100_000_000]}})
+    assert str(e.value).startswith("es.hidden must be a list of layer sizes")
+    with pytest.raises(ConfigError) as e:                        # before: 'eval.eval.every'
+        load_learned_train_config({"eval": {"every": 0}})
+    assert str(e.value).startswith("eval.every and eval.n_loops must be >= 1")

@@ -43,10 +43,14 @@ def existing_part(path) -> str:
 
 
 def folder_problem(path) -> str:
-    """Why no folder can be made or used at ``path`` (a file on the way), or ``''`` if one can.
+    """Why no folder can be made or used at ``path`` (a file on the way, no write permission), or ``''``.
 
     Checked by every command before its work starts, so that an output option naming a file fails at
     once and not when the results are written.
     """
     part = existing_part(path)
-    return "" if os.path.isdir(part) else f"{part} is a file, not a folder"
+    if not os.path.isdir(part):
+        return f"{part} is a file, not a folder"
+    if not os.access(part, os.W_OK | os.X_OK):
+        return f"cannot write into {part} (permission denied); give another folder"
+    return ""

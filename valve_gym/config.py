@@ -530,6 +530,20 @@ def _convert(tp, v, path: str, base, parent_data: Mapping, owner) -> Any:
 _PARAM_MSG = re.compile(r"^(?:(\w+)\.)?(\w+) ")
 
 
+def _under(path: str, msg: str, names: list[str]) -> str:
+    """A section's message ``msg`` placed under ``path``: ``path.key ...`` when it starts with one of its keys.
+
+    >>> _under("es", "hidden must be ...", ["hidden"]), _under("es", "es.hidden must be ...", ["hidden"])
+    ('es.hidden must be ...', 'es.hidden must be ...')
+    >>> _under("task", "unknown friction model 'x'", ["friction_models"])
+    "task: unknown friction model 'x'"
+    """
+    if not path or msg.startswith(path + ".") or msg.startswith(path + ":"):
+        return msg
+    first = re.split(r"[ .,:;]", msg, maxsplit=1)[0]
+    return f"{path}.{msg}" if first in names else f"{path}: {msg}"
+
+
 def _build(cls, data: Mapping, path: str, base=None):
     hints = typing.get_type_hints(cls)
     names = [f.name for f in fields(cls) if f.init]
@@ -553,8 +567,7 @@ def _build(cls, data: Mapping, path: str, base=None):
     try:
         return replace(base, **kwargs) if base is not None else cls(**kwargs)
     except ConfigError as exc:
-        msg = str(exc)
-        raise ConfigError(f"{path}.{msg}" if path else msg) from None
+        raise ConfigError(_under(path, str(exc), names)) from None
     except (ParameterError, ValueError, TypeError) as exc:
         msg = str(exc)
         m = _PARAM_MSG.match(msg)
@@ -563,6 +576,28 @@ def _build(cls, data: Mapping, path: str, base=None):
 
 
 _EMPTY_HINT = "leave out --config to use the defaults, or write the settings to change into the file"
+
+
+def _unique_key_loader(yaml, path):
+    """PyYAML's SafeLoader that refuses a key given twice in one mapping (YAML keeps the last one silently)."""
+
+    class UniqueKeyLoader(yaml.SafeLoader):
+        pass
+
+    def mapping(loader, node, deep=False):
+        seen: dict = {}
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":       # '<<: *anchor': merged keys may be overridden
+                continue
+            key = loader.construct_object(key_node, deep=deep)
+            if key in seen:
+                raise ConfigError(f"{path}: key {key!r} is given twice (lines {seen[key]} and "
+                                  f"{key_node.start_mark.line + 1}); keep one")
+            seen.setdefault(key, key_node.start_mark.line + 1)
+        return loader.construct_mapping(node, deep=deep)
+
+    UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, mapping)
+    return UniqueKeyLoader
 
 
 def read_yaml(path, what: str = "config", empty_hint: str = _EMPTY_HINT) -> Any:
@@ -583,7 +618,7 @@ def read_yaml(path, what: str = "config", empty_hint: str = _EMPTY_HINT) -> Any:
         raise ConfigError(f"{what} file {str(p)!r} does not exist")
     try:
         with open(p, encoding="utf-8") as fh:
-            data = yaml.safe_load(fh)
+            data = yaml.load(fh, Loader=_unique_key_loader(yaml, p))  # noqa: S506  (a SafeLoader)
     except yaml.YAMLError as exc:
         raise ConfigError(f"{p}: not valid YAML: {exc}") from None
     except UnicodeDecodeError as exc:

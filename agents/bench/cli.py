@@ -2,13 +2,12 @@
 from __future__ import annotations
 
 import argparse
-import os
 import shlex
 import sys
 import time
 from pathlib import Path
 
-from valve_gym._io import existing_part, folder_problem
+from valve_gym._io import folder_problem
 from valve_gym.config import ConfigError
 
 from .config import BenchConfig, load_bench_config
@@ -43,10 +42,9 @@ def check_out(out: str) -> None:
         raise ConfigError("--out must not be empty; give an output folder (default: results)")
     why = folder_problem(out)
     if why:
-        raise ConfigError(f"--out {out}: {why}; give a folder (it is created if it does not exist) or move the file")
-    parent = existing_part(out)
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise ConfigError(f"--out {out}: cannot write into {parent} (permission denied); give another folder")
+        raise ConfigError(f"--out {out}: {why}" + ("" if "permission" in why else
+                                                   "; give a folder (it is created if it does not exist) or "
+                                                   "move the file"))
 
 
 def _load(args) -> BenchConfig:

@@ -167,7 +167,9 @@ class ValveTankRegulationEnv(gym.Env):
 
     metadata = {"render_modes": []}
 
-    def __init__(self, config: RegulationConfig | Mapping | str | None = None):
+    def __init__(self, config: RegulationConfig | Mapping | str | None = None, render_mode: str | None = None):
+        _no_render(render_mode)
+        self.render_mode = None
         self.config = make_regulation_config(config)
         self.observation_space, self.action_space = _spaces(self.config)
         self._loops = RegulationLoops(self.config, 1)
@@ -188,6 +190,12 @@ class ValveTankRegulationEnv(gym.Env):
         return obs[0], float(r[0]), False, bool(trunc), {k: float(v[0]) for k, v in info.items()}
 
 
+def _no_render(render_mode) -> None:
+    """Accept ``render_mode=None`` (what wrappers and RL tools pass); refuse any mode: there is none."""
+    if render_mode is not None:
+        raise ValueError(f"render_mode must be None: the regulation env has no render modes, got {render_mode!r}")
+
+
 class ValveTankRegulationVectorEnv(VectorEnv):
     """``num_envs`` regulation loops in one batch (native vector env of ``ValveTankRegulation-v0``).
 
@@ -200,7 +208,9 @@ class ValveTankRegulationVectorEnv(VectorEnv):
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.SAME_STEP}
 
     def __init__(self, num_envs: int = 1, config: RegulationConfig | Mapping | str | None = None,
-                 max_episode_steps: int | None = None):
+                 max_episode_steps: int | None = None, render_mode: str | None = None):
+        _no_render(render_mode)
+        self.render_mode = None
         if not (isinstance(num_envs, (int, np.integer)) and num_envs >= 1):
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         self.config = make_regulation_config(config)
