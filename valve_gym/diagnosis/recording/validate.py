@@ -285,9 +285,6 @@ def _absurd_mask(v: np.ndarray, valid: tuple[float, float] | None = None) -> tup
     fin = np.isfinite(v)
     with np.errstate(invalid="ignore", over="ignore"):
         huge = fin & (np.abs(v) > ABSURD_ABS)
-    known = fin & np.isin(v, KNOWN_CODES)
-    if valid is not None:
-        known &= ~((v >= valid[0]) & (v <= valid[1]))
     mag = (np.abs(ok) <= ABSURD_ABS) & ~np.isin(ok, KNOWN_CODES)
     base = ok[mag] if mag.any() else ok
     # relative rule: a spike a million times the column's typical size from its median
@@ -297,8 +294,9 @@ def _absurd_mask(v: np.ndarray, valid: tuple[float, float] | None = None) -> tup
     lim = ABSURD_REL * size if size > 0 else math.inf
     with np.errstate(invalid="ignore", over="ignore"):
         spike = _spikes(fin & (np.abs(v - med) > lim))
-    # bad-value codes: a few isolated values far outside the range of the others
-    code = np.zeros(v.shape, dtype=bool)
+    # bad-value codes: values far outside the range of the others (never inside a declared range)
+    far = np.zeros(v.shape, dtype=bool)
+    few = False
     k = max(1, int(SENTINEL_FRACTION * base.size))
     rest = np.sort(base)[k:base.size - k]
     rng = ""
@@ -307,16 +305,13 @@ def _absurd_mask(v: np.ndarray, valid: tuple[float, float] | None = None) -> tup
         span = max(hi - lo, SENTINEL_MIN_SPAN * max(abs(lo), abs(hi)))
         if span > 0 and math.isfinite(span):
             with np.errstate(invalid="ignore", over="ignore"):
-                out = fin & ~huge & ((v < lo - SENTINEL_REL * span) | (v > hi + SENTINEL_REL * span))
+                far = fin & ~huge & ((v < lo - SENTINEL_REL * span) | (v > hi + SENTINEL_REL * span))
             if valid is not None:
-                out &= ~((v >= valid[0]) & (v <= valid[1]))
-            low, high = out & (v < lo), out & (v > hi)
-            if low.sum() <= k and high.sum() <= k:
-                code = _spikes(out & ~known)
-            known &= out                         # a known code counts only far outside the other values
+                far &= ~((v >= valid[0]) & (v <= valid[1]))
+            few = (far & (v < lo)).sum() <= k and (far & (v > hi)).sum() <= k
             rng = f"{lo:.4g}..{hi:.4g}"
-    else:
-        known[:] = False
+    known = far & np.isin(v, KNOWN_CODES)          # the common codes: in runs of any length
+    code = _spikes(far & ~known) if few else np.zeros(v.shape, dtype=bool)   # others: a few, isolated
     rules = []
     if huge.any():
         rules.append(f"beyond +-{ABSURD_ABS:g}")
