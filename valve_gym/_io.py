@@ -1,11 +1,13 @@
 """Atomic file writing, shared by every command that writes results."""
 from __future__ import annotations
 
+import contextlib
 import os
+import shutil
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator, Sequence
 
-__all__ = ["write_atomic", "existing_part", "folder_problem"]
+__all__ = ["write_atomic", "staged_folder", "existing_part", "folder_problem"]
 
 
 def write_atomic(path, write: Callable) -> str:
@@ -32,6 +34,43 @@ def write_atomic(path, write: Callable) -> str:
             pass
         raise
     return path
+
+
+@contextlib.contextmanager
+def staged_folder(folder, last: Sequence[str] = ()) -> Iterator[str]:
+    """Write a set of result files as one unit: yields a staging folder, published into ``folder`` on success.
+
+    The files are written into a hidden staging folder beside ``folder``. When the block ends
+    normally they are published: where ``folder`` does not exist yet the staging folder is renamed
+    to it (one atomic rename); otherwise each file replaces its namesake atomically, the names in
+    ``last`` (the index files that refer to the others, e.g. ``report.md``) after every other file,
+    and files of ``folder`` that were not written are left alone. When the block raises (an error,
+    Ctrl-C) the staging folder is removed and ``folder`` is left as it was: an interrupted command
+    never leaves a half-written set of results.
+    """
+    folder = os.path.abspath(os.fspath(folder))
+    parent = os.path.dirname(folder)
+    os.makedirs(parent, exist_ok=True)
+    stage = tempfile.mkdtemp(prefix="." + os.path.basename(folder) + ".", suffix=".partial", dir=parent)
+    try:
+        yield stage
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(stage, 0o777 & ~umask)  # mkdtemp makes 0700; give results the usual mode
+        if not os.path.exists(folder):
+            os.rename(stage, folder)
+            return
+        names = sorted(os.listdir(stage), key=lambda n: (n in last, last.index(n) if n in last else 0, n))
+        for name in names:
+            src, dst = os.path.join(stage, name), os.path.join(folder, name)
+            if os.path.isdir(src):
+                if os.path.isdir(dst) and not os.path.islink(dst):
+                    shutil.rmtree(dst)
+                os.replace(src, dst)
+            else:
+                os.replace(src, dst)
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
 
 
 def existing_part(path) -> str:

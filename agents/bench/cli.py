@@ -72,13 +72,19 @@ def main(argv=None) -> int:
     except ConfigError as exc:
         print(f"valve-gym benchmark: {exc}", file=sys.stderr)
         return 2
+    from valve_gym._io import staged_folder
+
     from .report import write_report
 
-    files = list(write_report(res, Path(args.out), command.strip()))
-    if not args.no_figures:
-        from .figures import write_figures
+    # staged and published together, results.md last: an interrupt while the figures are drawn
+    # leaves the folder as it was, never a new results.md beside old or missing figures
+    with staged_folder(args.out, last=("results.md",)) as stage:
+        files = list(write_report(res, Path(stage), command.strip()))
+        if not args.no_figures:
+            from .figures import write_figures
 
-        files += list(write_figures(res, Path(args.out)))
+            files += list(write_figures(res, Path(stage)))
+    files = [Path(args.out) / f.name for f in files]
     for n in res.notes:
         print(f"note: {n}", file=sys.stderr)
     print(f"benchmark done in {time.perf_counter() - t0:.0f} s with {res.jobs_text()}; wrote "

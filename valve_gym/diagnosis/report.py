@@ -443,23 +443,27 @@ def _md_end(d: dict, figures: dict | None) -> list[str]:
 
 
 def write_report(res, folder) -> list[str]:
-    """Write ``diagnosis.json``, ``report.md`` and the PNG figures into ``folder``.
+    """Write ``diagnosis.json``, ``report.md`` and the PNG figures into ``folder``, as one unit.
 
+    The files are staged beside ``folder`` and published together, ``report.md`` last
+    (:func:`valve_gym._io.staged_folder`): an interrupted report leaves the folder as it was.
     Returns the written paths.
     """
-    os.makedirs(folder, exist_ok=True)
-    figs: dict[str, Any] = {"overlay": plot_overlay(res, os.path.join(folder, "overlay.png")),
-            "residuals": plot_residuals(res, os.path.join(folder, "residuals.png")),
-            "acf": plot_acf(res, os.path.join(folder, "acf.png"))}
-    if getattr(res, "_validation_series", None) is not None:
-        figs["validation"] = plot_validation(res, os.path.join(folder, "validation.png"))
-    stem = plot_stem(res, os.path.join(folder, "stem.png"))
-    if stem is not None:
-        figs["stem"] = stem
-    paths = [p for p in figs.values() if p]
-    paths.append(write_json(res, os.path.join(folder, "diagnosis.json")))
-    paths.append(write_text(render_markdown(res, figs), os.path.join(folder, "report.md")))
-    return paths
+    from .._io import staged_folder
+
+    with staged_folder(folder, last=("diagnosis.json", "report.md")) as stage:
+        figs: dict[str, Any] = {"overlay": plot_overlay(res, os.path.join(stage, "overlay.png")),
+                                "residuals": plot_residuals(res, os.path.join(stage, "residuals.png")),
+                                "acf": plot_acf(res, os.path.join(stage, "acf.png"))}
+        if getattr(res, "_validation_series", None) is not None:
+            figs["validation"] = plot_validation(res, os.path.join(stage, "validation.png"))
+        stem = plot_stem(res, os.path.join(stage, "stem.png"))
+        if stem is not None:
+            figs["stem"] = stem
+        written = [p for p in figs.values() if p]
+        written.append(write_json(res, os.path.join(stage, "diagnosis.json")))
+        written.append(write_text(render_markdown(res, figs), os.path.join(stage, "report.md")))
+    return [os.path.join(os.fspath(folder), os.path.basename(p)) for p in written]
 
 
 def summary_table(rows: list[dict]) -> str:

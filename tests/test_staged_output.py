@@ -1,0 +1,108 @@
+"""Result folders are written as one unit: an interrupt leaves the folder as it was, never half a set."""
+import os
+
+import numpy as np
+import pytest
+
+from valve_gym._io import staged_folder
+
+
+def _listing(folder):
+    return {n: open(os.path.join(folder, n), "rb").read() for n in sorted(os.listdir(folder))}
+
+
+def _no_staging_left(parent):
+    return [n for n in os.listdir(parent) if n.endswith(".partial")] == []
+
+
+def test_a_new_folder_appears_whole_or_not_at_all(tmp_path):
+    out = tmp_path / "res"
+    with pytest.raises(KeyboardInterrupt):
+        with staged_folder(out) as stage:
+            open(os.path.join(stage, "a.csv"), "w").write("1\n")
+            raise KeyboardInterrupt
+    assert not out.exists() and _no_staging_left(tmp_path)
+    with staged_folder(out) as stage:
+        open(os.path.join(stage, "a.csv"), "w").write("1\n")
+        open(os.path.join(stage, "index.md"), "w").write("see a.csv\n")
+    assert _listing(out) == {"a.csv": b"1\n", "index.md": b"see a.csv\n"} and _no_staging_left(tmp_path)
+    umask = os.umask(0)
+    os.umask(umask)
+    assert os.stat(out).st_mode & 0o777 == 0o777 & ~umask        # the usual mode, not the staging folder's 0700
+
+
+def test_an_existing_folder_keeps_its_old_set_on_interrupt_and_other_files_on_success(tmp_path):
+    out = tmp_path / "res"
+    out.mkdir()
+    (out / "a.csv").write_text("old\n")
+    (out / "index.md").write_text("old index\n")
+    (out / "mine.txt").write_text("not ours\n")
+    before = _listing(out)
+    for exc in (KeyboardInterrupt, RuntimeError):
+        with pytest.raises(exc):
+            with staged_folder(out, last=("index.md",)) as stage:
+                open(os.path.join(stage, "a.csv"), "w").write("new\n")
+                raise exc
+        assert _listing(out) == before and _no_staging_left(tmp_path)
+    with staged_folder(out, last=("index.md",)) as stage:
+        open(os.path.join(stage, "index.md"), "w").write("new index\n")
+        open(os.path.join(stage, "a.csv"), "w").write("new\n")
+    assert _listing(out) == {"a.csv": b"new\n", "index.md": b"new index\n", "mine.txt": b"not ours\n"}
+    assert _no_staging_left(tmp_path)
+
+
+def test_index_files_are_published_last(tmp_path, monkeypatch):
+    out = tmp_path / "res"
+    out.mkdir()
+    order = []
+    real = os.replace
+
+    def spy(src, dst):
+        order.append(os.path.basename(dst))
+        return real(src, dst)
+
+    monkeypatch.setattr(os, "replace", spy)
+    with staged_folder(out, last=("results.md",)) as stage:
+        for name in ("results.md", "z.png", "a.csv"):
+            open(os.path.join(stage, name), "w").write(name)
+    assert order == ["a.csv", "z.png", "results.md"]
+
+
+def test_an_interrupted_diagnosis_report_leaves_the_previous_report(tmp_path, monkeypatch):
+    from valve_gym.diagnosis import diagnose, report
+    from valve_gym.diagnosis.synthetic import make_recording
+
+    rec = make_recording(effect="none", seed=3, n=600)
+    res = diagnose(rec, plant="tank", candidates=(), effort="fast")
+    out = tmp_path / "rep"
+    paths = report.write_report(res, out)
+    assert {os.path.basename(p) for p in paths} <= set(os.listdir(out)) and "report.md" in os.listdir(out)
+    assert all(os.path.dirname(p) == str(out) for p in paths)
+    before = _listing(out)
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(report, "plot_acf", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        report.write_report(res, out)
+    assert _listing(out) == before and _no_staging_left(tmp_path)
+    fresh = tmp_path / "fresh"
+    with pytest.raises(KeyboardInterrupt):
+        report.write_report(res, fresh)
+    assert not fresh.exists() and _no_staging_left(tmp_path)
+
+
+def test_an_interrupted_benchmark_writes_no_results(tmp_path, monkeypatch):
+    """Ctrl-C while the figures are drawn: no results.md beside missing figures (the run is short: --quick)."""
+    import agents.bench.figures as figs
+    from valve_gym.cli import main as cli_main
+
+    def interrupted(res, out):
+        np.save(os.path.join(out, "half.npy"), np.zeros(1))
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(figs, "write_figures", interrupted)
+    out = tmp_path / "results"
+    assert cli_main(["benchmark", "--quick", "--out", str(out), "--jobs", "1", "--no-progress"]) == 130
+    assert not out.exists() and _no_staging_left(tmp_path)
