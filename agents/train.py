@@ -810,6 +810,12 @@ RUN_FILES = ("config.yaml", "summary.json", "eval.csv", "curve.csv", "final.safe
              "best.safetensors", "best.json", "checkpoints", "tb")
 
 
+def _started(out: Path, entries: list[str]) -> bool:
+    """Whether ``out`` holds more than a run that failed before its first checkpoint (its config alone)."""
+    ck = out / "checkpoints"
+    return any(e not in ("config.yaml", "checkpoints") for e in entries) or (ck.is_dir() and any(ck.iterdir()))
+
+
 def prepare_out(out: Path, resume: str | None, overwrite: bool) -> Path | None:
     """Check ``--out`` against ``--resume``/``--overwrite``; returns the checkpoint to resume from (or None).
 
@@ -817,7 +823,9 @@ def prepare_out(out: Path, resume: str | None, overwrite: bool) -> Path | None:
     ------
     UsageError
         A non-empty ``out`` without ``--resume`` or ``--overwrite``, both flags, a missing checkpoint,
-        or ``--overwrite`` on a folder with files a run does not write (nothing is deleted then).
+        or ``--overwrite`` on a folder with files a run does not write (nothing is deleted then). A
+        folder that holds only the config of a run that failed before its first checkpoint (nothing to
+        resume) is started again without ``--overwrite``.
     """
     import shutil
 
@@ -831,6 +839,8 @@ def prepare_out(out: Path, resume: str | None, overwrite: bool) -> Path | None:
         if not ck.is_file():
             raise UsageError(f"no checkpoint to resume: {ck} does not exist (train without --resume first)")
         return ck
+    if entries and not _started(out, entries):
+        overwrite = True      # a run that failed before its first checkpoint left only its config: start it again
     if entries and not overwrite:
         raise UsageError(f"--out {out} is not empty ({', '.join(entries[:5])}{' ...' if len(entries) > 5 else ''}); "
                          f"pass --resume to continue that run, --overwrite to replace it, or another --out")

@@ -235,6 +235,16 @@ def test_out_folder_rules(tmp_path, capsys):
     assert cli_main(["train", "--config", str(cfg), "--out", str(out), "--resume", "--overwrite"]) == 2
     assert cli_main(["train", "--config", str(cfg), "--out", str(tmp_path / "new"), "--resume"]) == 2
     assert "no checkpoint" in capsys.readouterr().err
+    # a run that failed before its first checkpoint leaves only its config: nothing to resume, so the same
+    # command starts it again (it used to be refused as "not empty" with --resume impossible)
+    failed = tmp_path / "failed"
+    (failed / "checkpoints").mkdir(parents=True)
+    (failed / "config.yaml").write_text("name: failed\n")
+    assert cli_main(["train", "--config", str(cfg), "--out", str(failed), "--no-progress"]) == 0
+    assert (failed / "best.json").is_file() and "name: failed" not in (failed / "config.yaml").read_text()
+    (failed / "notes.txt").write_text("mine")                    # anything more is still a run's folder
+    assert cli_main(["train", "--config", str(cfg), "--out", str(failed), "--no-progress"]) == 2
+    assert "not empty" in capsys.readouterr().err
 
 
 def test_sigterm_writes_checkpoint_and_exits_cleanly(tmp_path):
