@@ -37,7 +37,8 @@ class FleetSettings:
         :func:`valve_gym.diagnosis.diagnose`)
     seed : int, seed of the full diagnosis
     full : bool, run the full diagnosis on every loop (default: only on oscillating loops)
-    columns : tuple of (role, column) pairs, optional, for one-recording CSV files
+    columns : tuple of (role, column) pairs, optional, for one-recording CSV files (of a wide export's
+        tags only ``('mode', None)`` and ``('sp', None)`` are used: those columns are not read)
     op_range : (lo, hi), optional, raw controller-output range mapped to 0..1
     mv_range : (lo, hi), optional, raw valve-position range mapped to 0..1 (default: ``op_range``)
     max_gap : int, longest stretch without samples bridged, in scans

@@ -18,6 +18,10 @@ Two layouts are read:
   and ``TAG.MODE``.  Each tag becomes a loop.  Historians store each tag on its
   own (irregular, exception-based) time stamps; every tag's samples are
   resampled onto a uniform grid at the loop's scan (:func:`resample_loop`).
+  A tag whose role is given by two columns cannot be read; a few cells of
+  status text (``Bad Input``) are missing samples, stated in the notes; time
+  stamps that go back (a daylight-saving fall-back in local time) are refused
+  as by the single-file loader.
 
 Examples
 --------
@@ -43,17 +47,26 @@ from typing import NamedTuple
 import numpy as np
 
 from ..diagnosis.recording import MIN_SAMPLES, Recording, RecordingError, load_recording
-from ..diagnosis.recording.columns import WIDE_SUFFIXES, wide_tags
-from ..diagnosis.recording.mode import automatic_stretch, longest_run
+from ..diagnosis.recording._base import MISSING_TOKENS
+from ..diagnosis.recording.columns import WIDE_COLUMN_RE, WIDE_SUFFIXES, wide_tags
+from ..diagnosis.recording.mode import MANUAL_MODES, automatic, automatic_stretch, longest_run
+from ..diagnosis.recording.parse import parse_numbers
+from ..diagnosis.recording.read import _arrow_to_numpy
 from ..diagnosis.recording.sniff import recording_files
+from ..diagnosis.recording.validate import check_increasing
 from .result import TABLE_COLUMNS
 
 __all__ = ["LoopSource", "LoadedLoop", "Gap", "discover_loops", "load_loop", "resample_loop",
            "file_fingerprint", "safe_name", "fleet_outputs", "is_fleet_output", "FLEET_OUTPUT_FILES",
-           "WIDE_SUFFIXES", "TIME_COLUMN_NAMES"]
+           "WIDE_SUFFIXES", "TIME_COLUMN_NAMES", "TEXT_FRACTION"]
 
 #: Names recognised (case-insensitively) as the time-stamp column of a wide export.
 TIME_COLUMN_NAMES = ("timestamp", "time", "t", "t_s", "datetime", "date", "ts")
+
+#: A wide export's signal column (``TAG.PV``, ``TAG.OP``, ``TAG.SP``) whose cells that are neither numbers nor
+#: blank (a historian's status text such as ``Bad Input``) are more than this fraction of its filled cells
+#: is refused; fewer such cells are read as missing samples, bridged or cut by the gap rules.
+TEXT_FRACTION = 0.5
 
 _GAP_FACTOR = 1.5
 
@@ -167,6 +180,37 @@ def _time_column(header: list[str], tags: dict[str, dict[str, str]]) -> str:
     return rest[0] if rest else ""
 
 
+def _duplicated(path: str, header: list[str], tcol: str) -> tuple[str, dict[str, str]]:
+    """Columns of a wide export that cannot be told apart: ``(problem of the file, {tag: problem})``.
+
+    A time column named twice makes the whole file unusable; a tag's role (``PV``, ``OP``, ``SP``,
+    ``MODE``) given by two columns (the same name twice, or two spellings such as ``FIC1.PV`` and
+    ``FIC1.pv``) makes that tag unusable: a reader would take one of them without a word.
+    """
+    def where(js: list[int]) -> str:
+        return f"columns {', '.join(str(j + 1) for j in js)} of the header"
+
+    if tcol and header.count(tcol) > 1:
+        js = [j for j, h in enumerate(header) if h == tcol]
+        return (f"{path}: the time-stamp column {tcol!r} appears {len(js)} times ({where(js)}); give each "
+                f"column its own name (delete or rename the duplicates) and export again"), {}
+    roles: dict[tuple[str, str], list[int]] = {}
+    for j, col in enumerate(header):
+        m = WIDE_COLUMN_RE.match(col)
+        if m:
+            roles.setdefault((m["tag"], WIDE_SUFFIXES[m["role"].upper()]), []).append(j)
+    out: dict[str, str] = {}
+    for (tag, role), js in roles.items():
+        if len(js) < 2 or tag in out:
+            continue
+        names = sorted({header[j] for j in js})
+        what = (f"column {names[0]!r} appears {len(js)} times" if len(names) == 1 else
+                f"columns {' and '.join(map(repr, names))} both name its {role.upper()}")
+        out[tag] = (f"{path}: tag {tag!r}: {what} ({where(js)}), so which one holds the tag's {role.upper()} is "
+                    f"unknown; the tag is not read: delete or rename the duplicate column in the export")
+    return "", out
+
+
 def _file_sources(path: str, fp: str) -> list[LoopSource]:
     stem = os.path.splitext(os.path.basename(path))[0]
     try:
@@ -181,12 +225,13 @@ def _file_sources(path: str, fp: str) -> list[LoopSource]:
                                        f"TAG.OP (found {', '.join(header[:6])}); write single loops as CSV")]
         return [LoopSource(stem, "csv", path, fingerprint=fp)]
     tcol = _time_column(header, tags)
+    file_problem, tag_problems = _duplicated(path, header, tcol)
     out = []
     for tag, roles in sorted(tags.items()):
-        problem = ""
-        if not tcol:
+        problem = file_problem or tag_problems.get(tag, "")
+        if not problem and not tcol:
             problem = f"{path}: no time-stamp column (name one of {', '.join(TIME_COLUMN_NAMES)})"
-        elif "pv" not in roles or "op" not in roles:
+        elif not problem and ("pv" not in roles or "op" not in roles):
             miss = " and ".join(f"{tag}.{r.upper()}" for r in ("pv", "op") if r not in roles)
             problem = f"{path}: tag {tag!r} has no column {miss}; a loop needs TAG.PV and TAG.OP"
         out.append(LoopSource(tag, "bad" if problem else "wide", path, tag=tag, time_column=tcol,
@@ -228,6 +273,25 @@ def fleet_outputs(folder: str) -> list[str]:
     return [f for f in recording_files(folder, extra=(".parquet",)) if is_fleet_output(f)]
 
 
+def _no_recordings(folder: str) -> str:
+    """Why ``folder`` holds no loops, naming its subfolders (not read) when it has any."""
+    msg = f"folder {folder!r} holds no .csv or .parquet files (nor .txt DCS exports)"
+    try:
+        subs = sorted(e.name for e in os.scandir(folder) if e.is_dir() and not e.name.startswith("."))
+        with_recs = next((d for d in subs[:20] if recording_files(os.path.join(folder, d), extra=(".parquet",))),
+                         "")
+    except OSError:
+        subs, with_recs = [], ""
+    if not subs:
+        return msg
+    named = ", ".join(subs[:5]) + (f", ... ({len(subs)} in all)" if len(subs) > 5 else "")
+    eg = os.path.join(folder, with_recs or subs[0])
+    return (f"{msg} directly in it; it holds {len(subs)} subfolder(s) ({named}), and fleet mode reads only the "
+            f"files directly in the folder given, not its subfolders: give one subfolder (e.g. {eg!r}"
+            f"{', which holds recordings' if with_recs else ''}) and run once per subfolder, or put the recordings "
+            f"in one folder")
+
+
 def discover_loops(path: str) -> list[LoopSource]:
     """The loops of a file or a folder (``*.csv``, ``*.parquet``, ``*.txt`` DCS exports, sorted; not recursive).
 
@@ -247,7 +311,7 @@ def discover_loops(path: str) -> list[LoopSource]:
     ------
     RecordingError
         ``path`` does not exist, a folder holds no ``.csv``/``.parquet`` file (or only a fleet
-        run's outputs), or ``path`` is itself a fleet run's table.
+        run's outputs; subfolders are named, not read), or ``path`` is itself a fleet run's table.
     """
     if os.path.isdir(path):
         found = recording_files(path, extra=(".parquet",))
@@ -257,7 +321,7 @@ def discover_loops(path: str) -> list[LoopSource]:
                 names = ", ".join(os.path.basename(f) for f in found)
                 raise RecordingError(f"folder {path!r} holds only the outputs of a fleet run ({names}), no "
                                      f"recordings; give the folder of the recordings, and a separate --out folder")
-            raise RecordingError(f"folder {path!r} holds no .csv or .parquet files (nor .txt DCS exports)")
+            raise RecordingError(_no_recordings(path))
     elif os.path.isfile(path):
         if is_fleet_output(path):
             raise RecordingError(f"{path}: this is the table of a fleet run (one row per loop's result), not a "
@@ -290,37 +354,97 @@ def discover_loops(path: str) -> list[LoopSource]:
 
 
 # --------------------------------------------------------------------------- loading
-def _read_wide_columns(src: LoopSource) -> dict[str, np.ndarray]:
-    """The time column (as read) and the loop's columns of a wide export."""
-    cols = dict(src.columns)
-    names = [src.time_column] + list(cols.values())
+def _read_table(src: LoopSource, names: list[str], numbers: bool):
+    """The columns ``names`` of a wide export (a CSV file's signal columns as numbers, or as text)."""
+    if src.path.lower().endswith(".parquet"):
+        import pyarrow.parquet as pq
+        return pq.read_table(src.path, columns=names)
+    import pyarrow as pa
+    import pyarrow.csv as pcsv
+    types = {c: (pa.float64() if numbers and r != "mode" else pa.string()) for r, c in src.columns}
+    types[src.time_column] = pa.string()
+    return pcsv.read_csv(src.path, parse_options=pcsv.ParseOptions(delimiter=_delimiter(src.path)),
+                         convert_options=pcsv.ConvertOptions(include_columns=names, column_types=types))
+
+
+def _read_wide_columns(src: LoopSource, roles: dict[str, str]) -> tuple[dict[str, np.ndarray], dict[str, tuple]]:
+    """The time column (as read) and the columns ``roles`` (role -> column) of a tag of a wide export.
+
+    Returns the columns (signals as float, NaN where a cell is missing or not a number; the mode as
+    read) and, per signal role with cells that are neither numbers nor blank, ``(positions, cells)``.
+    """
+    names = [src.time_column] + list(roles.values())
     try:
-        if src.path.lower().endswith(".parquet"):
-            import pyarrow.parquet as pq
-            table = pq.read_table(src.path, columns=names)
-        else:
-            import pyarrow as pa
-            import pyarrow.csv as pcsv
-            with open(src.path, encoding="utf-8-sig", errors="replace") as f:
-                delim = ";" if ";" in f.readline() else ","
-            types = {c: (pa.string() if r == "mode" else pa.float64()) for r, c in cols.items()}
-            types[src.time_column] = pa.string()
-            table = pcsv.read_csv(src.path, parse_options=pcsv.ParseOptions(delimiter=delim),
-                                  convert_options=pcsv.ConvertOptions(include_columns=names,
-                                                                      column_types=types))
+        table = _read_table(src, names, numbers=True)
     except Exception as e:  # pyarrow: ArrowInvalid, OSError, ...
         msg = str(e).splitlines()[0][:300]
-        raise RecordingError(f"{src.path}: cannot read the columns of tag {src.tag!r} ({msg}); "
-                             f"check that they hold numbers") from None
+        try:        # a status text (``Bad Input``) in a number column: read the cells as text
+            table = _read_table(src, names, numbers=False)
+        except Exception:
+            raise RecordingError(f"{src.path}: cannot read the columns of tag {src.tag!r} ({msg}); "
+                                 f"check that they hold numbers") from None
     out = {"t": table.column(src.time_column).to_numpy(zero_copy_only=False)}
-    for role, c in cols.items():
-        a = table.column(c).to_numpy(zero_copy_only=False)
-        out[role] = a if role == "mode" else np.asarray(a, dtype=float)
-    return out
+    text: dict[str, tuple] = {}
+    comma = not src.path.lower().endswith(".parquet") and _delimiter(src.path) == ";"    # '0,53' is 0.53
+    for role, c in roles.items():
+        if role == "mode":
+            out[role] = table.column(c).to_numpy(zero_copy_only=False)
+            continue
+        cells = _arrow_to_numpy(table.column(c), c, src.path)
+        out[role], bad, _ = parse_numbers(cells, decimal_comma=comma)
+        if bad:
+            text[role] = (np.asarray(bad), cells)
+    return out, text
 
 
-def _seconds(t_raw: np.ndarray, where: str) -> tuple[np.ndarray, str | None]:
-    """Time stamps as float seconds (and the first stamp as ISO text when they are dates)."""
+def _delimiter(path: str) -> str:
+    """The delimiter of a wide export in CSV: ``;`` when the first line holds one, else ``,``."""
+    with open(path, encoding="utf-8-sig", errors="replace") as f:
+        return ";" if ";" in f.readline() else ","
+
+
+def _stamp(t_raw: np.ndarray, i: int) -> str:
+    """Row ``i``'s time stamp as written (seconds, or the date to the second)."""
+    v = t_raw[i]
+    if t_raw.dtype.kind == "M":
+        return str(v)[:19].replace("T", " ")
+    return f"{v:g}" if isinstance(v, (float, np.floating)) else str(v).strip()
+
+
+def _text_cells(src: LoopSource, t_raw: np.ndarray, column: str, bad: np.ndarray, cells: np.ndarray, filled: int,
+                notes: list[str]) -> None:
+    """State the cells of ``column`` at positions ``bad`` that are not numbers (or dates), or refuse them.
+
+    A signal's such cells are missing samples; a time column's are rows without a time stamp, not read.
+
+    Raises
+    ------
+    RecordingError
+        They are more than :data:`TEXT_FRACTION` of the column's ``filled`` cells.
+    """
+    if not bad.size:
+        return
+    i = int(bad[0])
+    time = column == src.time_column
+    first = f"first {str(cells[i]).strip()!r} at row {i + 1}" + ("" if time else
+                                                                 f", {src.time_column} {_stamp(t_raw, i)}")
+    what = "neither numbers nor dates" if time else "not numbers"
+    if bad.size > TEXT_FRACTION * filled:
+        held = "time stamps: export them as seconds or dates" if time else "values: export them as numbers"
+        raise RecordingError(
+            f"{src.path}: column {column!r} of tag {src.tag!r}: {bad.size} of its {filled} filled cells are {what} "
+            f"({first}); the column holds text, not {held} (the values, not status texts)")
+    done = "the rows without a time stamp are not read" if time else "read as missing samples"
+    notes.append(f"column {column!r}: {bad.size} cell(s) that are {what} ({first}): {done} "
+                 f"(rows count the data rows after the header)")
+
+
+def _seconds(t_raw: np.ndarray, src: LoopSource, notes: list[str]) -> tuple[np.ndarray, str | None]:
+    """Time stamps as float seconds (and the first stamp as ISO text when they are dates).
+
+    A few cells of a text column that are neither numbers nor dates are rows without a time stamp
+    (:func:`_text_cells`).
+    """
     if t_raw.dtype.kind in "fiu":
         return np.asarray(t_raw, float), None
     if t_raw.dtype.kind == "M":
@@ -329,11 +453,26 @@ def _seconds(t_raw: np.ndarray, where: str) -> tuple[np.ndarray, str | None]:
         try:
             return np.asarray(t_raw, dtype=float), None
         except (TypeError, ValueError):
-            import pandas as pd
-            ns = pd.to_datetime(pd.Series(t_raw), errors="coerce", utc=True).dt.tz_localize(None).to_numpy()
+            pass
+        cells = np.asarray(t_raw, dtype=object)
+        head, bad, _ = parse_numbers(cells[:200])
+        if np.isfinite(head).sum() > len(bad):               # seconds, with a few cells of text
+            num, bad, nonfin = parse_numbers(cells)
+            _text_cells(src, t_raw, src.time_column, np.asarray(bad, int), cells,
+                        int(np.isfinite(num).sum()) + len(bad) + len(nonfin), notes)
+            return num, None
+        import warnings
+
+        import pandas as pd
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)    # a format inferred cell by cell
+            ns = pd.to_datetime(pd.Series(cells), errors="coerce", utc=True).dt.tz_localize(None).to_numpy()
+        nat = np.flatnonzero(np.isnat(ns))
+        bad = np.asarray([i for i in nat if str(cells[i]).strip().lower() not in MISSING_TOKENS], int)
+        _text_cells(src, t_raw, src.time_column, bad, cells, len(ns) - nat.size + bad.size, notes)
     ok = ~np.isnat(ns)
     if not ok.any():
-        raise RecordingError(f"{where}: the time column holds neither numbers nor dates")
+        raise RecordingError(f"{src.path}: tag {src.tag!r}: the time column holds neither numbers nor dates")
     t0 = ns[ok][0]
     sec = np.full(len(ns), np.nan)
     sec[ok] = (ns[ok] - t0) / np.timedelta64(1, "s")
@@ -434,11 +573,35 @@ def _longest_run(mask: np.ndarray) -> tuple[int, int]:
     return longest_run(mask)
 
 
-def _automatic_stretch(values: dict[str, np.ndarray], grid: np.ndarray, notes: list[str]):
+def _automatic_stretch(values: dict[str, np.ndarray], grid: np.ndarray, notes: list[str], where: str,
+                       column: str):
+    """The grid and values cut to the longest stretch in automatic (the ``mode`` role, if any, removed).
+
+    Raises
+    ------
+    RecordingError
+        The loop is in manual throughout, or its longest automatic stretch is shorter than
+        :data:`MIN_SAMPLES` samples of a grid that has them (the mode's changes counted).
+    """
     mode = values.pop("mode", None)
     if mode is None:
         return grid, values
-    a, b, said = automatic_stretch(mode, lambda a, b: f"{grid[a] - grid[0]:g}-{grid[b - 1] - grid[0]:g} s")
+    off = "pass --columns mode= (columns={'mode': None} in Python) to read the whole record, manual included"
+
+    def span(a: int, b: int) -> str:
+        return f"{grid[a] - grid[0]:g}-{grid[b - 1] - grid[0]:g} s"
+
+    try:
+        a, b, said = automatic_stretch(mode, span)
+    except RecordingError as e:
+        raise RecordingError(f"{where}: column {column!r}: {e}, or {off}") from None
+    if b - a < MIN_SAMPLES <= len(grid):
+        changes = int(np.count_nonzero(np.diff(automatic(mode))))
+        raise RecordingError(
+            f"{where}: column {column!r} (mode): the mode changes between automatic and manual {changes} times in "
+            f"{len(grid)} samples, and the longest automatic stretch is {b - a} sample(s) ({span(a, b)}), fewer than "
+            f"the {MIN_SAMPLES} a diagnosis needs; check the mode column and its coding (manual: "
+            f"{', '.join(sorted(MANUAL_MODES))}), export a longer stretch in automatic, or {off}")
     notes.extend(said)
     return grid[a:b], {r: v[a:b] for r, v in values.items()}
 
@@ -459,15 +622,30 @@ def _normalise_op(op: np.ndarray, op_range, where: str, notes: list[str]) -> tup
     return np.clip((op - lo) / (hi - lo), 0.0, 1.0), (lo, hi)
 
 
-def _load_wide(src: LoopSource, op_range, max_gap: int) -> LoadedLoop:
+def _ordered(t: np.ndarray, t_raw: np.ndarray, src: LoopSource, dated: bool) -> None:
+    """Refuse time stamps that decrease in the order of the rows (a daylight-saving fall-back named)."""
+    ok = np.flatnonzero(np.isfinite(t))
+    check_increasing(t[ok], f"{src.path}: column {src.time_column!r} (t)", lambda i: f"row {ok[i] + 1}",
+                     lambda i: _stamp(t_raw, int(ok[i])), dated)
+
+
+def _load_wide(src: LoopSource, op_range, max_gap: int, off: tuple[str, ...] = ()) -> LoadedLoop:
     where = f"{src.path}: tag {src.tag!r}"
-    cols = _read_wide_columns(src)
-    t, start = _seconds(cols.pop("t"), where)
+    roles = {r: c for r, c in src.columns if r not in off}
+    cols, text = _read_wide_columns(src, roles)
+    t_raw = cols.pop("t")
+    notes: list[str] = []
+    t, start = _seconds(t_raw, src, notes)
+    _ordered(t, t_raw, src, start is not None)
+    for role, (bad, cells) in text.items():
+        filled = int(np.isfinite(cols[role]).sum()) + bad.size
+        _text_cells(src, t_raw, roles[role], bad, cells, filled, notes)
     try:
-        grid, values, gaps, notes = resample_loop(t, cols, max_gap=max_gap)
+        grid, values, gaps, said = resample_loop(t, cols, max_gap=max_gap)
     except RecordingError as e:
         raise RecordingError(f"{where}: {e}") from None
-    grid, values = _automatic_stretch(values, grid, notes)
+    notes.extend(said)
+    grid, values = _automatic_stretch(values, grid, notes, where, roles.get("mode", ""))
     if len(grid) < MIN_SAMPLES:
         raise RecordingError(f"{where}: only {len(grid)} usable samples after resampling (need {MIN_SAMPLES}); "
                              f"export a longer stretch")
@@ -476,7 +654,7 @@ def _load_wide(src: LoopSource, op_range, max_gap: int) -> LoadedLoop:
         x = values[role]
         if np.ptp(x) <= 1e-12 * max(1.0, float(np.abs(x).max())):
             raise RecordingError(f"{where}: the {role.upper()} is constant; nothing to diagnose")
-    cols_used = {"t": src.time_column, **dict(src.columns)}
+    cols_used = {"t": src.time_column, **roles}
     cols_used.pop("mode", None)
     rec = Recording(t=grid - grid[0], op=op, pv=values["pv"], sp=values.get("sp"), dt=float(grid[1] - grid[0]),
                     name=src.name, op_range=rng, repairs=tuple(notes), columns=cols_used, start=start)
@@ -489,7 +667,9 @@ def load_loop(src: LoopSource, columns=None, op_range=None, max_gap: int = 5, mv
     Parameters
     ----------
     src : LoopSource, from :func:`discover_loops`
-    columns : dict, optional, role -> column name for one-recording CSV files (as ``--columns``)
+    columns : dict, optional, role -> column name for one-recording CSV files (as ``--columns``); of a
+        wide export's tag only the optional roles switched off are used (``{'mode': None}``: the
+        ``TAG.MODE`` column is not read, the whole record is; ``{'sp': None}`` likewise)
     op_range : (lo, hi), optional, raw controller-output range that maps to 0..1
     max_gap : int, longest stretch without samples bridged by interpolation, in scans
     mv_range : (lo, hi), optional, raw valve-position range (one-recording files; default ``op_range``)
@@ -507,7 +687,8 @@ def load_loop(src: LoopSource, columns=None, op_range=None, max_gap: int = 5, mv
     if src.kind == "bad":
         raise RecordingError(src.problem)
     if src.kind == "wide":
-        return _load_wide(src, op_range, max_gap)
+        off = tuple(r for r, c in (columns or {}).items() if r in ("sp", "mode") and not (c and str(c).strip()))
+        return _load_wide(src, op_range, max_gap, off)
     rec = load_recording(src.path, columns=columns, op_range=op_range, name=src.name, max_gap=max_gap,
                          gaps="longest", mv_range=mv_range)
     n_gaps = sum(int(m) for r in rec.repairs for m in re.findall(r"(\d+) gap\(s\)", r))

@@ -9,6 +9,7 @@ hair outside the range clipped).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -20,6 +21,7 @@ from .parse import Parsed
 __all__ = [
     "ABSURD_ABS",
     "ABSURD_REL",
+    "DST_BACK",
     "LoadOptions",
     "RANGE_TOLERANCE",
     "KNOWN_CODES",
@@ -29,6 +31,7 @@ __all__ = [
     "SENTINEL_REL",
     "SPIKE_SAMPLES",
     "check_constant",
+    "check_increasing",
     "check_options",
     "check_range",
     "check_time_order",
@@ -74,6 +77,10 @@ SENTINEL_PERCENTILES = (0.1, 99.9)
 #: :data:`SENTINEL_REL` times their span away from the code (never inside an output's declared range).
 #: A run longer than ``max_gap`` is then a gap the loader refuses or, with ``gaps='longest'``, avoids.
 KNOWN_CODES = (-9999.0, 9999.0, -99999.0, 99999.0, -999999.0, 999999.0, -999.0, -32768.0, 32767.0, 65535.0)
+
+#: A step back of the time stamps within these bounds [s] is named a daylight-saving fall-back (a local
+#: clock repeats an hour, or half an hour in a few zones), less the scan.
+DST_BACK = (1200.0, 3700.0)
 
 #: The span of the other values is taken as at least this fraction of their magnitude, so that a
 #: column that is nearly constant (a set point) keeps its rare real steps.
@@ -210,6 +217,52 @@ def _t_text(p: Parsed, i: int) -> str:
     return f"{p.t[i]:.10g}"
 
 
+def check_increasing(t: np.ndarray, where: str, row: Callable[[int], str], text: Callable[[int], str],
+                     dated: bool) -> None:
+    """Refuse time stamps that decrease (in the order of the file).
+
+    A file of local-time stamps goes back an hour at the daylight-saving fall-back (the clock repeats
+    an hour); sorting it would interleave the two hours, so the message asks for stamps in UTC or with
+    their UTC offset instead.  Used by :func:`check_time_order` and by fleet mode's wide exports.
+
+    Parameters
+    ----------
+    t : ndarray, shape (n,)
+        Time stamps [s], finite, in the order of the file.
+    where : str
+        The file and column, the start of the message.
+    row, text : callable(int) -> str
+        Sample ``i``'s place in the file (``"line 7"``, ``"row 5"``) and its time stamp as written.
+    dated : bool
+        The stamps are dates (possibly local time), not seconds.
+
+    Raises
+    ------
+    RecordingError
+        A stamp earlier than the one before it: the first three places named, with the stamps.
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        d = np.diff(t)
+    dec = np.flatnonzero(d < 0)
+    if not dec.size:
+        return
+    hint = (
+        "the file is in descending time order; sort it by time, oldest first"
+        if dec.size == d.size
+        else "sort the file by time or remove the out-of-order rows"
+    )
+    back = float(-d[dec[0]])
+    if dated and dec.size < d.size and DST_BACK[0] <= back <= DST_BACK[1]:
+        hint = (f"the clock goes back {back:g} s: with local-time stamps that is most likely the daylight-saving "
+                f"fall-back (the clock repeats an hour); export the time stamps in UTC or with their UTC offset (e.g. "
+                f"2024-10-27 02:30:00+01:00), since sorting would interleave the repeated stretch; otherwise "
+                f"{hint}")
+    elif dated and dec.size < d.size:
+        hint += " (with local-time stamps this can be a daylight-saving change)"
+    ex = [f"{row(i + 1)} ({text(i)} -> {text(i + 1)})" for i in dec[:3]]
+    raise RecordingError(f"{where}: time stamps decrease {dec.size} time(s), first at {'; '.join(ex)}; {hint}")
+
+
 def check_time_order(p: Parsed) -> None:
     """Time stamps present, finite, at least :data:`MIN_SAMPLES` rows, never decreasing.
 
@@ -240,21 +293,9 @@ def check_time_order(p: Parsed) -> None:
             f"{p.src}: only {len(p.t)} data rows; a recording needs at least {MIN_SAMPLES} samples "
             f"to identify anything; use a longer record"
         )
+    check_increasing(p.t, where, lambda i: f"{p.unit} {p.lines[i]}", lambda i: _t_text(p, i), p.start is not None)
     with np.errstate(over="ignore", invalid="ignore"):
         d = np.diff(p.t)
-    dec = np.flatnonzero(d < 0)
-    if dec.size:
-        hint = (
-            "the file is in descending time order; sort it by time, oldest first"
-            if dec.size == d.size
-            else "sort the file by time or remove the out-of-order rows"
-        )
-        if p.start is not None and dec.size < d.size:
-            hint += " (with local-time stamps this can be a daylight-saving change)"
-        ex = [f"{p.unit} {p.lines[i + 1]} ({_t_text(p, i)} -> {_t_text(p, i + 1)})" for i in dec[:3]]
-        raise RecordingError(
-            f"{where}: time stamps decrease {dec.size} time(s), first at {'; '.join(ex)}; {hint}"
-        )
     if not np.isfinite(d).all():
         raise RecordingError(
             f"{where}: time stamps {p.t[0]:g} to {p.t[-1]:g} span more than the float range; "
