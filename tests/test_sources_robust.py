@@ -180,3 +180,16 @@ def test_the_same_stamps_with_their_utc_offset_load_whole(tmp_path):
     (src,) = discover_loops(str(_fall_back(tmp_path, aware=True)))
     loaded = load_loop(src, op_range=(0, 100))
     assert len(loaded.recording) == 900 and loaded.gaps == () and loaded.recording.dt == 10.0
+
+
+def test_a_single_recording_with_a_duplicated_tag_column_is_refused(tmp_path):
+    """The single-file loader took the first of two ``FIC101.PV`` columns without a word."""
+    df = _export()
+    df["dup"] = 99.0
+    p = tmp_path / "one.csv"
+    df.to_csv(p, index=False, header=list(df.columns[:-1]) + ["FIC101.PV"])
+    with pytest.raises(RecordingError, match=r"column 'FIC101\.PV' appears 2 times \(columns 2, 5 of the header\)"):
+        load_recording(str(p), op_range=(0, 100))
+    # naming the column to use is the way out the message gives; without the duplicate the file loads
+    df.drop(columns="dup").to_csv(p, index=False)
+    assert len(load_recording(str(p), op_range=(0, 100))) == 600

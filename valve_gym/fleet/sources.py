@@ -48,10 +48,10 @@ import numpy as np
 
 from ..diagnosis.recording import MIN_SAMPLES, Recording, RecordingError, load_recording
 from ..diagnosis.recording._base import MISSING_TOKENS
-from ..diagnosis.recording.columns import WIDE_COLUMN_RE, WIDE_SUFFIXES, wide_tags
+from ..diagnosis.recording.columns import WIDE_SUFFIXES, duplicate_problem, wide_duplicates, wide_tags
 from ..diagnosis.recording.mode import MANUAL_MODES, automatic, automatic_stretch, longest_run
 from ..diagnosis.recording.parse import parse_numbers
-from ..diagnosis.recording.read import _arrow_to_numpy
+from ..diagnosis.recording.read import arrow_to_numpy
 from ..diagnosis.recording.sniff import recording_files
 from ..diagnosis.recording.validate import check_increasing
 from .result import TABLE_COLUMNS
@@ -194,20 +194,10 @@ def _duplicated(path: str, header: list[str], tcol: str) -> tuple[str, dict[str,
         js = [j for j, h in enumerate(header) if h == tcol]
         return (f"{path}: the time-stamp column {tcol!r} appears {len(js)} times ({where(js)}); give each "
                 f"column its own name (delete or rename the duplicates) and export again"), {}
-    roles: dict[tuple[str, str], list[int]] = {}
-    for j, col in enumerate(header):
-        m = WIDE_COLUMN_RE.match(col)
-        if m:
-            roles.setdefault((m["tag"], WIDE_SUFFIXES[m["role"].upper()]), []).append(j)
     out: dict[str, str] = {}
-    for (tag, role), js in roles.items():
-        if len(js) < 2 or tag in out:
-            continue
-        names = sorted({header[j] for j in js})
-        what = (f"column {names[0]!r} appears {len(js)} times" if len(names) == 1 else
-                f"columns {' and '.join(map(repr, names))} both name its {role.upper()}")
-        out[tag] = (f"{path}: tag {tag!r}: {what} ({where(js)}), so which one holds the tag's {role.upper()} is "
-                    f"unknown; the tag is not read: delete or rename the duplicate column in the export")
+    for (tag, role), js in wide_duplicates(header).items():
+        if tag not in out:
+            out[tag] = f"{path}: {duplicate_problem(header, tag, role, js)}; the tag is not read"
     return "", out
 
 
@@ -390,7 +380,7 @@ def _read_wide_columns(src: LoopSource, roles: dict[str, str]) -> tuple[dict[str
         if role == "mode":
             out[role] = table.column(c).to_numpy(zero_copy_only=False)
             continue
-        cells = _arrow_to_numpy(table.column(c), c, src.path)
+        cells = arrow_to_numpy(table.column(c), c, src.path)
         out[role], bad, _ = parse_numbers(cells, decimal_comma=comma)
         if bad:
             text[role] = (np.asarray(bad), cells)

@@ -168,6 +168,32 @@ def wide_tags(header: Sequence[str]) -> dict[str, dict[str, str]]:
     return tags
 
 
+def wide_duplicates(header: Sequence[str]) -> dict[tuple[str, str], list[int]]:
+    """``TAG.<ROLE>`` roles given by more than one column: ``{(tag, role): [positions]}``.
+
+    The same name twice, or two spellings of one role (``FIC1.PV`` and ``FIC1.pv``): a reader would
+    take one of them without a word, so the loaders refuse such a tag.
+
+    >>> wide_duplicates(["t", "FIC1.PV", "FIC1.OP", "FIC1.pv", "LIC2.PV"])
+    {('FIC1', 'pv'): [1, 3]}
+    """
+    roles: dict[tuple[str, str], list[int]] = {}
+    for j, col in enumerate(header):
+        m = WIDE_COLUMN_RE.match(col)
+        if m:
+            roles.setdefault((m["tag"], WIDE_SUFFIXES[m["role"].upper()]), []).append(j)
+    return {k: js for k, js in roles.items() if len(js) > 1}
+
+
+def duplicate_problem(header: Sequence[str], tag: str, role: str, js: Sequence[int]) -> str:
+    """What is wrong with tag ``tag``'s ``role`` given by the columns at ``js`` (:func:`wide_duplicates`)."""
+    names = sorted({header[j] for j in js})
+    what = (f"column {names[0]!r} appears {len(js)} times" if len(names) == 1 else
+            f"columns {' and '.join(map(repr, names))} both name its {role.upper()}")
+    return (f"tag {tag!r}: {what} (columns {', '.join(str(j + 1) for j in js)} of the header), so which one holds "
+            f"the tag's {role.upper()} is unknown; delete or rename the duplicate column in the export")
+
+
 def _tagged(header: list[str], role: str, taken: set[int]) -> tuple[int | None, str, list[str]]:
     """The one ``TAG.<ROLE>`` column of `role` (:func:`wide_tags`).
 
@@ -237,6 +263,10 @@ def _by_default(header: list[str], lower: dict[str, list[int]], role: str, out: 
     if j is None and role in WIDE_SUFFIXES.values():
         j, tag, several = _tagged(header, role, set(out.values()))
         if j is not None:
+            dup = wide_duplicates(header).get((tag, role))
+            if dup:
+                raise RecordingError(f"{src}: {duplicate_problem(header, tag, role, dup)}, or name the column "
+                                     f"with --columns {role}=NAME")
             tags[role] = tag
     if j is None and role not in REQUIRED:
         _refuse_taken_default(header, lower, role, out, src)

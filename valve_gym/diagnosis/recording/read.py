@@ -246,7 +246,7 @@ def _first_data(sn: Sniffed) -> int:
     return sn.data_line if sn.data_line > 0 else sn.header_line + 1
 
 
-def _arrow_to_numpy(col, name: str, src: str) -> np.ndarray:
+def arrow_to_numpy(col, name: str, src: str) -> np.ndarray:
     """A pyarrow column as float64 (NaN = null), datetime64[ns] or object text."""
     import pyarrow as pa
     import pyarrow.compute as pc
@@ -304,7 +304,7 @@ def read_parquet(sn: Sniffed, columns: Mapping[str, str | None] | None) -> RawCo
         parts: dict[str, list[np.ndarray]] = {r: [] for r in cmap.index}
         for batch in pf.iter_batches(batch_size=CHUNK_ROWS, columns=names):
             for r, j in cmap.index.items():
-                parts[r].append(_arrow_to_numpy(batch.column(batch.schema.get_field_index(header[j])),
+                parts[r].append(arrow_to_numpy(batch.column(batch.schema.get_field_index(header[j])),
                                                 header[j], sn.src))
     except RecordingError:
         raise
