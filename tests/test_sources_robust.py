@@ -193,3 +193,18 @@ def test_a_single_recording_with_a_duplicated_tag_column_is_refused(tmp_path):
     # naming the column to use is the way out the message gives; without the duplicate the file loads
     df.drop(columns="dup").to_csv(p, index=False)
     assert len(load_recording(str(p), op_range=(0, 100))) == 600
+
+
+def test_rows_repeating_a_time_stamp_with_another_value_are_named():
+    """Two values at one time stamp: the first is kept, and the notes say so (it was dropped without a word)."""
+    from valve_gym.fleet.sources import resample_loop
+
+    t = np.arange(200.0)
+    pv, op = np.sin(t / 9.0), np.cos(t / 9.0)
+    t2, pv2, op2 = np.insert(t, 51, 50.0), np.insert(pv, 51, 5.0), np.insert(op, 51, op[50])
+    grid, values, gaps, notes = resample_loop(t2, {"pv": pv2, "op": op2})
+    assert len(grid) == 200 and values["pv"][50] == pv[50] and not gaps
+    said = [n for n in notes if "repeat the time stamp" in n]
+    assert len(said) == 1 and said[0].startswith("PV: 1 row(s)") and "at 50 s" in said[0]
+    assert not any("repeat" in n for n in resample_loop(np.insert(t, 51, 50.0), {"pv": np.insert(pv, 51, pv[50]),
+                                                                                   "op": op2})[3])

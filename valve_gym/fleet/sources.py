@@ -504,12 +504,20 @@ def resample_loop(t: np.ndarray, signals: dict[str, np.ndarray], max_gap: int = 
     t = np.asarray(t, float)
     order = np.argsort(t, kind="stable")
     per = {}
+    notes: list[str] = []
     for role, x in signals.items():
         x = np.asarray(x)[order]
         ts = t[order]
         ok = np.isfinite(ts) & (_present(x))
         ts, x = ts[ok], x[ok]
         keep = np.concatenate(([True], np.diff(ts) > 0)) if len(ts) else np.zeros(0, bool)
+        if not keep.all():    # rows that repeat a time stamp: the first kept; say so where a value differs
+            rep = np.flatnonzero(~keep)
+            other = rep[x[rep] != x[rep - 1]]
+            if other.size:
+                notes.append(f"{role.upper()}: {other.size} row(s) repeat the time stamp of the row before with "
+                             f"another value (first at {ts[other[0]] - ts[0]:g} s); the first value of each "
+                             f"time stamp kept")
         per[role] = (ts[keep], x[keep])
     for role in ("pv", "op"):
         if len(per[role][0]) < 2:
@@ -526,7 +534,6 @@ def resample_loop(t: np.ndarray, signals: dict[str, np.ndarray], max_gap: int = 
     grid = lo + dt * np.arange(int(np.floor((hi - lo) / dt + 1e-9)) + 1)
     known = np.ones(len(grid), bool)
     gaps: list[Gap] = []
-    notes: list[str] = []
     irregular = float(np.max(np.abs(steps - dt))) > 1e-6 * dt
     values = {}
     for role, (ts, x) in per.items():
