@@ -264,3 +264,20 @@ def test_layer_sizes_are_bounded_and_section_messages_are_not_prefixed_twice():
     with pytest.raises(ConfigError) as e:                        # before: 'eval.eval.every'
         load_learned_train_config({"eval": {"every": 0}})
     assert str(e.value).startswith("eval.every and eval.n_loops must be >= 1")
+
+
+def test_a_missing_role_suggests_the_column_its_name_points_to(tmp_path):
+    """A factory export names its columns by tag: the message offers the one whose name holds ``OP``."""
+    from valve_gym.diagnosis import load_recording
+    from valve_gym.diagnosis.recording import RecordingError
+
+    p = tmp_path / "lic.csv"
+    p.write_text("timestamp,t_s,flow_FT115,OP_level_valve_LV106\n" +
+                 "".join(f"2024-11-21 00:{k // 60:02d}:{k % 60:02d},{k},{100 + k % 7},{43 + k % 5}\n"
+                         for k in range(120)))
+    with pytest.raises(RecordingError, match=r"perhaps 'OP_level_valve_LV106': --columns op=OP_level_valve_LV106"):
+        load_recording(str(p), op_range=(0, 100))
+    with pytest.raises(RecordingError, match=r"perhaps 'flow_FT115': --columns pv=flow_FT115\)$"):
+        load_recording(str(p), columns={"op": "OP_level_valve_LV106"}, op_range=(0, 100))
+    rec = load_recording(str(p), columns={"op": "OP_level_valve_LV106", "pv": "flow_FT115"}, op_range=(0, 100))
+    assert len(rec) == 120

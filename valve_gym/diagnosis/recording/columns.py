@@ -281,8 +281,33 @@ def _by_default(header: list[str], lower: dict[str, list[int]], role: str, out: 
     why = _default_blocked(lower, role, header, out) or (
         f"none of the default names {', '.join(DEFAULT_COLUMN_NAMES[role])} (or one TAG.{role.upper()} "
         f"column) is among the columns {avail}")
+    likely = _likely_columns(header, role, set(out.values()))
+    hint = (f" (by its name perhaps {' or '.join(repr(header[j]) for j in likely[:3])}: "
+            f"--columns {role}={header[likely[0]]})" if likely else "")
     raise RecordingError(f"{src}: no column for the {ROLE_WORDS[role]} ({role}): {why}; "
-                         f"pass columns={{'{role}': NAME}} (CLI: --columns {role}=NAME)")
+                         f"pass columns={{'{role}': NAME}} (CLI: --columns {role}=NAME){hint}")
+
+
+#: Words that, as a part of a column's name, suggest its role (a suggestion only; never taken unasked).
+_ROLE_WORDS_IN_NAMES = {"op": ("op", "co", "out", "output"), "pv": ("pv", "level", "flow", "meas", "pressure"),
+                        "t": ("time", "timestamp", "date", "datetime")}
+
+
+def _likely_columns(header: Sequence[str], role: str, taken: set[int]) -> list[int]:
+    """Columns whose name holds a word that suggests ``role`` (``OP_level_valve_LV106`` for the op).
+
+    >>> _likely_columns(["timestamp", "flow_FT115", "OP_level_valve_LV106"], "op", set())
+    [2]
+    >>> _likely_columns(["timestamp", "flow_FT115", "OP_level_valve_LV106"], "pv", {2})
+    [1]
+    """
+    words = _ROLE_WORDS_IN_NAMES.get(role, ())
+    out = []
+    for j, h in enumerate(header):
+        parts = [w for w in re.split(r"[^a-z0-9]+", re.sub(r"([a-z])([A-Z])", r"\1_\2", h).lower()) if w]
+        if j not in taken and any(w in words for w in parts):
+            out.append(j)
+    return out
 
 
 def resolve_columns(
