@@ -12,7 +12,9 @@ __all__ = ["FleetSettings", "LoopResult", "TABLE_COLUMNS", "RESULT_VERSION", "lo
 
 #: Version of the per-loop result; a change makes every stored result stale (recomputed on resume).
 #: 2: a recorded valve position (``mv``) sends a loop to the full diagnosis and decides its verdict.
-RESULT_VERSION = 2
+#: 3: a wide export's tags read status texts as missing samples, refuse duplicated columns and time stamps
+#: that go back, and ``--columns mode=`` switches the mode column off (it was read regardless).
+RESULT_VERSION = 3
 
 #: Columns of ``loops.parquet`` / ``loops.csv``, in order (the first eleven are the issue's minimum).
 TABLE_COLUMNS = ("loop", "status", "message", "stiction", "S", "J", "effects", "rmse_base", "rmse_final",
