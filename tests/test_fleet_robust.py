@@ -27,6 +27,18 @@ def recs(tmp_path_factory):
     return str(d)
 
 
+@pytest.fixture(scope="module")
+def ray_session():
+    ray = pytest.importorskip("ray")
+    started = not ray.is_initialized()
+    if started:
+        ray.init(address="local", num_cpus=1, include_dashboard=False, log_to_driver=False, configure_logging=True,
+                 logging_level="ERROR")
+    yield ray
+    if started:
+        ray.shutdown()
+
+
 # --------------------------------------------------------------------------- Ctrl-C
 def _session_processes(sid: int) -> list[str]:
     """``pid command`` of the live processes (not zombies) of session ``sid``, from /proc."""
@@ -96,6 +108,7 @@ def test_ctrl_c_while_ray_starts_stops_cleanly_and_leaves_no_process(recs, tmp_p
     last = stderr.strip().splitlines()[-1]
     assert last == (f"valve-gym diagnose: interrupted: 0 loop(s) finished in this run, 0 of 3 in all, are kept in "
                     f"{out / 'loops'}; run the same command again to continue the other 3")
+    assert "partial run: 3 of 3 loops not analysed yet" in (out / "worklist.md").read_text()
 
 
 def test_a_signal_is_noted_and_a_handler_ray_would_set_is_not(monkeypatch):
@@ -114,3 +127,28 @@ def test_a_signal_is_noted_and_a_handler_ray_would_set_is_not(monkeypatch):
         assert stop.requested and stop.signum == signal.SIGTERM
         assert len(notes) == 1 and notes[0].startswith("stopping:")
     assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == before
+
+
+# --------------------------------------------------------------------------- --max-loops
+def test_max_loops_says_the_run_is_partial_and_how_to_go_on(ray_session, recs, tmp_path, capsys):
+    """``--max-loops`` asks for part of the fleet: exit 0, but the summary and the worklist say how many
+    loops are left and that the same command continues them; the run that finishes says nothing of it."""
+    from valve_gym.diagnosis.cli import main
+
+    out = tmp_path / "fleet"
+    argv = ["diagnose", recs, "--out", str(out), *FAST, "--quiet"]
+    assert main(argv[1:] + ["--max-loops", "1"]) == 0
+    said = capsys.readouterr().out
+    assert ("partial run (--max-loops 1): 2 of 3 loops not analysed yet; run the same command again to "
+            "continue them") in said.splitlines()
+    md = (out / "worklist.md").read_text()
+    assert "- partial run: 2 of 3 loops not analysed yet; run the same command again to continue them" in md
+    assert "- loops: 3; analysed: 1; failed: 0; not analysed yet: 2" in md
+    assert "partial run: 2 of 3 loops" in (out / "worklist.html").read_text()
+    assert main(argv[1:] + ["--max-loops", "1"]) == 0                 # the same command goes on
+    assert "1 of 3 loops not analysed yet" in capsys.readouterr().out
+    assert main(argv[1:]) == 0
+    said = capsys.readouterr().out
+    assert "partial" not in said and "0 left" in said
+    md = (out / "worklist.md").read_text()
+    assert "partial" not in md and "- loops: 3; analysed: 3; failed: 0\n" in md

@@ -329,7 +329,7 @@ def _fleet(a, path, jobs, seed, holdout, cands, op_range, max_gap, say) -> int:
         print(f"valve-gym diagnose: interrupted: the loops finished so far are kept in {kept}; run the same "
               f"command again to continue (it also writes the table and the worklist)", file=sys.stderr)
         return 130
-    _print_fleet(run)
+    _print_fleet(run, max_loops)
     if a.json:
         import json
 
@@ -347,7 +347,7 @@ def _fleet(a, path, jobs, seed, holdout, cands, op_range, max_gap, say) -> int:
     return 1 if "error" in statuses else 2 if "failed" in statuses else 0
 
 
-def _print_fleet(run) -> None:
+def _print_fleet(run, max_loops: int | None = None) -> None:
     from ..fleet.worklist import rank
     ok = [r for r in run.results if r.status == "ok"]
     print(f"{run.n_loops} loops: {len(ok)} analysed, {run.failed} failed; {run.done} run now, {run.resumed} "
@@ -363,6 +363,9 @@ def _print_fleet(run) -> None:
         for r in bad:
             print(f"  {r.loop} ({r.status}): {r.message}")
     print(f"worklist: {run.paths['worklist_md']}, {run.paths['worklist_html']}; table: {run.paths['table']}")
+    if run.remaining and not run.interrupted:
+        print(f"partial run (--max-loops {max_loops}): {run.remaining} of {run.n_loops} loops not analysed yet; "
+              f"run the same command again to continue them")
 
 
 def _print_summary(res) -> None:

@@ -590,7 +590,7 @@ def run_fleet(path: str, out_dir: str, settings: FleetSettings = FleetSettings()
     ordered = [results[s.name] for s in sources if s.name in results]
     remaining = len(left) + len(later)
     p_table, p_csv = write_table(ordered, out_dir)
-    md, html = write_worklist(ordered, sources, out_dir, settings, top=top)
+    md, html = write_worklist(ordered, sources, out_dir, settings, top=top, pending=remaining)
     n_failed = sum(r.status != "ok" for r in ordered)
     return FleetRun(len(sources), len(todo) - len(left), len(stored), n_failed, bool(left),
                     remaining, time.perf_counter() - t0, ordered,

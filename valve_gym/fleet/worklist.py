@@ -40,13 +40,16 @@ def _g(x: float, fmt: str = ".3g") -> str:
     return "n/a" if not math.isfinite(x) else format(x, fmt)
 
 
-def _summary(results: Sequence[LoopResult]) -> list[str]:
+def _summary(results: Sequence[LoopResult], pending: int = 0) -> list[str]:
     n = len(results)
     ok = [r for r in results if r.status == "ok"]
     osc = sum(r.oscillating for r in ok)
     full = sum(r.stage == "full" for r in ok)
     acts = Counter(r.action.split(" (")[0].split(":")[0] for r in ok if r.oscillating)
-    lines = [f"- loops: {n}; analysed: {len(ok)}; failed: {n - len(ok)}",
+    lines = [f"- partial run: {pending} of {n + pending} loops not analysed yet; run the same command again "
+             f"to continue them"] if pending else []
+    lines += [f"- loops: {n + pending}; analysed: {len(ok)}; failed: {n - len(ok)}"
+              + (f"; not analysed yet: {pending}" if pending else ""),
              f"- oscillating: {osc} ({100 * osc / max(len(ok), 1):.0f} % of those analysed); fully diagnosed: {full}"]
     lines += [f"- {k}: {v}" for k, v in acts.most_common()]
     return lines
@@ -58,9 +61,9 @@ def _rules_md() -> list[str]:
     return out
 
 
-def _md(results: Sequence[LoopResult], settings: FleetSettings, max_rows: int) -> str:
+def _md(results: Sequence[LoopResult], settings: FleetSettings, max_rows: int, pending: int = 0) -> str:
     ranked = [r for r in rank(results) if r.oscillating or r.stiction == "yes"]
-    lines = ["# Worklist: which valve to fix first", "", *_summary(results), "",
+    lines = ["# Worklist: which valve to fix first", "", *_summary(results, pending), "",
              f"Ranked by score = w x OP oscillation amplitude [% of stroke] (w: stiction evidence weight; "
              f"see 'How the ranking works'). Plant model {_plant_words(settings.plant)}, "
              f"actuator {settings.actuator}.", "",
@@ -179,7 +182,8 @@ def _html(md_text: str, results: Sequence[LoopResult], sources: Sequence[LoopSou
 
 
 def write_worklist(results: Sequence[LoopResult], sources: Sequence[LoopSource], out_dir: str,
-                   settings: FleetSettings = FleetSettings(), top: int = 10, max_rows: int = 200) -> tuple[str, str]:
+                   settings: FleetSettings = FleetSettings(), top: int = 10, max_rows: int = 200,
+                   pending: int = 0) -> tuple[str, str]:
     """Write ``out_dir/worklist.md`` and ``out_dir/worklist.html`` (atomic).
 
     Parameters
@@ -190,12 +194,13 @@ def write_worklist(results: Sequence[LoopResult], sources: Sequence[LoopSource],
     settings : FleetSettings, as used for the results (columns, ranges)
     top : int, loops with plots in the HTML page
     max_rows : int, ranked rows listed
+    pending : int, loops without a result yet (a partial run: ``max_loops`` or interrupted); said at the top
 
     Returns
     -------
     (md path, html path)
     """
-    md_text = _md(results, settings, max_rows)
+    md_text = _md(results, settings, max_rows, pending)
     page = _html(md_text, results, sources, settings, top)
     md = write_atomic(os.path.join(out_dir, "worklist.md"), lambda f: f.write(md_text.encode("utf-8")))
     ht = write_atomic(os.path.join(out_dir, "worklist.html"), lambda f: f.write(page.encode("utf-8")))
