@@ -1,7 +1,9 @@
 """Fleet mode under stress: Ctrl-C at any moment, a partial run (--max-loops), hostile text in the worklist."""
 from __future__ import annotations
 
+import html
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -11,7 +13,9 @@ import pytest
 
 import valve_gym
 from valve_gym.diagnosis.synthetic import write_csv
+from valve_gym.fleet import FleetSettings, LoopResult, write_worklist
 from valve_gym.fleet.simulate import simulate_loop
+from valve_gym.fleet.worklist import md_cell
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(valve_gym.__file__)))
 FAST = ["--op-range", "0,100", "--effort", "fast", "--effects", "none", "--jobs", "1"]
@@ -152,3 +156,73 @@ def test_max_loops_says_the_run_is_partial_and_how_to_go_on(ray_session, recs, t
     assert "partial" not in said and "0 left" in said
     md = (out / "worklist.md").read_text()
     assert "partial" not in md and "- loops: 3; analysed: 3; failed: 0\n" in md
+
+
+# --------------------------------------------------------------------------- Markdown cells
+HOSTILE = ("bad | pipe\nsecond line\r\nthird <script>alert(1)</script> `tick *star* _under_ [a](b) ~~s~~ "
+           "&amp; back\\slash |")
+
+
+def _flat(text: str) -> str:
+    return " ".join(text.split())
+
+
+def test_a_hostile_failure_message_leaves_the_worklist_tables_whole(tmp_path):
+    """A failure message with a pipe, line breaks, HTML, backticks or ``*`` broke the Markdown table of failed
+    loops (the HTML page escaped it); every cell of the fleet's Markdown tables is escaped now."""
+    markdown_it = pytest.importorskip("markdown_it")
+    rows = [LoopResult(loop="FIC_101", status="failed", message=HOSTILE, action="check the data"),
+            LoopResult(loop="LIC*2", status="error", message="x|y", action="check the data"),
+            LoopResult(loop="PIC3", status="ok", message=HOSTILE, oscillating=True, score=5.0, weight=0.9,
+                       stiction="yes", action="repair <now>")]
+    md_path, html_path = write_worklist(rows, [], str(tmp_path), FleetSettings(), top=0)
+    md = open(md_path, encoding="utf-8").read()
+    page = markdown_it.MarkdownIt("commonmark").enable(["table", "strikethrough"]).render(md)
+    failed = page[page.index("Loops that could not be analysed"):]
+    table = failed[failed.index("<table>"):failed.index("</table>")]
+    body = re.findall(r"<tr>(.*?)</tr>", table[table.index("<tbody>"):], re.S)
+    cells = [[html.unescape(c) for c in re.findall(r"<td[^>]*>(.*?)</td>", r, re.S)] for r in body]
+    assert cells == [["FIC_101", "failed", _flat(HOSTILE)], ["LIC*2", "error", "x|y"]]
+    ranked = page[page.index("<table>"):page.index("</table>")]
+    assert "<script>" not in page and "<em>" not in page and "<code>" not in page and "<a href" not in page
+    first = re.findall(r"<td[^>]*>(.*?)</td>", ranked[ranked.index("<tbody>"):], re.S)
+    assert len(first) == 10 and html.unescape(first[-1]) == _flat(HOSTILE) and first[3] == "repair &lt;now&gt;"
+    assert all(line.endswith("|") for line in md.splitlines() if line.startswith("|"))   # every row on one line
+    own = open(html_path, encoding="utf-8").read()                     # the page the fleet writes itself
+    assert f"<td>{html.escape(_flat(HOSTILE))}</td>" in own and "<td>x|y</td>" in own and "\\|" not in own
+
+
+@pytest.mark.parametrize("text", [HOSTILE, "no_stiction__2111FIC40102B_0825_0010", "_x_ a_b_ *", "&#x41; &lt; &",
+                                  "\\", "a\u2028b\tc", "| | |", "`` ` ``", "$x$ [^1] <http://x>", "w <= 0.33, S < 5 %",
+                                  "<!-- c --> </b> <?x?>"])
+def test_a_cell_shows_its_text_as_it_is(text):
+    markdown_it = pytest.importorskip("markdown_it")
+    cell = md_cell(text)
+    assert "\n" not in cell and "\r" not in cell
+    md = f"| a |\n|---|\n| {cell} |\n"
+    page = markdown_it.MarkdownIt("commonmark").enable(["table", "strikethrough"]).render(md)
+    tds = re.findall(r"<td[^>]*>(.*?)</td>", page, re.S)
+    assert len(tds) == 1 and html.unescape(tds[0]) == _flat(text)
+    if ("_" in text and text.replace("_", "").isalnum()) or text.startswith("w <="):
+        assert cell == text                                 # a tag's underscores, a comparison: kept readable
+
+
+def test_any_text_shows_as_it_is_in_the_markdown_and_in_the_html_page():
+    """Property: for any text, the rendered cell (CommonMark tables) and the fleet's own HTML cell read the text."""
+    markdown_it = pytest.importorskip("markdown_it")
+    hyp = pytest.importorskip("hypothesis")
+    st = hyp.strategies
+    from valve_gym.fleet.worklist import _md_cells, md_row
+
+    render = markdown_it.MarkdownIt("commonmark").enable(["table", "strikethrough"]).render
+    pieces = st.sampled_from(list("ab_ *|\\`<>&#;![]()~$:/\n\t-=x1é") + ["&amp;", "<b>", "http://", "\u2028", "&#65;"])
+
+    @hyp.settings(max_examples=300, deadline=None, database=None)
+    @hyp.given(st.lists(pieces, max_size=20).map("".join))
+    def shows(text):
+        page = render(f"| a | b |\n|---|---|\n{md_row([text, 'z'])}\n")
+        tds = re.findall(r"<td[^>]*>(.*?)</td>", page, re.S)
+        assert [html.unescape(t) for t in tds] == [_flat(text), "z"]
+        assert _md_cells(md_row([text, "z"])) == [_flat(text), "z"]
+
+    shows()
