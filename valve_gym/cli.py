@@ -40,8 +40,8 @@ def main(argv=None) -> int:
     if cmd not in _COMMANDS:
         print(f"valve-gym: unknown command {cmd!r}\n\n{_usage()}", file=sys.stderr)
         return 2
-    mod = importlib.import_module(_COMMANDS[cmd][0])
     try:
+        mod = importlib.import_module(_COMMANDS[cmd][0])
         rc = mod.main(rest)
     except KeyboardInterrupt:
         print("valve-gym: interrupted", file=sys.stderr)

@@ -321,9 +321,15 @@ def _fleet(a, path, jobs, seed, holdout, cands, op_range, max_gap, say) -> int:
                              mv_range=parse_range(a.mv_range, "--mv-range") if a.mv_range else None,
                              max_gap=max_gap, report_dir=a.report)
 
-    run = run_fleet(path, a.out, settings, jobs=jobs, address=a.address, max_loops=max_loops,
-                    stream=None if a.quiet else sys.stderr, top=top)
-    _print_fleet(run)
+    kept = os.path.join(a.out, "loops")
+    try:
+        run = run_fleet(path, a.out, settings, jobs=jobs, address=a.address, max_loops=max_loops,
+                        stream=None if a.quiet else sys.stderr, top=top)
+    except KeyboardInterrupt:       # before Ray was started, or while the table and the worklist were written
+        print(f"valve-gym diagnose: interrupted: the loops finished so far are kept in {kept}; run the same "
+              f"command again to continue (it also writes the table and the worklist)", file=sys.stderr)
+        return 130
+    _print_fleet(run, max_loops)
     if a.json:
         import json
 
@@ -333,14 +339,15 @@ def _fleet(a, path, jobs, seed, holdout, cands, op_range, max_gap, say) -> int:
                           allow_nan=False).encode()
         write_atomic(a.json, lambda f: f.write(text))
     if run.interrupted:
-        say(f"interrupted: {run.done} loop(s) finished in this run are kept; run the same command again "
-            f"to continue ({run.remaining} left)")
+        print(f"valve-gym diagnose: interrupted: {run.done} loop(s) finished in this run, {len(run.results)} of "
+              f"{run.n_loops} in all, are kept in {kept}; run the same command again to continue the other "
+              f"{run.remaining}", file=sys.stderr)
         return 130
     statuses = {r.status for r in run.results}
     return 1 if "error" in statuses else 2 if "failed" in statuses else 0
 
 
-def _print_fleet(run) -> None:
+def _print_fleet(run, max_loops: int | None = None) -> None:
     from ..fleet.worklist import rank
     ok = [r for r in run.results if r.status == "ok"]
     print(f"{run.n_loops} loops: {len(ok)} analysed, {run.failed} failed; {run.done} run now, {run.resumed} "
@@ -356,6 +363,9 @@ def _print_fleet(run) -> None:
         for r in bad:
             print(f"  {r.loop} ({r.status}): {r.message}")
     print(f"worklist: {run.paths['worklist_md']}, {run.paths['worklist_html']}; table: {run.paths['table']}")
+    if run.remaining and not run.interrupted:
+        print(f"partial run (--max-loops {max_loops}): {run.remaining} of {run.n_loops} loops not analysed yet; "
+              f"run the same command again to continue them")
 
 
 def _print_summary(res) -> None:

@@ -25,6 +25,7 @@ class Progress:
         self.t0 = time.perf_counter()
         self._last = -1e9
         self._tty = bool(stream is not None and getattr(stream, "isatty", lambda: False)())
+        self._open = False      # a bar drawn on a terminal, its line not ended
 
     def line(self) -> str:
         """The progress text, e.g. ``[#####-----] 50/100 done, 2 failed, 3.1 loops/s, 0:00:16 left``."""
@@ -54,12 +55,22 @@ class Progress:
         self._last = now
         if self._tty:
             self.stream.write("\r" + self.line() + ("\n" if self.done >= self.total else ""))
+            self._open = self.done < self.total
         else:
             self.stream.write(self.line() + "\n")
         self.stream.flush()
 
+    def note(self, text: str) -> None:
+        """Write ``text`` on a line of its own (ending the bar's line first on a terminal)."""
+        if self.stream is None:
+            return
+        self.stream.write(("\n" if self._open else "") + text + "\n")
+        self.stream.flush()
+        self._open = False
+
     def close(self) -> None:
         """End the bar's line on a terminal."""
-        if self.stream is not None and self._tty and self.done < self.total:
+        if self.stream is not None and self._open:
             self.stream.write("\n")
             self.stream.flush()
+            self._open = False

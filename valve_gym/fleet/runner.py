@@ -7,8 +7,10 @@ whose stored result has the same key (content of the data + tag + settings,
 flight, so only the loops being worked on are in memory.  Each result is
 written as ``OUT/loops/<loop>.json`` the moment it arrives (``ray.wait``;
 atomic), the table ``loops.parquet``/``loops.csv`` every 30 s and at the end,
-then the worklist.  Ctrl-C (or SIGTERM through the CLI) cancels the loops in
-flight and keeps every finished one; running again continues.
+then the worklist.  Ctrl-C (or SIGTERM) cancels the loops in flight and keeps
+every finished one; running again continues.  A signal is only noted while Ray
+starts or shuts down (:class:`_Stop`): the run stops once Ray is up, and Ray is
+always shut down before the call returns.
 
 Ray runs in this process by default (``ray.init(address='local', num_cpus=jobs)``, no
 dashboard, nothing to start, whatever cluster runs nearby); ``address`` joins an existing
@@ -21,12 +23,13 @@ already started by the caller is used as it is and left running.
 """
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import sys
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import fields, replace
 from typing import Any, NamedTuple
 
@@ -208,14 +211,16 @@ def check_address(address: str | None) -> None:
                          f"Ray in this process") from None
 
 
-def _start_ray(jobs: int, address: str | None, say: Callable[[str], None] | None = None) -> bool:
+def _start_ray(jobs: int, address: str | None, say: Callable[[str], None] | None = None,
+               stopped: Callable[[], bool] | None = None) -> bool:
     """Start Ray unless a session exists; True if this call started it.
 
     Without ``address`` a new Ray instance starts in this process (``address='local'``), even where
     a cluster runs on this machine or ``RAY_ADDRESS`` names one: plain ``ray.init()`` would join it
     and refuse ``num_cpus``.  With ``address`` a head node that does not answer, or refuses this
     process (token authentication), is a ValueError that says what to do; then the cluster is
-    probed (:func:`_probe_cluster`).
+    probed (:func:`_probe_cluster`; ``stopped`` ends its wait).  A start that is cut short
+    (:func:`_init`) shuts down what it had started and raises KeyboardInterrupt.
     """
     import ray
 
@@ -224,11 +229,11 @@ def _start_ray(jobs: int, address: str | None, say: Callable[[str], None] | None
     kw = {"include_dashboard": False, "configure_logging": True, "logging_level": logging.ERROR,
           "log_to_driver": False}
     if not address:
-        ray.init(address="local", num_cpus=int(jobs), **kw)
+        _init(address="local", num_cpus=int(jobs), **kw)
         return True
     check_address(address)
     try:
-        ray.init(address=address, **kw)
+        _init(address=address, **kw)
     except ConnectionError as e:
         raise ValueError(
             f"could not join the Ray cluster at {address}: {e}. A cluster started with token "
@@ -236,7 +241,7 @@ def _start_ray(jobs: int, address: str | None, say: Callable[[str], None] | None
             f"run with RAY_AUTH_MODE=token and its token (~/.ray/auth_token on this machine, or "
             f"RAY_AUTH_TOKEN; `ray get-auth-token` on the head node prints it)") from None
     try:
-        sent = _probe_cluster(address, kw)
+        sent = _probe_cluster(address, kw, stopped)
     except BaseException:
         ray.shutdown()
         raise
@@ -250,7 +255,22 @@ def _start_ray(jobs: int, address: str | None, say: Callable[[str], None] | None
 PROBE_TIMEOUT = 60.0
 
 
-def _probe_cluster(address: str, init_kw: dict[str, Any]) -> bool:
+def _init(**kw: Any) -> None:
+    """``ray.init(**kw)``; where it exits instead, Ray is shut down and KeyboardInterrupt raised.
+
+    ``ray.init`` sets its own SIGTERM handler as it starts, unless :meth:`_Stop.kept` holds it off:
+    a SIGTERM then ends ``ray.init`` with SystemExit, part of Ray started.
+    """
+    import ray
+
+    try:
+        ray.init(**kw)
+    except SystemExit:
+        ray.shutdown()
+        raise KeyboardInterrupt from None
+
+
+def _probe_cluster(address: str, init_kw: dict[str, Any], stopped: Callable[[], bool] | None = None) -> bool:
     """Run one small task where the loops' tasks run: valve_gym must import there, the same version as here.
 
     Where the nodes lack valve_gym itself (``No module named 'valve_gym'``) but have its dependencies,
@@ -258,19 +278,20 @@ def _probe_cluster(address: str, init_kw: dict[str, Any]) -> bool:
     ``py_modules``, without compiled caches) and probes again; returns True then.  Without the probe, a
     cluster whose nodes lacked valve_gym (or one of its dependencies) turned every loop into an error row
     that only a Ray traceback explained.  A cluster with no CPU free within :data:`PROBE_TIMEOUT` is not
-    probed (the run goes on).  Raises ValueError saying what to install.
+    probed (the run goes on), nor one whose probe ``stopped`` cuts short.  Raises ValueError saying
+    what to install.
     """
     import ray
 
     import valve_gym
 
-    cause, there = _probe()
+    cause, there = _probe(stopped)
     sent = cause is not None and "No module named 'valve_gym'" in cause
     if sent:
         ray.shutdown()
-        ray.init(address=address, runtime_env={"py_modules": [valve_gym],
-                                               "excludes": ["__pycache__", "*.pyc", "*.nbi", "*.nbc"]}, **init_kw)
-        cause, there = _probe()
+        _init(address=address, runtime_env={"py_modules": [valve_gym],
+                                            "excludes": ["__pycache__", "*.pyc", "*.nbi", "*.nbc"]}, **init_kw)
+        cause, there = _probe(stopped)
     version = valve_gym.__version__
     if cause is not None:
         raise ValueError(f"the Ray cluster at {address} cannot run valve_gym's tasks ({cause}"
@@ -283,8 +304,12 @@ def _probe_cluster(address: str, init_kw: dict[str, Any]) -> bool:
     return sent
 
 
-def _probe() -> tuple[str | None, str | None]:
-    """One probe task: ``(its error's cause or None, valve_gym's version there or None)``."""
+def _probe(stopped: Callable[[], bool] | None = None) -> tuple[str | None, str | None]:
+    """One probe task: ``(its error's cause or None, valve_gym's version there or None)``.
+
+    ``(None, None)`` when it does not finish within :data:`PROBE_TIMEOUT` or ``stopped()`` turns
+    true (looked at each second).
+    """
     import ray
     import ray.exceptions
 
@@ -295,11 +320,15 @@ def _probe() -> tuple[str | None, str | None]:
         return valve_gym.__version__
 
     ref = probe.remote()
+    end = time.perf_counter() + PROBE_TIMEOUT
     try:
-        return None, ray.get(ref, timeout=PROBE_TIMEOUT)
-    except ray.exceptions.GetTimeoutError:
-        ray.cancel(ref, force=True)
-        return None, None
+        while True:
+            ready, _ = ray.wait([ref], timeout=max(0.0, min(1.0, end - time.perf_counter())))
+            if ready:
+                return None, ray.get(ref)
+            if time.perf_counter() >= end or (stopped is not None and stopped()):
+                ray.cancel(ref, force=True)
+                return None, None
     except ray.exceptions.RayError as e:
         return task_error_cause(e), None
 
@@ -340,28 +369,87 @@ def check_out_dir(path: str, out_dir: str, what: str = "out_dir") -> None:
                          f"{os.path.basename(src)}; give another output folder")
 
 
-def _raise_interrupt(signum, frame):
-    raise KeyboardInterrupt
+class _Stop:
+    """Ctrl-C (SIGINT) and SIGTERM during a run: noted, and acted on where stopping is safe.
 
-
-def _catch_signals() -> dict:
-    """SIGTERM (and SIGINT, unless ignored) raise KeyboardInterrupt; returns the handlers to restore.
-
-    Installed after ``ray.init``, which sets its own SIGTERM handler in the driver.
+    Inside ``with _Stop(note) as stop`` (main thread only; a signal that is ignored stays ignored)
+    a signal sets :attr:`signum` and tells ``note`` once that the run is stopping; the run looks
+    at :attr:`requested` between steps.  Ray is therefore never cut off while it starts or shuts
+    down: an interrupted ``ray.init`` left Ray's agent processes running after the command had
+    exited, and the driver could crash at exit (SIGSEGV).  A second signal changes nothing: the
+    stop is already on its way.
     """
-    import signal
-    import threading
 
-    if threading.current_thread() is not threading.main_thread():
-        return {}
-    old = {}
-    for sig in (signal.SIGTERM, signal.SIGINT):
-        cur = signal.getsignal(sig)
-        if cur is signal.SIG_IGN:
-            continue
-        old[sig] = cur
-        signal.signal(sig, _raise_interrupt)
-    return old
+    SIGNALS = ("SIGINT", "SIGTERM")
+
+    def __init__(self, note: Callable[[str], None] | None = None):
+        self.note = note
+        self.signum: int | None = None
+        self._old: dict = {}
+
+    @property
+    def requested(self) -> bool:
+        """Whether a signal has arrived."""
+        return self.signum is not None
+
+    def _handler(self, signum, frame) -> None:
+        if self.signum is not None:
+            return
+        self.signum = signum
+        if self.note is not None:
+            try:
+                self.note("stopping: the finished loops are kept, those in flight cancelled; Ray is shut down "
+                          "first (a few seconds)")
+            except (OSError, RuntimeError, ValueError):   # the stream busy (a write cut short) or closed
+                pass
+
+    def __enter__(self) -> _Stop:
+        import signal
+        import threading
+
+        if threading.current_thread() is threading.main_thread():
+            for name in self.SIGNALS:
+                sig = getattr(signal, name)
+                cur = signal.getsignal(sig)
+                if cur is not signal.SIG_IGN:
+                    self._old[sig] = cur
+                    signal.signal(sig, self._handler)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        import signal
+
+        for sig, h in self._old.items():
+            signal.signal(sig, h if h is not None else signal.SIG_DFL)
+        self._old = {}
+
+    @contextlib.contextmanager
+    def kept(self) -> Iterator[None]:
+        """Within: a handler set for these signals is not set (``ray.init`` sets its own SIGTERM handlers).
+
+        Ray's handler ends ``ray.init`` with SystemExit, part of Ray started, and its crash handler
+        (in the core worker) stays in front of this one; :meth:`rearm` puts this one back in front.
+        """
+        import signal
+
+        real = signal.signal
+        ours = set(self._old)
+
+        def guarded(sig, handler):
+            return signal.getsignal(sig) if sig in ours else real(sig, handler)
+
+        signal.signal = guarded
+        try:
+            yield
+        finally:
+            signal.signal = real
+
+    def rearm(self) -> None:
+        """Install this handler again for each signal it holds (in front of one set outside Python)."""
+        import signal
+
+        for sig in self._old:
+            signal.signal(sig, self._handler)
 
 
 def _collect(ref, src_of: dict, keys: dict) -> LoopResult:
@@ -383,10 +471,12 @@ def _collect(ref, src_of: dict, keys: dict) -> LoopResult:
 
 def _stream(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs: int, out_dir: str,
             results: dict, bar: Progress, on_result: Callable[[LoopResult], None] | None,
-            ship: bool = False) -> list[LoopSource]:
+            ship: bool = False, stop: _Stop | None = None) -> list[LoopSource]:
     """Submit ``todo`` with a bounded window, write each result as it comes; returns the loops not done.
 
     ``ship``: send each file's bytes with its tasks (a cluster's nodes need not see the files).
+    ``stop``: looked at after each result and at least once a second; when requested (or on
+    KeyboardInterrupt) the loops in flight are cancelled.
     """
     import ray
 
@@ -397,9 +487,10 @@ def _stream(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs: i
     pending = list(reversed(todo))
     src_of: dict = {}
     last_table = time.perf_counter()
-    old = _catch_signals()
     try:
         while pending or src_of:
+            if stop is not None and stop.requested:
+                raise KeyboardInterrupt
             while pending and len(src_of) < window:
                 s = pending.pop()
                 src_of[task.remote(s, keys[s.name], shipper.ref(s))] = s
@@ -421,10 +512,6 @@ def _stream(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs: i
         for ref in src_of:
             ray.cancel(ref, force=True)
         return list(src_of.values()) + list(reversed(pending))
-    finally:
-        import signal
-        for sig, h in old.items():
-            signal.signal(sig, h)
     return []
 
 
@@ -432,6 +519,12 @@ def run_fleet(path: str, out_dir: str, settings: FleetSettings = FleetSettings()
               address: str | None = None, max_loops: int | None = None, stream=sys.stderr,
               top: int = 10, on_result: Callable[[LoopResult], None] | None = None) -> FleetRun:
     """Diagnose every loop of ``path`` on Ray, streaming results into ``out_dir``.
+
+    Ctrl-C (SIGINT) or SIGTERM from the moment Ray starts (main thread): the loops in flight are
+    cancelled, Ray is shut down, the table and the worklist of the finished loops are written and
+    the result says ``interrupted``; a signal while Ray starts takes effect once it is up.  Before
+    that (finding the loops) or while the table and the worklist are written, KeyboardInterrupt is
+    raised as usual: every finished loop is in ``out_dir/loops/`` already.
 
     Parameters
     ----------
@@ -476,20 +569,29 @@ def run_fleet(path: str, out_dir: str, settings: FleetSettings = FleetSettings()
     left: list[LoopSource] = []
     if todo:
         say = None if stream is None else (lambda m: print(m, file=stream, flush=True))
-        started = _start_ray(jobs, address, say)     # a refused cluster leaves nothing on disk
-        os.makedirs(os.path.join(out_dir, "loops"), exist_ok=True)
-        try:
-            left = _stream(todo, keys, settings, jobs, out_dir, results, bar, on_result,
-                           ship=bool(address) or not started)
-        finally:
-            bar.close()
-            if started:
-                import ray
-                ray.shutdown()
+        with _Stop(None if stream is None else bar.note) as stop:     # signals noted, acted on between steps
+            started = False
+            try:
+                with stop.kept():
+                    started = _start_ray(jobs, address, say, lambda: stop.requested)  # refused: nothing on disk
+                stop.rearm()
+                if stop.requested:
+                    raise KeyboardInterrupt
+                os.makedirs(os.path.join(out_dir, "loops"), exist_ok=True)
+                left = _stream(todo, keys, settings, jobs, out_dir, results, bar, on_result,
+                               ship=bool(address) or not started, stop=stop)
+            except KeyboardInterrupt:       # while Ray started (or its start was cut short): no loop ran
+                left = list(todo)
+            finally:
+                bar.close()
+                if started:
+                    import ray
+                    ray.shutdown()          # signals still only noted: the shutdown is not cut short either
     ordered = [results[s.name] for s in sources if s.name in results]
+    remaining = len(left) + len(later)
     p_table, p_csv = write_table(ordered, out_dir)
-    md, html = write_worklist(ordered, sources, out_dir, settings, top=top)
+    md, html = write_worklist(ordered, sources, out_dir, settings, top=top, pending=remaining)
     n_failed = sum(r.status != "ok" for r in ordered)
     return FleetRun(len(sources), len(todo) - len(left), len(stored), n_failed, bool(left),
-                    len(left) + len(later), time.perf_counter() - t0, ordered,
+                    remaining, time.perf_counter() - t0, ordered,
                     {"table": p_table, "csv": p_csv, "worklist_md": md, "worklist_html": html})

@@ -14,6 +14,7 @@ import html
 import io
 import math
 import os
+import re
 from collections import Counter
 from collections.abc import Sequence
 
@@ -22,7 +23,61 @@ from .actions import RULES, S_SEVERE, W_HIGH, W_LOW
 from .result import FleetSettings, LoopResult
 from .sources import LoopSource, load_loop
 
-__all__ = ["rank", "write_worklist", "loop_plots"]
+__all__ = ["rank", "write_worklist", "loop_plots", "md_cell", "md_unescape", "md_row"]
+
+#: Characters that mean something inside a Markdown table cell (CommonMark, GitHub's tables and math):
+#: each is written behind a backslash, so that the cell shows the text as it is.
+_MD_SPECIAL = re.compile(r"[\\|`*\[\]~$]|<(?=[A-Za-z/!?])|&(?=#?\w+;)|_+")
+
+
+def md_cell(value) -> str:
+    """``value`` as the text of one Markdown table cell: on one line, shown as it is.
+
+    Every run of white space (a line break included) becomes one space; a pipe, backslash, backtick,
+    ``*``, ``[``, ``]``, ``~``, ``$``, a ``<`` that would open a tag or a link, an ``&`` that would
+    start an entity and a ``_`` that could start or end emphasis (not one inside a word, as in tag
+    names) are escaped with a backslash (``w <= 0.33`` stays as it is).  :func:`md_unescape` reverses it.
+    """
+    text = re.sub(r"\s+", " ", str(value)).strip()
+
+    def escaped(m: re.Match) -> str:
+        i, j = m.span()
+        if m.group()[0] == "_" and 0 < i and j < len(text) and text[i - 1].isalnum() and text[j].isalnum():
+            return m.group()                    # inside a word (FIC_101, no_stiction__2111...): no emphasis
+        return "".join("\\" + c for c in m.group())
+
+    return _MD_SPECIAL.sub(escaped, text)
+
+
+def md_unescape(cell: str) -> str:
+    """The text of a cell written by :func:`md_cell` (its backslash escapes removed)."""
+    return re.sub(r"\\([!-/:-@\[-`{-~])", r"\1", cell)
+
+
+def md_row(cells) -> str:
+    """One Markdown table row, each cell through :func:`md_cell`."""
+    return "| " + " | ".join(md_cell(c) for c in cells) + " |"
+
+
+def _md_cells(line: str) -> list[str]:
+    """The cells of a table row written by :func:`md_row` (a pipe behind a backslash is text)."""
+    cells, cur, i, body = [], [], 0, line.strip()
+    body = body[1:] if body.startswith("|") else body
+    while i < len(body):
+        c = body[i]
+        if c == "\\" and i + 1 < len(body):
+            cur.append(body[i:i + 2])
+            i += 2
+            continue
+        if c == "|":
+            cells.append("".join(cur))
+            cur = []
+        else:
+            cur.append(c)
+        i += 1
+    if "".join(cur).strip():
+        cells.append("".join(cur))
+    return [md_unescape(c.strip()) for c in cells]
 
 
 def rank(results: Sequence[LoopResult]) -> list[LoopResult]:
@@ -40,44 +95,46 @@ def _g(x: float, fmt: str = ".3g") -> str:
     return "n/a" if not math.isfinite(x) else format(x, fmt)
 
 
-def _summary(results: Sequence[LoopResult]) -> list[str]:
+def _summary(results: Sequence[LoopResult], pending: int = 0) -> list[str]:
     n = len(results)
     ok = [r for r in results if r.status == "ok"]
     osc = sum(r.oscillating for r in ok)
     full = sum(r.stage == "full" for r in ok)
     acts = Counter(r.action.split(" (")[0].split(":")[0] for r in ok if r.oscillating)
-    lines = [f"- loops: {n}; analysed: {len(ok)}; failed: {n - len(ok)}",
+    lines = [f"- partial run: {pending} of {n + pending} loops not analysed yet; run the same command again "
+             f"to continue them"] if pending else []
+    lines += [f"- loops: {n + pending}; analysed: {len(ok)}; failed: {n - len(ok)}"
+              + (f"; not analysed yet: {pending}" if pending else ""),
              f"- oscillating: {osc} ({100 * osc / max(len(ok), 1):.0f} % of those analysed); fully diagnosed: {full}"]
     lines += [f"- {k}: {v}" for k, v in acts.most_common()]
     return lines
 
 
 def _rules_md() -> list[str]:
-    out = ["| rule | when | action |", "|---|---|---|"]
-    out += [f"| {r.name} | {r.when} | {r.action.format(S='S', message='the message')} |" for r in RULES]
+    out = [md_row(("rule", "when", "action")), "|---|---|---|"]
+    out += [md_row((r.name, r.when, r.action.format(S="S", message="the message"))) for r in RULES]
     return out
 
 
-def _md(results: Sequence[LoopResult], settings: FleetSettings, max_rows: int) -> str:
+def _md(results: Sequence[LoopResult], settings: FleetSettings, max_rows: int, pending: int = 0) -> str:
     ranked = [r for r in rank(results) if r.oscillating or r.stiction == "yes"]
-    lines = ["# Worklist: which valve to fix first", "", *_summary(results), "",
+    lines = ["# Worklist: which valve to fix first", "", *_summary(results, pending), "",
              f"Ranked by score = w x OP oscillation amplitude [% of stroke] (w: stiction evidence weight; "
              f"see 'How the ranking works'). Plant model {_plant_words(settings.plant)}, "
              f"actuator {settings.actuator}.", "",
-             "| # | loop | score | action | S | J | w | PV amplitude | period [s] | evidence |",
+             md_row(("#", "loop", "score", "action", "S", "J", "w", "PV amplitude", "period [s]", "evidence")),
              "|---:|---|---:|---|---:|---:|---:|---:|---:|---|"]
     for i, r in enumerate(ranked[:max_rows], 1):
-        lines.append(f"| {i} | {r.loop} | {_g(r.score, '.2f')} | {r.action} | {_pct(r.S)} | {_pct(r.J)} | "
-                     f"{_g(r.weight, '.2f')} | {_g(r.oscillation)} | {_g(r.period_s, '.0f')} | "
-                     f"{r.message.replace('|', '/')} |")
+        lines.append(md_row((i, r.loop, _g(r.score, ".2f"), r.action, _pct(r.S), _pct(r.J), _g(r.weight, ".2f"),
+                             _g(r.oscillation), _g(r.period_s, ".0f"), r.message)))
     if len(ranked) > max_rows:
         lines.append(f"\n{len(ranked) - max_rows} more oscillating loops in loops.csv.")
     if not ranked:
-        lines.append("| | no loop oscillates | | nothing | | | | | | |")
+        lines.append(md_row(("", "no loop oscillates", "", "nothing", "", "", "", "", "", "")))
     bad = [r for r in results if r.status != "ok"]
     if bad:
-        lines += ["", "## Loops that could not be analysed", "", "| loop | status | message |", "|---|---|---|"]
-        lines += [f"| {r.loop} | {r.status} | {r.message.replace('|', '/')} |" for r in bad]
+        lines += ["", "## Loops that could not be analysed", "", md_row(("loop", "status", "message")), "|---|---|---|"]
+        lines += [md_row((r.loop, r.status, r.message)) for r in bad]
     lines += ["", "## How the ranking works", "",
               "score = w x 100 A_OP, with A_OP the controller output's oscillation amplitude (fraction of stroke; "
               "0 when the loop does not oscillate, by Thornhill's regularity of the ACF zero crossings) and w the "
@@ -141,7 +198,7 @@ def _html(md_text: str, results: Sequence[LoopResult], sources: Sequence[LoopSou
     table: list[str] = []
     for line in md_text.splitlines():
         if line.startswith("|"):
-            cells = [c.strip() for c in line.strip("|").split("|")]
+            cells = _md_cells(line)
             if set("".join(cells)) <= set("-: "):
                 continue
             tag = "th" if not table else "td"
@@ -179,7 +236,8 @@ def _html(md_text: str, results: Sequence[LoopResult], sources: Sequence[LoopSou
 
 
 def write_worklist(results: Sequence[LoopResult], sources: Sequence[LoopSource], out_dir: str,
-                   settings: FleetSettings = FleetSettings(), top: int = 10, max_rows: int = 200) -> tuple[str, str]:
+                   settings: FleetSettings = FleetSettings(), top: int = 10, max_rows: int = 200,
+                   pending: int = 0) -> tuple[str, str]:
     """Write ``out_dir/worklist.md`` and ``out_dir/worklist.html`` (atomic).
 
     Parameters
@@ -190,12 +248,13 @@ def write_worklist(results: Sequence[LoopResult], sources: Sequence[LoopSource],
     settings : FleetSettings, as used for the results (columns, ranges)
     top : int, loops with plots in the HTML page
     max_rows : int, ranked rows listed
+    pending : int, loops without a result yet (a partial run: ``max_loops`` or interrupted); said at the top
 
     Returns
     -------
     (md path, html path)
     """
-    md_text = _md(results, settings, max_rows)
+    md_text = _md(results, settings, max_rows, pending)
     page = _html(md_text, results, sources, settings, top)
     md = write_atomic(os.path.join(out_dir, "worklist.md"), lambda f: f.write(md_text.encode("utf-8")))
     ht = write_atomic(os.path.join(out_dir, "worklist.html"), lambda f: f.write(page.encode("utf-8")))
