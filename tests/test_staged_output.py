@@ -68,41 +68,68 @@ def test_index_files_are_published_last(tmp_path, monkeypatch):
     assert order == ["a.csv", "z.png", "results.md"]
 
 
+def _fake_plots(report, monkeypatch, fail_at=None):
+    """The report's figures and files as small stand-ins (the wiring is under test, not the plots)."""
+    def plot(name):
+        def draw(res, path):
+            if name == fail_at:
+                raise KeyboardInterrupt
+            open(path, "w").write(f"{name} of {res}")
+            return path
+        return draw
+
+    for name in ("overlay", "residuals", "acf", "validation", "stem"):
+        monkeypatch.setattr(report, f"plot_{name}", plot(name))
+    monkeypatch.setattr(report, "write_json", lambda res, path: plot("json")(res, path))
+    monkeypatch.setattr(report, "render_markdown", lambda res, figs: f"report of {res}: {sorted(figs)}")
+
+
 def test_an_interrupted_diagnosis_report_leaves_the_previous_report(tmp_path, monkeypatch):
-    from valve_gym.diagnosis import diagnose, report
-    from valve_gym.diagnosis.synthetic import make_recording
+    from valve_gym.diagnosis import report
 
-    rec = make_recording(effect="none", seed=3, n=600)
-    res = diagnose(rec, plant="tank", candidates=(), effort="fast")
     out = tmp_path / "rep"
-    paths = report.write_report(res, out)
-    assert {os.path.basename(p) for p in paths} <= set(os.listdir(out)) and "report.md" in os.listdir(out)
+    _fake_plots(report, monkeypatch)
+    paths = report.write_report("run 1", out)
+    assert sorted(os.path.basename(p) for p in paths) == sorted(os.listdir(out))
     assert all(os.path.dirname(p) == str(out) for p in paths)
+    assert "report.md" in os.listdir(out) and (out / "report.md").read_text().startswith("report of run 1")
     before = _listing(out)
-
-    def interrupted(*a, **k):
-        raise KeyboardInterrupt
-
-    monkeypatch.setattr(report, "plot_acf", interrupted)
+    _fake_plots(report, monkeypatch, fail_at="acf")
     with pytest.raises(KeyboardInterrupt):
-        report.write_report(res, out)
+        report.write_report("run 2", out)
     assert _listing(out) == before and _no_staging_left(tmp_path)
     fresh = tmp_path / "fresh"
     with pytest.raises(KeyboardInterrupt):
-        report.write_report(res, fresh)
+        report.write_report("run 2", fresh)
     assert not fresh.exists() and _no_staging_left(tmp_path)
 
 
 def test_an_interrupted_benchmark_writes_no_results(tmp_path, monkeypatch):
-    """Ctrl-C while the figures are drawn: no results.md beside missing figures (the run is short: --quick)."""
+    """Ctrl-C while the figures are drawn: no results.md beside missing figures."""
+    import agents.bench.cli as bench_cli
     import agents.bench.figures as figs
+    import agents.bench.report as rep
     from valve_gym.cli import main as cli_main
+
+    def report(res, out, command=""):
+        return (rep._write_text(out / "results.csv", "a\n"), rep._write_text(out / "results.md", "# results\n"))
 
     def interrupted(res, out):
         np.save(os.path.join(out, "half.npy"), np.zeros(1))
         raise KeyboardInterrupt
 
+    class Result:
+        notes = ()
+
+        def jobs_text(self):
+            return "1 process"
+
+    monkeypatch.setattr(bench_cli, "run_benchmark", lambda cfg, jobs, progress: Result())
+    monkeypatch.setattr(rep, "write_report", report)
     monkeypatch.setattr(figs, "write_figures", interrupted)
     out = tmp_path / "results"
     assert cli_main(["benchmark", "--quick", "--out", str(out), "--jobs", "1", "--no-progress"]) == 130
     assert not out.exists() and _no_staging_left(tmp_path)
+    monkeypatch.setattr(figs, "write_figures", lambda res, out: (rep._write_text(out / "trends.png", "png"),))
+    assert cli_main(["benchmark", "--quick", "--out", str(out), "--jobs", "1", "--no-progress"]) == 0
+    assert sorted(os.listdir(out)) == ["results.csv", "results.md", "trends.png"]
