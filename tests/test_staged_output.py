@@ -133,3 +133,25 @@ def test_an_interrupted_benchmark_writes_no_results(tmp_path, monkeypatch):
     monkeypatch.setattr(figs, "write_figures", lambda res, out: (rep._write_text(out / "trends.png", "png"),))
     assert cli_main(["benchmark", "--quick", "--out", str(out), "--jobs", "1", "--no-progress"]) == 0
     assert sorted(os.listdir(out)) == ["results.csv", "results.md", "trends.png"]
+
+
+def test_the_diagnosis_tables_keep_any_text_in_its_cell():
+    """A failure message with a pipe and a line break left the folder summary's table broken."""
+    from valve_gym.diagnosis.report import summary_table
+
+    rows = [{"recording": "loop|a_b", "error": "bad line 3 | col 2\nsecond line"},
+            {"recording": "FIC_101", "plant": "tank", "effects": "slip_jump", "stiction": True, "base_rmse": 0.1,
+             "final_rmse": 0.05, "base_fit_percent": 50.0, "final_fit_percent": 70.0, "holdout_base_rmse": 0.1,
+             "holdout_final_rmse": 0.06, "seconds": 3.0}]
+    lines = summary_table(rows).splitlines()
+    assert len(lines) == 4                                            # header, rule, one line per row
+    assert all(len([c for c in re_cells(line)]) == 10 for line in lines)
+    assert "loop\\|a_b" in lines[2] and "ERROR: bad line 3 \\| col 2 second line" in lines[2]
+    assert "| FIC_101 | tank | slip_jump |" in lines[3]               # words keep their underscores
+
+
+def re_cells(line):
+    """The cells of a Markdown table row (a pipe behind a backslash is text)."""
+    import re
+
+    return re.split(r"(?<!\\)\|", line.strip().strip("|"))

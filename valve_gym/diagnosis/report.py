@@ -22,6 +22,7 @@ from typing import Any
 
 import numpy as np
 
+from .._markdown import md_cell
 from ..effects import effect_spec
 
 __all__ = ["write_json", "write_text", "write_report", "plot_overlay", "plot_residuals",
@@ -383,7 +384,7 @@ def _md_mismatch(d: dict) -> list[str]:
     L.append("| condition | fraction | RMS in | RMS out | ratio | z | significant |")
     L.append("|---|---|---|---|---|---|---|")
     for c in d["mismatch_conditions"]:
-        L.append(f"| {c['description']} | {_g(100 * c['fraction'], 3)} % | {_g(c['rms_in'])} | "
+        L.append(f"| {md_cell(c['description'])} | {_g(100 * c['fraction'], 3)} % | {_g(c['rms_in'])} | "
                  f"{_g(c['rms_out'])} | {_g(c['ratio'], 3)} | {_g(c['z'], 3)} | "
                  f"{'yes' if c['significant'] else 'no'} |")
     L.append("")
@@ -407,10 +408,11 @@ def _md_candidates(d: dict) -> list[str]:
     for c in d["candidates"]:
         name = c["effect"] + (f" ({c['variant']})" if c["variant"] else "")
         hc = "–" if c["holdout_change"] is None else f"{100 * c['holdout_change']:+.1f} %"
-        L.append(f"| {c['round']} | {name} | {_signature_seen(c['effect'], d)} | {_g(c['delta_ic'], 3)} | {hc} | "
+        L.append(f"| {c['round']} | {md_cell(name)} | {md_cell(_signature_seen(c['effect'], d))} | "
+                 f"{_g(c['delta_ic'], 3)} | {hc} | "
                  f"{'**added**' if c['accepted'] else ('pays' if c['pays'] else 'no')} |")
     for e, why in d["skipped"].items():
-        L.append(f"| – | {e} | – | – | – | skipped: {why} |")
+        L.append(f"| – | {md_cell(e)} | – | – | – | {md_cell('skipped: ' + str(why))} |")
     return L
 
 
@@ -473,9 +475,10 @@ def summary_table(rows: list[dict]) -> str:
          "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         if "error" in r:
-            L.append(f"| {r.get('recording', r.get('path'))} | – | ERROR: {r['error']} | | | | | | | |")
+            L.append(f"| {md_cell(r.get('recording', r.get('path')))} | – | {md_cell('ERROR: ' + str(r['error']))} "
+                     f"| | | | | | | |")
             continue
-        L.append(f"| {r['recording']} | {r['plant']} | {r['effects']} | "
+        L.append(f"| {md_cell(r['recording'])} | {md_cell(r['plant'])} | {md_cell(r['effects'])} | "
                  f"{'yes' if r['stiction'] else 'no'} | {_g(r['base_rmse'])} | "
                  f"{_g(r['final_rmse'])} | {_g(r['base_fit_percent'], 3)} | "
                  f"{_g(r['final_fit_percent'], 3)} | {_g(r['holdout_base_rmse'])} -> "
