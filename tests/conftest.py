@@ -20,3 +20,16 @@ def he_model():
         sys.modules[name] = mod
         spec.loader.exec_module(mod)
     return sys.modules[name]
+
+
+@pytest.fixture(scope="module")
+def ray_session():
+    """Ray in this process for one test module (2 CPUs), shut down after it unless it ran already."""
+    ray = pytest.importorskip("ray")
+    started = not ray.is_initialized()
+    if started:
+        ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False, configure_logging=True,
+                 logging_level="ERROR")
+    yield ray
+    if started:
+        ray.shutdown()

@@ -29,18 +29,6 @@ SETTINGS = FleetSettings(op_range=(0.0, 100.0), effort="fast", candidates=())
 
 
 @pytest.fixture(scope="module")
-def ray_session():
-    ray = pytest.importorskip("ray")
-    started = not ray.is_initialized()
-    if started:
-        ray.init(address="local", num_cpus=2, include_dashboard=False, log_to_driver=False, configure_logging=True,
-                 logging_level="ERROR")
-    yield ray
-    if started:
-        ray.shutdown()
-
-
-@pytest.fixture(scope="module")
 def folder(tmp_path_factory):
     """Five loops (two oscillating) and one recording too short to use."""
     d = tmp_path_factory.mktemp("fleet") / "recs"

@@ -31,18 +31,6 @@ def recs(tmp_path_factory):
     return str(d)
 
 
-@pytest.fixture(scope="module")
-def ray_session():
-    ray = pytest.importorskip("ray")
-    started = not ray.is_initialized()
-    if started:
-        ray.init(address="local", num_cpus=1, include_dashboard=False, log_to_driver=False, configure_logging=True,
-                 logging_level="ERROR")
-    yield ray
-    if started:
-        ray.shutdown()
-
-
 # --------------------------------------------------------------------------- Ctrl-C
 def _session_processes(sid: int) -> list[str]:
     """``pid command`` of the live processes (not zombies) of session ``sid``, from /proc."""
