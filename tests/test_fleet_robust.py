@@ -121,6 +121,21 @@ def test_a_signal_is_noted_and_a_handler_ray_would_set_is_not(monkeypatch):
     assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == before
 
 
+def test_ctrl_c_twice_stops_at_once():
+    """A second Ctrl-C is the way out of a Ray start that hangs: it raises at once, and says what may be left."""
+    from valve_gym.fleet.runner import _Stop
+
+    notes: list[str] = []
+    with _Stop(notes.append) as stop:
+        os.kill(os.getpid(), signal.SIGINT)
+        time.sleep(0.05)
+        assert stop.requested and "Ctrl-C again to stop at once" in notes[0]
+        with pytest.raises(KeyboardInterrupt):
+            os.kill(os.getpid(), signal.SIGINT)
+            time.sleep(0.05)
+    assert len(notes) == 2 and notes[1].startswith("stopping at once") and "ray stop" in notes[1]
+
+
 # --------------------------------------------------------------------------- --max-loops
 def test_max_loops_says_the_run_is_partial_and_how_to_go_on(ray_session, recs, tmp_path, capsys):
     """``--max-loops`` asks for part of the fleet: exit 0, but the summary and the worklist say how many

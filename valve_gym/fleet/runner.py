@@ -377,7 +377,8 @@ class _Stop:
     at :attr:`requested` between steps.  Ray is therefore never cut off while it starts or shuts
     down: an interrupted ``ray.init`` left Ray's agent processes running after the command had
     exited, and the driver could crash at exit (SIGSEGV).  A second signal changes nothing: the
-    stop is already on its way.
+    stop is already on its way, except a second Ctrl-C, which raises KeyboardInterrupt at once (for
+    a Ray start that hangs; Ray's processes may then be left running).
     """
 
     SIGNALS = ("SIGINT", "SIGTERM")
@@ -393,13 +394,23 @@ class _Stop:
         return self.signum is not None
 
     def _handler(self, signum, frame) -> None:
+        import signal
+
         if self.signum is not None:
+            if signum == self.signum == signal.SIGINT:
+                # Ctrl-C pressed again: the user will not wait (e.g. a Ray start that hangs); stop at once
+                self._say("stopping at once (Ctrl-C twice): Ray processes may be left running; `ray stop` ends "
+                          "them")
+                raise KeyboardInterrupt
             return
         self.signum = signum
+        self._say("stopping: the finished loops are kept, those in flight cancelled; Ray is shut down first (a few "
+                  "seconds; Ctrl-C again to stop at once)")
+
+    def _say(self, text: str) -> None:
         if self.note is not None:
             try:
-                self.note("stopping: the finished loops are kept, those in flight cancelled; Ray is shut down "
-                          "first (a few seconds)")
+                self.note(text)
             except (OSError, RuntimeError, ValueError):   # the stream busy (a write cut short) or closed
                 pass
 
