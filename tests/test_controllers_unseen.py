@@ -47,3 +47,32 @@ def test_knocker_integral_is_the_pi_alone_when_a_pulse_is_cut():
         pi.step(1.0, 0.99)
         assert op_k <= 1.0
     assert k.state.pi.integral[0] == pytest.approx(pi.state.integral[0])
+
+
+# ------------------------------------------------------------------------------------------ learned block
+def test_learned_takes_numpy_numbers_and_says_it_takes_no_per_loop_settings():
+    blk = load_controller("learned", Kc=np.float64(1.89), Ti=np.float32(42.4), scan_s=np.int64(1))
+    assert blk.settings["Kc"] == 1.89 and blk.settings["scan_s"] == 1.0
+    with pytest.raises(ValueError, match=r"^learned: setting Kc must be one number for all loops"):
+        load_controller("learned", Kc=np.array([1.0, 2.0]))
+
+
+def test_learned_start_outside_its_output_limits_is_refused_not_bumped():
+    blk = load_controller("learned", op_hi=0.8)
+    with pytest.raises(ValueError, match=r"^learned: op must be the valve input now applied, within the output "
+                                         r"limits \[op_lo, op_hi\] = \[0, 0.8\], got \[0.9\]"):
+        blk.reset(1.0, 1.0, 0.9)           # was accepted, and the first scan jumped to 0.8
+    blk.reset(1.0, 1.0, 0.8)
+    assert blk.step(1.0, 1.0) == pytest.approx(0.8)
+
+
+def test_learned_warns_outside_the_settings_it_was_trained_with():
+    with pytest.warns(UserWarning, match=r"learned: scan_s = 10 \(trained: 1\): the network .* was trained"):
+        load_controller("learned", scan_s=10.0)
+    with pytest.warns(UserWarning, match=r"Kc = 0.0283 \(trained: 1.89\)"):
+        load_controller("learned", Kc=0.0283)
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        load_controller("learned")
+        load_controller("learned", scan_s=1.0, Kc=1.89, op_hi=0.9)
