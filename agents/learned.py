@@ -13,6 +13,7 @@ plain numpy, torch is not needed, nothing is unpickled.
 """
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -148,6 +149,10 @@ class LearnedBlock:
         (sp_a, pv_a, op_a), n, scalar = check_inputs(self.name, sp=sp, pv=pv, op=op)
         if np.any((op_a < 0) | (op_a > 1)):
             raise ValueError(f"{self.name}: op must be the valve input as a fraction 0..1, got {op!r}")
+        lo, hi = self.block_settings.op_lo, self.block_settings.op_hi
+        if np.any((op_a < lo) | (op_a > hi)):      # the first scan would clip it: a bump, not a bumpless start
+            raise ValueError(f"{self.name}: op must be the valve input now applied, within the output limits "
+                             f"[op_lo, op_hi] = [{lo:g}, {hi:g}], got {op_a.tolist()[:10]}")
         self._scalar = scalar
         self._law = BlockLaw(self.block_settings, n)
         self._law.reset(sp_a, pv_a, op_a)
@@ -196,6 +201,32 @@ def _resolve(path) -> Path:
     return p
 
 
+def _number(name: str, v):
+    """A setting of the learned block as a float (numpy numbers included), or a ValueError saying why not."""
+    if isinstance(v, (np.integer, np.floating)):
+        return float(v)
+    if isinstance(v, (list, tuple, np.ndarray)):
+        raise ValueError(f"learned: setting {name} must be one number for all loops (the learned compensator "
+                         f"takes no per-loop settings), got {type(v).__name__} of shape {np.shape(v)}; run one "
+                         "block per setting")
+    return v
+
+
+#: Settings whose change from the stored ones puts the network outside what it was trained on.
+TRAINED_SETTINGS = ("Kc", "Ti", "scan_s")
+
+
+def _warn_untrained(bs: BlockSettings, trained: dict, path) -> None:
+    """Warn when ``Kc``, ``Ti`` or ``scan_s`` differ from the values the network was trained with."""
+    off = [f"{k} = {getattr(bs, k):g} (trained: {float(trained[k]):g})" for k in TRAINED_SETTINGS
+           if k in trained and not np.isclose(float(getattr(bs, k)), float(trained[k]), rtol=1e-6, atol=0.0)]
+    if off:
+        warnings.warn(f"learned: {', '.join(off)}: the network of {path} was trained with the stored settings "
+                      "only, so its gate and correction now act on inputs it has not seen and may do much worse "
+                      "than the PI (e.g. about 8x the PI's error and travel at scan_s = 10 s on the default tank); "
+                      "compare with load_controller('pi') on this loop before use", UserWarning, stacklevel=3)
+
+
 def load_learned(path=None, **settings) -> LearnedBlock:
     """Load a learned compensator (the shipped one by default) as a DCS block.
 
@@ -206,7 +237,8 @@ def load_learned(path=None, **settings) -> LearnedBlock:
         (``best`` is used); default the shipped ``agents/policies/learned.json``.
     **settings
         Overrides of :class:`~valve_gym.envs.regulation.BlockSettings` (``Kc``, ``Ti``, ``scan_s``,
-        ``op_lo``, ``op_hi``; the network was trained with the stored ones) and ``name``.
+        ``op_lo``, ``op_hi``: numbers, one for all loops; the network was trained with the stored ones)
+        and ``name``.
 
     Returns
     -------
@@ -218,6 +250,11 @@ def load_learned(path=None, **settings) -> LearnedBlock:
         Unknown setting (listing the known ones), a pickle-based or corrupt file.
     FileNotFoundError
         Missing file.
+
+    Warns
+    -----
+    UserWarning
+        ``Kc``, ``Ti`` or ``scan_s`` other than the stored ones: the network never saw such a loop.
     """
     p = _resolve(path)
     mf = load_model_file(p)
@@ -229,10 +266,12 @@ def load_learned(path=None, **settings) -> LearnedBlock:
     bad = [k for k in settings if k not in allowed]
     if bad:
         raise ValueError(f"unknown setting(s) {bad} for the learned compensator; known: {', '.join(allowed)}, name")
+    settings = {k: _number(k, v) for k, v in settings.items()}
     try:
         bs = replace(BlockSettings(**meta["block"]), **settings)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"bad settings for the learned compensator: {exc}") from None
+    _warn_untrained(bs, meta["block"], p)
     n_obs = len(obs_names(bs))
     spec = MLPSpec(meta["hidden"], n_obs)
     w = {}

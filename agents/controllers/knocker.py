@@ -138,7 +138,12 @@ class Knocker(Compensator):
         start = state.phase == 0
         sign = np.where(start, np.sign(scan.integral - state.i_ref), state.sign)
         pulse = np.where(state.phase < self.width, self.p["a"] * sign, 0.0)
-        pis, op = self.pi.finish(scan, pulse)
+        _, op = self.pi.finish(scan, pulse)
+        # the integral tracks the PI's own limits only: a pulse cut by a limit lasts one pulse, and
+        # letting its cut part into the integral would shift the PI output for good (a steady offset
+        # wherever the valve works within a of a limit)
+        alone, _ = self.pi.finish(scan)
+        pis = PIBlockState(integral=alone.integral, op=op)
         i_ref = np.where(start, pis.integral, state.i_ref)
         phase = (state.phase + 1) % self.period
         return KnockerState(pi=pis, phase=phase, i_ref=i_ref, sign=sign), op
