@@ -361,7 +361,8 @@ def test_any_setting_in_range_is_accepted_and_any_outside_is_refused(name, data)
     try:
         ctrl = load_controller(name, **kw)
     except ValueError as exc:            # a rule-derived setting would leave its range: said so, and how to fix
-        assert "; give " in str(exc) and "explicitly" in str(exc) and "the rule for" in str(exc)
+        assert " or give " in str(exc) and "explicitly" in str(exc) and "the rule for" in str(exc)
+        assert "check the settings it is made from (" in str(exc)
         return
     assert ctrl.settings[key] == pytest.approx(ok)
     assert load_controller(name, **json.loads(json.dumps(ctrl.settings))).settings == ctrl.settings

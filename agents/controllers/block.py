@@ -237,6 +237,15 @@ def merge_rows(mask: np.ndarray, fresh, old):
     return np.where(mask, fresh, old)
 
 
+def _rule_inputs(p: dict, s: Setting) -> str:
+    """The settings that a rule-made setting ``s`` reads, as ``name=value`` (those its doc names)."""
+    import re
+
+    words = set(re.findall(r"[A-Za-z_]+", s.doc))
+    used = [f"{k}={fmt(v)}" for k, v in p.items() if k != s.name and k in words]
+    return ", ".join(used) or "the other settings"
+
+
 class FunctionBlock(ABC):
     """Base of the controller blocks: settings, validation, reset/step.
 
@@ -265,9 +274,10 @@ class FunctionBlock(ABC):
                 try:
                     s.check(self.name, self.p[s.name])
                 except ValueError:
-                    raise ValueError(f"{self.name}: the rule for {s.name} gives {fmt(self.p[s.name])} with these "
-                                     f"settings, outside its range {s.describe()}; give {s.name} explicitly"
-                                     ) from None
+                    raise ValueError(f"{self.name}: the rule for {s.name} ({s.doc}) gives {fmt(self.p[s.name])} "
+                                     f"with these settings, outside its range {s.describe()}; check the settings "
+                                     f"it is made from ({_rule_inputs(self.p, s)}: each in the PV's units where it "
+                                     f"has one) or give {s.name} explicitly") from None
         self.loops()
         self._state: Any = None
         self._n: int | None = None
