@@ -63,12 +63,9 @@ def staged_folder(folder, last: Sequence[str] = ()) -> Iterator[str]:
         names = sorted(os.listdir(stage), key=lambda n: (n in last, last.index(n) if n in last else 0, n))
         for name in names:
             src, dst = os.path.join(stage, name), os.path.join(folder, name)
-            if os.path.isdir(src):
-                if os.path.isdir(dst) and not os.path.islink(dst):
-                    shutil.rmtree(dst)
-                os.replace(src, dst)
-            else:
-                os.replace(src, dst)
+            if os.path.isdir(src) and os.path.isdir(dst) and not os.path.islink(dst):
+                shutil.rmtree(dst)          # a folder of results replaces the old one whole
+            os.replace(src, dst)
     finally:
         shutil.rmtree(stage, ignore_errors=True)
 
