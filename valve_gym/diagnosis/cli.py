@@ -3,7 +3,7 @@
 Usage::
 
     valve-gym diagnose REC.csv|DIR [--columns t=COL,op=COL,pv=COL,sp=COL,mv=COL]
-        [--op-range LO,HI] [--mv-range LO,HI] [--plant auto|tank|integrating|first_order|cascade]
+        [--op-range LO,HI] [--mv-range LO,HI] [--dt SECONDS] [--plant auto|tank|integrating|first_order|cascade]
         [--actuator valve|pump] [--validate OTHER.csv] [--holdout FRAC]
         [--json OUT.json] [--report DIR] [--effects LIST] [--jobs N]
         [--effort auto|fast|normal|thorough] [--search full|fast] [--op-lag auto|0|1] [--seed N] [--quiet]
@@ -24,6 +24,7 @@ run was interrupted (finished loops are kept).
 from __future__ import annotations
 
 import argparse
+import math
 import os
 import re
 import sys
@@ -71,6 +72,9 @@ def build_parser() -> argparse.ArgumentParser:
                                       "e.g. 0,100 for percent")
     p.add_argument("--mv-range", help="raw valve-position range LO,HI that maps to 0..1 (default: the "
                                       "--op-range); the position column is read by the stem test")
+    p.add_argument("--dt", metavar="SECONDS",
+                   help="sample time of a file without a time column (rows equally spaced; single files and "
+                        "folders)")
     p.add_argument("--max-gap", default="5", metavar="N",
                    help="longest run of missing samples filled by interpolation (default 5); longer gaps "
                         "are an error unless --gaps longest (fleet mode: the longest stretch without one is kept)")
@@ -243,11 +247,19 @@ def _main(argv: list[str]) -> int:
     max_gap = int(_number(a.max_gap, "--max-gap", int, 0, 10 ** 6))
     load_kw = {"columns": columns, "op_range": op_range, "mv_range": mv_range, "max_gap": max_gap,
                "gaps": a.gaps}
+    if a.dt is not None:
+        dt = _number(a.dt, "--dt", float, 1e-6, 1e6)
+        if not math.isfinite(dt):
+            raise _UsageError(f"--dt must be the sample time in seconds, a finite number, got {a.dt!r}")
+        load_kw["dt"] = dt
     diag_kw = {"plant": a.plant, "actuator": a.actuator, "candidates": cands,
                "holdout": holdout, "effort": a.effort, "seed": seed, "search": a.search,
                "op_lag": op_lag_value(a.op_lag)}
     path = a.path
     if a.out:
+        if a.dt is not None:
+            raise _UsageError("--dt works with single files and folders, not in fleet mode (--out): a fleet's "
+                              "loops carry their time stamps")
         if a.gaps != "error":
             raise _UsageError("--gaps works with single files and folders, not in fleet mode (--out): a fleet "
                               "always keeps each loop's longest stretch free of gaps longer than --max-gap")

@@ -284,6 +284,9 @@ def _by_default(header: list[str], lower: dict[str, list[int]], role: str, out: 
     likely = _likely_columns(header, role, set(out.values()))
     hint = (f" (by its name perhaps {' or '.join(repr(header[j]) for j in likely[:3])}: "
             f"--columns {role}={header[likely[0]]})" if likely else "")
+    if role == "t":
+        hint += ("; for a file without a time column (rows equally spaced) give the sample time instead: "
+                 "dt=SECONDS (CLI: --dt SECONDS)")
     raise RecordingError(f"{src}: no column for the {ROLE_WORDS[role]} ({role}): {why}; "
                          f"pass columns={{'{role}': NAME}} (CLI: --columns {role}=NAME){hint}")
 
@@ -351,7 +354,7 @@ def resolve_columns(
         if role not in columns:
             j = _by_default(header, lower, role, out, tags, src)
         elif columns[role] is None or not str(columns[role]).strip():
-            if role in REQUIRED:
+            if role in REQUIRED and role != "t":      # no time column: load_recording's dt gives the time
                 raise RecordingError(
                     f"{src}: the {ROLE_WORDS[role]} ({role}) cannot be switched off; "
                     f"name its column (available: {avail})"

@@ -46,6 +46,7 @@ def load_recording(
     *,
     max_samples: int | None = DEFAULT_MAX_SAMPLES,
     engine: str = "auto",
+    dt: float | None = None,
 ) -> Recording:
     """Read a control-loop recording from a CSV or Parquet file.
 
@@ -125,6 +126,10 @@ def load_recording(
         reads only the mapped columns in chunks with pandas (a row with too
         few fields reads as missing values); 'auto' uses 'columns' above
         8 MB.
+    dt : float, optional
+        Sample time [s] of a file without a time column (a laboratory or
+        MATLAB export: the samples are ``dt`` apart, row after row); the time
+        column is then not looked for (naming one as well is an error).
 
     Returns
     -------
@@ -167,14 +172,18 @@ def load_recording(
         )
     src = os.fsdecode(path)
     opts = check_options(src, max_gap, resample, gaps, op_range, mv_range, max_samples, engine)
-    columns = as_column_mapping(columns, src)
+    columns = _time_by_dt(as_column_mapping(columns, src), dt, src)
     sn = sniff(src, opts.engine)
     raw = read_columns(sn, columns)
+    if dt is not None:
+        raw = _with_sample_times(raw, float(dt))
     raw, said = _automatic_rows(raw, src)
     dc = _decimal_comma_file(sn, raw)
     p = parse_raw(raw, src, decimal_comma=dc)
     repairs: list[str] = said
     notes = _reader_notes(sn, raw)
+    if dt is not None:
+        notes.append(f"time: the row number x {float(dt):g} s (dt given; no time column read)")
     if dc:
         notes.append(f"numbers with a decimal comma read as decimal points (columns separated by "
                      f"{sn.dialect.delimiter!r})")
@@ -319,4 +328,27 @@ def _normalised(grid: Grid, p: Parsed, opts: LoadOptions,
             f"(--op-range LO,HI: the output's full scale, e.g. 0,100 for percent)"
         )
     return out, op_range
+
+
+def _time_by_dt(columns, dt, src: str):
+    """The column mapping with the time column switched off where ``dt`` gives the sample time."""
+    t_off = columns is not None and "t" in columns and not (columns["t"] and str(columns["t"]).strip())
+    if dt is None:
+        if t_off:
+            raise RecordingError(f"{src}: the time column (t) is switched off; give the sample time instead: "
+                                 f"dt=SECONDS (CLI: --dt SECONDS) for a file whose rows are equally spaced")
+        return columns
+    if isinstance(dt, bool) or not isinstance(dt, (int, float)) or not math.isfinite(dt) or dt <= 0:
+        raise RecordingError(f"{src}: dt must be the sample time in seconds, a finite number > 0, got {dt!r}")
+    if columns is not None and columns.get("t") and str(columns["t"]).strip():
+        raise RecordingError(f"{src}: both a time column (t={columns['t']}) and a sample time (dt={dt:g}) are "
+                             f"given; give one: the time column, or dt for a file without one")
+    return {**dict(columns or {}), "t": None}
+
+
+def _with_sample_times(raw: RawColumns, dt: float) -> RawColumns:
+    """``raw`` with the time of each row: ``k dt`` for row ``k`` (a file without a time column)."""
+    n = len(raw.data["op"])
+    cmap = ColumnMap(index={**raw.columns.index, "t": -1}, names={**raw.columns.names, "t": f"row x {dt:g} s"})
+    return replace(raw, columns=cmap, data={**raw.data, "t": np.arange(n, dtype=np.float64) * dt})
 

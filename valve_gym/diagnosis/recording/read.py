@@ -234,7 +234,7 @@ def read_csv_columns(sn: Sniffed, columns: Mapping[str, str | None] | None) -> R
         raise RecordingError(f"{sn.src}: not a valid CSV file ({msg}); check quoting and separators there, "
                              f"or read it with engine='rows' for a check of every line") from None
     data = {r: _merge(chunks[j]) for r, j in cmap.index.items()}
-    n = len(data["t"])
+    n = len(data["op"])
     if n == 0:
         raise RecordingError(f"{sn.src}: no data rows under the header; the file holds no samples")
     lines = _first_data(sn) + np.arange(n, dtype=np.int64)
@@ -313,7 +313,7 @@ def read_parquet(sn: Sniffed, columns: Mapping[str, str | None] | None) -> RawCo
             f"{sn.src}: not a readable Parquet file ({e}); check the file or export it again"
         ) from None
     data = {r: (np.concatenate(p) if p else np.empty(0)) for r, p in parts.items()}
-    n = len(data["t"])
+    n = len(data["op"])
     if n == 0:
         raise RecordingError(f"{sn.src}: no data rows; the file holds no samples")
     return RawColumns(cmap, data, np.arange(1, n + 1, dtype=np.int64), "row")
