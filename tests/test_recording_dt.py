@@ -60,3 +60,19 @@ def test_the_cli_reads_it_with_dt_and_refuses_bad_values(untimed, tmp_path, caps
         assert "--dt" in capsys.readouterr().err
     assert cli.main(base + ["--dt", "2", "--out", str(tmp_path / "fleet")]) == 2
     assert "--dt works with single files and folders" in capsys.readouterr().err
+
+
+def test_the_other_record_of_the_same_file_validates_the_fit(untimed, tmp_path, capsys):
+    """``--validate FILE --validate-columns op=uVal,pv=yVal``: the benchmark's test record beside its estimation one."""
+    p, _ = untimed
+    base = [str(p), "--columns", "op=uEst,pv=yEst", "--op-range", "0,100", "--dt", "2", "--effects", "none",
+            "--effort", "fast", "--jobs", "1", "--quiet"]
+    out = tmp_path / "v.json"
+    assert cli.main(base + ["--validate", str(p), "--validate-columns", "op=uVal,pv=yVal", "--json", str(out)]) == 0
+    v = json.loads(out.read_text())["validation"]
+    assert v and np.isfinite(v["base_rmse"]) and np.isfinite(v["final_rmse"])
+    same = tmp_path / "same.json"
+    assert cli.main(base + ["--validate", str(p), "--json", str(same)]) == 0    # the same columns: the same record
+    assert json.loads(same.read_text())["validation"]["base_rmse"] != v["base_rmse"]
+    assert cli.main(base + ["--validate-columns", "op=uVal,pv=yVal"]) == 2
+    assert "give --validate too" in capsys.readouterr().err

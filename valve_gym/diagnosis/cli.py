@@ -4,7 +4,7 @@ Usage::
 
     valve-gym diagnose REC.csv|DIR [--columns t=COL,op=COL,pv=COL,sp=COL,mv=COL]
         [--op-range LO,HI] [--mv-range LO,HI] [--dt SECONDS] [--plant auto|tank|integrating|first_order|cascade]
-        [--actuator valve|pump] [--validate OTHER.csv] [--holdout FRAC]
+        [--actuator valve|pump] [--validate OTHER.csv [--validate-columns MAPPING]] [--holdout FRAC]
         [--json OUT.json] [--report DIR] [--effects LIST] [--jobs N]
         [--effort auto|fast|normal|thorough] [--search full|fast] [--op-lag auto|0|1] [--seed N] [--quiet]
     valve-gym diagnose DIR|EXPORT --out OUTDIR [--jobs N] [--address ADDR] [--full]
@@ -88,6 +88,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="valve (with friction) or pump (default valve)")
     p.add_argument("--validate", metavar="OTHER.csv",
                    help="another recording of the same loop to validate the fitted models on")
+    p.add_argument("--validate-columns", metavar="MAPPING",
+                   help="column mapping of the --validate recording where it differs from --columns (e.g. "
+                        "op=uVal,pv=yVal: the other record of the same file)")
     p.add_argument("--holdout", default="0.3",
                    help="fraction at the end of the record held out of the fit (default 0.3)")
     p.add_argument("--json", metavar="OUT.json", help="write the result as JSON")
@@ -231,6 +234,28 @@ def main(argv: list[str] | None = None) -> int:
         return 1
 
 
+def _sample_time(a) -> dict:
+    """``{'dt': seconds}`` from ``--dt`` (a file without a time column), or ``{}``."""
+    if a.dt is None:
+        return {}
+    dt = _number(a.dt, "--dt", float, 1e-6, 1e6)
+    if not math.isfinite(dt):
+        raise _UsageError(f"--dt must be the sample time in seconds, a finite number, got {a.dt!r}")
+    return {"dt": dt}
+
+
+def _check_mode_options(a) -> None:
+    """Refuse options that the chosen mode (fleet with ``--out``, else single files and folders) does not use."""
+    if a.validate_columns is not None and not a.validate:
+        raise _UsageError("--validate-columns maps the columns of the --validate recording: give --validate too")
+    if a.out and a.dt is not None:
+        raise _UsageError("--dt works with single files and folders, not in fleet mode (--out): a fleet's "
+                          "loops carry their time stamps")
+    if a.out and a.gaps != "error":
+        raise _UsageError("--gaps works with single files and folders, not in fleet mode (--out): a fleet "
+                          "always keeps each loop's longest stretch free of gaps longer than --max-gap")
+
+
 def _main(argv: list[str]) -> int:
     from .diagnose import diagnose, diagnose_many
 
@@ -246,23 +271,13 @@ def _main(argv: list[str]) -> int:
     say = (lambda s: None) if a.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
     max_gap = int(_number(a.max_gap, "--max-gap", int, 0, 10 ** 6))
     load_kw = {"columns": columns, "op_range": op_range, "mv_range": mv_range, "max_gap": max_gap,
-               "gaps": a.gaps}
-    if a.dt is not None:
-        dt = _number(a.dt, "--dt", float, 1e-6, 1e6)
-        if not math.isfinite(dt):
-            raise _UsageError(f"--dt must be the sample time in seconds, a finite number, got {a.dt!r}")
-        load_kw["dt"] = dt
+               "gaps": a.gaps, **_sample_time(a)}
     diag_kw = {"plant": a.plant, "actuator": a.actuator, "candidates": cands,
                "holdout": holdout, "effort": a.effort, "seed": seed, "search": a.search,
                "op_lag": op_lag_value(a.op_lag)}
     path = a.path
+    _check_mode_options(a)
     if a.out:
-        if a.dt is not None:
-            raise _UsageError("--dt works with single files and folders, not in fleet mode (--out): a fleet's "
-                              "loops carry their time stamps")
-        if a.gaps != "error":
-            raise _UsageError("--gaps works with single files and folders, not in fleet mode (--out): a fleet "
-                              "always keeps each loop's longest stretch free of gaps longer than --max-gap")
         return _fleet(a, path, jobs, seed, holdout, cands, op_range, max_gap, say)
     if a.address or a.full or a.max_loops or a.top != "10":
         raise _UsageError("--address, --full, --max-loops and --top work in fleet mode only: add --out OUTDIR")
@@ -296,7 +311,10 @@ def _main(argv: list[str]) -> int:
     if not os.path.exists(path):
         raise RecordingError(f"{path}: no such file or folder")
     rec = load_recording(path, **load_kw)
-    other = load_recording(a.validate, **load_kw) if a.validate else None
+    other = None
+    if a.validate:
+        vcols = parse_columns(a.validate_columns) if a.validate_columns is not None else load_kw["columns"]
+        other = load_recording(a.validate, **{**load_kw, "columns": vcols})
     res = diagnose(rec, validate=other, jobs=jobs, progress=say, **diag_kw)
     _print_summary(res)
     if a.json:
