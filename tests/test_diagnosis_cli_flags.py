@@ -55,7 +55,7 @@ def run_json(rec_dir, tmp_path, capsys, *flags, path=None):
 # --------------------------------------------------------------------------
 
 CASES = {"-h", "--help", "--columns", "--op-range", "--mv-range", "--max-gap", "--gaps",
-         "--plant", "--actuator", "--validate", "--holdout",
+         "--plant", "--actuator", "--validate", "--validate-columns", "--dt", "--holdout",
          "--json", "--report", "--effects", "--jobs", "--effort", "--search", "--op-lag", "--seed", "--quiet", "--out",
          "--address", "--full", "--max-loops", "--top"}
 
@@ -169,6 +169,24 @@ def test_validate(rec_dir, tmp_path, capsys):
     code, _, err = run([rec_dir / "loop.csv", "--op-range", "0,100", "--validate", tmp_path / "nope.csv", *FAST],
                        capsys)
     assert code == 2 and "nope.csv" in err
+
+
+def test_dt_and_validate_columns(rec_dir, tmp_path, capsys):
+    """A file without a time column, read with ``--dt``; its other record validated with ``--validate-columns``."""
+    import pandas as pd
+
+    df = pd.read_csv(rec_dir / "loop.csv").drop(columns="t_s")
+    both = pd.DataFrame({"OP": df.OP, "PV": df.PV, "OP2": df.OP[::-1].to_numpy(), "PV2": df.PV[::-1].to_numpy()})
+    path = tmp_path / "untimed.csv"
+    both.to_csv(path, index=False)
+    d, _, _ = run_json(rec_dir, tmp_path, capsys, "--dt", "1", "--validate", path, "--validate-columns",
+                       "op=OP2,pv=PV2", path=path)
+    assert d["recording"]["dt"] == 1.0 and d["recording"]["columns"]["t"] == "row x 1 s"
+    assert d["validation"]["recording"] == "untimed" and np.isfinite(d["validation"]["final_rmse"])
+    code, _, err = run([path, "--op-range", "0,100", *FAST], capsys)
+    assert code == 2 and "--dt SECONDS" in err
+    code, _, err = run([rec_dir / "loop.csv", "--op-range", "0,100", "--validate-columns", "op=OP", *FAST], capsys)
+    assert code == 2 and "give --validate too" in err
 
 
 def test_holdout(rec_dir, tmp_path, capsys):
