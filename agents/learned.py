@@ -166,7 +166,8 @@ class LearnedBlock:
         """
         law = self._law
         if law is None:
-            raise RuntimeError("call reset(sp, pv, op) before step()")
+            raise ValueError(f"{self.name}: step() called before reset(); call reset(sp, pv, op) first with the "
+                             f"valve input now applied (bumpless start)")        # the message of every block
         sp_a, pv_a, _ = check_step_inputs(self.name, law.n, sp, pv)
         obs = law.observe(sp_a, pv_a)
         a = mlp_forward(self.weights, normalise(obs, self.obs_mean, self.obs_std))

@@ -111,8 +111,8 @@ def test_errors(tmp_path):
     with pytest.raises(FileNotFoundError, match="learned.json"):
         load_learned(tmp_path)
     blk = load_learned()
-    with pytest.raises(RuntimeError, match="reset"):
-        LearnedBlock(blk.weights, blk.obs_mean, blk.obs_std).step(1.0, 1.0)
+    with pytest.raises(ValueError, match=r"step\(\) called before reset\(\); call reset\(sp, pv, op\) first"):
+        LearnedBlock(blk.weights, blk.obs_mean, blk.obs_std).step(1.0, 1.0)     # as every block says it
     blk.reset(1.0, 1.0, 0.5)
     with pytest.raises(ValueError, match="finite"):
         blk.step(1.0, float("nan"))
