@@ -53,6 +53,7 @@ def _session_processes(sid: int) -> list[str]:
 #: starting Ray's agents), the driver not yet connected.
 _CTRL_C_WHILE_RAY_STARTS = """
 import os, signal, sys
+signal.signal(signal.SIGINT, signal.default_int_handler)   # as in a terminal, whatever the test runner ignores
 from ray._private.node import Node
 start_raylet = Node.start_raylet
 def pressed(self, *a, **k):
@@ -103,7 +104,7 @@ def test_ctrl_c_while_ray_starts_stops_cleanly_and_leaves_no_process(recs, tmp_p
     assert "partial run: 3 of 3 loops not analysed yet" in (out / "worklist.md").read_text()
 
 
-def test_a_signal_is_noted_and_a_handler_ray_would_set_is_not(monkeypatch):
+def test_a_signal_is_noted_and_a_handler_ray_would_set_is_not(ctrl_c_as_in_a_terminal):
     """Inside a run a signal sets a flag (the run stops where it is safe), never an exception in the middle
     of Ray's start; ``ray.init`` may not put its own SIGTERM handler in place meanwhile."""
     from valve_gym.fleet.runner import _Stop
@@ -121,7 +122,15 @@ def test_a_signal_is_noted_and_a_handler_ray_would_set_is_not(monkeypatch):
     assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == before
 
 
-def test_ctrl_c_twice_stops_at_once():
+@pytest.fixture
+def ctrl_c_as_in_a_terminal():
+    """SIGINT raising KeyboardInterrupt, as in a terminal, even where the test runner was started with it ignored."""
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, old)
+
+
+def test_ctrl_c_twice_stops_at_once(ctrl_c_as_in_a_terminal):
     """A second Ctrl-C is the way out of a Ray start that hangs: it raises at once, and says what may be left."""
     from valve_gym.fleet.runner import _Stop
 
