@@ -12,10 +12,10 @@ import time
 import pytest
 
 import valve_gym
+from valve_gym._markdown import md_cell
 from valve_gym.diagnosis.synthetic import write_csv
 from valve_gym.fleet import FleetSettings, LoopResult, write_worklist
 from valve_gym.fleet.simulate import simulate_loop
-from valve_gym.fleet.worklist import md_cell
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(valve_gym.__file__)))
 FAST = ["--op-range", "0,100", "--effort", "fast", "--effects", "none", "--jobs", "1"]
@@ -224,7 +224,7 @@ def test_any_text_shows_as_it_is_in_the_markdown_and_in_the_html_page():
     markdown_it = pytest.importorskip("markdown_it")
     hyp = pytest.importorskip("hypothesis")
     st = hyp.strategies
-    from valve_gym.fleet.worklist import _md_cells, md_row
+    from valve_gym._markdown import _md_cells, md_row
 
     render = markdown_it.MarkdownIt("commonmark").enable(["table", "strikethrough"]).render
     pieces = st.sampled_from(list("ab_ *|\\`<>&#;![]()~$:/\n\t-=x1é") + ["&amp;", "<b>", "http://", "\u2028", "&#65;"])

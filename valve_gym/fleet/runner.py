@@ -26,6 +26,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import signal
 import sys
 import tempfile
 import time
@@ -394,8 +395,6 @@ class _Stop:
         return self.signum is not None
 
     def _handler(self, signum, frame) -> None:
-        import signal
-
         if self.signum is not None:
             if signum == self.signum == signal.SIGINT:
                 # Ctrl-C pressed again: the user will not wait (e.g. a Ray start that hangs); stop at once
@@ -415,7 +414,6 @@ class _Stop:
                 pass
 
     def __enter__(self) -> _Stop:
-        import signal
         import threading
 
         if threading.current_thread() is threading.main_thread():
@@ -428,8 +426,6 @@ class _Stop:
         return self
 
     def __exit__(self, *exc) -> None:
-        import signal
-
         for sig, h in self._old.items():
             signal.signal(sig, h if h is not None else signal.SIG_DFL)
         self._old = {}
@@ -441,8 +437,6 @@ class _Stop:
         Ray's handler ends ``ray.init`` with SystemExit, part of Ray started, and its crash handler
         (in the core worker) stays in front of this one; :meth:`rearm` puts this one back in front.
         """
-        import signal
-
         real = signal.signal
         ours = set(self._old)
 
@@ -457,8 +451,6 @@ class _Stop:
 
     def rearm(self) -> None:
         """Install this handler again for each signal it holds (in front of one set outside Python)."""
-        import signal
-
         for sig in self._old:
             signal.signal(sig, self._handler)
 

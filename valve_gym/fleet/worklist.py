@@ -18,12 +18,12 @@ from collections import Counter
 from collections.abc import Sequence
 
 from .._io import write_atomic
-from .._markdown import _md_cells, md_cell, md_row, md_unescape
+from .._markdown import _md_cells, md_row
 from .actions import RULES, S_SEVERE, W_HIGH, W_LOW
 from .result import FleetSettings, LoopResult
 from .sources import LoopSource, load_loop
 
-__all__ = ["rank", "write_worklist", "loop_plots", "md_cell", "md_unescape", "md_row"]   # the last three: .._markdown
+__all__ = ["rank", "write_worklist", "loop_plots"]
 
 def rank(results: Sequence[LoopResult]) -> list[LoopResult]:
     """Loops with status ok, highest score first (ties: larger PV oscillation, then name)."""
