@@ -1,13 +1,15 @@
 """Check a learned compensator against the targets of the regulation benchmark, on seeds of one's own.
 
-``python -m agents.learned_eval [--policy PATH] [--n 90] [--seed 424242]``
+``python -m agents.learned_eval [--policy PATH] [--n 90] [--seed 424242] [--noise 0.002]``
 
 Runs the benchmark's regulation part (:mod:`agents.bench`: same scenario generator, same runner,
 same scores) on ``n`` loops drawn with ``--seed`` (pick one that is not the benchmark's), for the
 frictionless PI, the SIMC PI, a PI with twice its gain (is the gain compensation or just a faster
 controller?), the classical compensators with the true stiction estimate, and the learned block;
 prints per band group the limit-cycle share and amplitude, IAE, compensation ratio ``R``, stem
-travel, reversals and offset, and the targets of the learned block.
+travel, reversals and offset, and the targets of the learned block. ``--noise`` sets the measurement
+noise of the loops (standard deviation, m; the benchmark's is 0.002), to check a block at noise levels
+it was not trained on.
 """
 from __future__ import annotations
 
@@ -25,8 +27,12 @@ def _groups(scen) -> dict:
     return {"sticky+severe": band != "healthy", "healthy": band == "healthy"}
 
 
-def evaluate_learned(path=None, n: int = 90, seed: int = 424242, compensators: bool = True) -> dict:
-    """Scores (``agents.bench.scores.LoopScores`` by label) and the scenarios; see the module docstring."""
+def evaluate_learned(path=None, n: int = 90, seed: int = 424242, compensators: bool = True,
+                     noise_std: float | None = None) -> dict:
+    """Scores (``agents.bench.scores.LoopScores`` by label) and the scenarios; see the module docstring.
+
+    ``noise_std`` (m) replaces the benchmark's measurement noise of the regulation loops.
+    """
     from agents.bench.config import load_bench_config
     from agents.bench.runner import ControllerSpec, lineup, run_loops, run_spec
     from agents.bench.scenarios import regulation_scenarios
@@ -35,6 +41,8 @@ def evaluate_learned(path=None, n: int = 90, seed: int = 424242, compensators: b
     from .learned import load_learned
 
     cfg = load_bench_config(None)
+    if noise_std is not None:
+        cfg = replace(cfg, regulation=replace(cfg.regulation, noise_std=float(noise_std)))
     scen = regulation_scenarios(cfg, n=n, seed=seed)
     specs = [s for s in lineup(cfg) if s.family in ("frictionless", "pi")]
     specs.append(ControllerSpec("PI Kc x2", "pi", "detuned", (("detune", 2.0),)))
@@ -80,11 +88,15 @@ def main(argv=None) -> int:
     p.add_argument("--n", type=int, default=90, help="loops (default 90)")
     p.add_argument("--seed", type=int, default=424242, help="scenario seed (not the benchmark's)")
     p.add_argument("--no-compensators", action="store_true", help="skip the classical compensators")
+    p.add_argument("--noise", type=float, default=None, metavar="M",
+                   help="measurement noise of the loops, standard deviation in m (default: the benchmark's)")
     a = p.parse_args(argv)
     if a.n < 3:
         p.error("--n must be >= 3")
+    if a.noise is not None and not (0.0 <= a.noise < 1.0):
+        p.error(f"--noise must be a standard deviation in m, 0 <= noise < 1 (got {a.noise})")
     try:
-        res = evaluate_learned(a.policy, a.n, a.seed, not a.no_compensators)
+        res = evaluate_learned(a.policy, a.n, a.seed, not a.no_compensators, a.noise)
     except (OSError, ValueError) as exc:
         print(f"learned_eval: {exc}", file=sys.stderr)
         return 1

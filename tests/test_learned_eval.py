@@ -1,0 +1,23 @@
+"""``python -m agents.learned_eval``: the noise option reaches the loops, bad values are refused."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from agents.learned_eval import evaluate_learned, main
+
+
+def test_noise_option_sets_the_loops_measurement_noise():
+    res = evaluate_learned(n=3, seed=11, compensators=False, noise_std=0.0005)
+    assert res["config"].regulation.noise_std == 0.0005
+    std = float(np.std(res["scenarios"].noise))
+    assert 0.0004 < std < 0.0006, std
+    assert set(res["scores"]) >= {"PI (SIMC)", "PI frictionless", "learned"}
+
+
+@pytest.mark.parametrize("bad", ["-0.001", "nan", "2"])
+def test_bad_noise_is_refused_with_the_reason(bad, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--n", "3", "--noise", bad])
+    assert exc.value.code == 2
+    assert "--noise must be a standard deviation in m" in capsys.readouterr().err
