@@ -18,13 +18,19 @@ registered on import (:data:`ENV_IDS`). Less used names live in their modules.
 """
 from __future__ import annotations
 
-from . import metrics
-from .config import ConfigError, EnvConfig, load_config
-from .core import initial_state, simulate, steady_input, step
-from .envs import ENV_IDS, ValveTankEnv, ValveTankVectorEnv, register_envs
-from .friction import FRICTION_MODELS, friction_spec, valve_model
-from .params import ModelParams, ParameterError, SlipJump, TankParams, ValveParams
-from .plant import Plant, PlantOutput
+import sys as _sys
+
+from ._startup import quiet_interrupt_while_loading
+
+quiet_interrupt_while_loading(_sys.argv)   # the ``valve-gym`` command: Ctrl-C while this package loads
+
+from . import metrics  # noqa: E402
+from .config import ConfigError, EnvConfig, load_config  # noqa: E402
+from .core import initial_state, simulate, steady_input, step  # noqa: E402
+from .envs import ENV_IDS, ValveTankEnv, ValveTankVectorEnv, register_envs  # noqa: E402
+from .friction import FRICTION_MODELS, friction_spec, valve_model  # noqa: E402
+from .params import ModelParams, ParameterError, SlipJump, TankParams, ValveParams  # noqa: E402
+from .plant import Plant, PlantOutput  # noqa: E402
 
 __version__ = "0.1.0"
 

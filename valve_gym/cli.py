@@ -32,6 +32,9 @@ def _usage() -> str:
 
 def main(argv=None) -> int:
     """Run ``valve-gym COMMAND [options]``; returns the exit status."""
+    from ._startup import restore_interrupt
+
+    restore_interrupt()               # the package is loaded: Ctrl-C is KeyboardInterrupt again (below)
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help"):
         print(_usage())
