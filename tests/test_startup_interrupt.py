@@ -44,3 +44,19 @@ def test_a_program_importing_the_package_keeps_its_handlers():
              "sys.argv[0] = '/usr/local/bin/valve-gym'; import valve_gym; "
              "print(signal.getsignal(signal.SIGINT) == signal.SIG_IGN)")
     assert r.returncode == 0 and r.stdout.strip() == "True", r.stderr
+
+
+def test_worker_processes_of_the_command_keep_python_handlers(tmp_path):
+    # a spawned worker gets the command's argv; it must not print the command's line or exit on its own
+    script = tmp_path / "probe.py"
+    script.write_text("import multiprocessing as mp, signal, sys\n"
+                      "def probe():\n"
+                      "    import valve_gym\n"
+                      "    return signal.getsignal(signal.SIGINT) is signal.default_int_handler\n"
+                      "if __name__ == '__main__':\n"
+                      "    sys.argv[0] = '/usr/local/bin/valve-gym'\n"
+                      "    with mp.get_context('spawn').Pool(1) as p:\n"
+                      "        print(p.apply(probe))\n")
+    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120,
+                       preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    assert r.returncode == 0 and r.stdout.strip() == "True", (r.stdout, r.stderr)

@@ -26,11 +26,16 @@ def _interrupted_while_loading(signum, frame) -> None:
 def quiet_interrupt_while_loading(argv) -> bool:
     """Install the quiet Ctrl-C handler when this process is the ``valve-gym`` command; True if installed.
 
-    Only where SIGINT has Python's default handler (not ignored, not set by the program).
+    Only in the command's own process (not in its worker processes) and where SIGINT has Python's
+    default handler (not ignored, not set by the program).
     """
     name = str(argv[0]) if argv else ""
     if name.replace("\\", "/").rsplit("/", 1)[-1] not in (COMMAND, COMMAND + ".exe"):
         return False
+    import multiprocessing
+
+    if multiprocessing.parent_process() is not None:   # a worker process started by the command (spawn,
+        return False                                     # forkserver) inherits its argv but not its role
     try:
         if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
             return False
