@@ -22,7 +22,7 @@ import numpy as np
 
 from valve_gym.envs.regulation import N_ACT, N_OBS, BlockLaw, BlockSettings, obs_names
 
-from .controllers.block import check_inputs, check_step_inputs
+from .controllers.block import check_inputs, check_op_limits, check_step_inputs, not_reset_error
 from .safe_files import load_model_file, save_model_file
 
 __all__ = ["MLPSpec", "LearnedBlock", "load_learned", "save_learned", "mlp_forward", "mlp_shapes", "normalise",
@@ -149,10 +149,7 @@ class LearnedBlock:
         (sp_a, pv_a, op_a), n, scalar = check_inputs(self.name, sp=sp, pv=pv, op=op)
         if np.any((op_a < 0) | (op_a > 1)):
             raise ValueError(f"{self.name}: op must be the valve input as a fraction 0..1, got {op!r}")
-        lo, hi = self.block_settings.op_lo, self.block_settings.op_hi
-        if np.any((op_a < lo) | (op_a > hi)):      # the first scan would clip it: a bump, not a bumpless start
-            raise ValueError(f"{self.name}: op must be the valve input now applied, within the output limits "
-                             f"[op_lo, op_hi] = [{lo:g}, {hi:g}], got {op_a.tolist()[:10]}")
+        check_op_limits(self.name, op_a, self.block_settings.op_lo, self.block_settings.op_hi)
         self._scalar = scalar
         self._law = BlockLaw(self.block_settings, n)
         self._law.reset(sp_a, pv_a, op_a)
@@ -166,8 +163,7 @@ class LearnedBlock:
         """
         law = self._law
         if law is None:
-            raise ValueError(f"{self.name}: step() called before reset(); call reset(sp, pv, op) first with the "
-                             f"valve input now applied (bumpless start)")        # the message of every block
+            raise not_reset_error(self.name)
         sp_a, pv_a, _ = check_step_inputs(self.name, law.n, sp, pv)
         obs = law.observe(sp_a, pv_a)
         a = mlp_forward(self.weights, normalise(obs, self.obs_mean, self.obs_std))

@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import re
 
-__all__ = ["md_cell", "md_unescape", "md_row"]
+__all__ = ["md_cell", "md_unescape", "md_row", "md_cells"]
 
 #: Characters that mean something inside a Markdown table cell (CommonMark, GitHub's tables and math):
 #: each is written behind a backslash, so that the cell shows the text as it is.
@@ -39,7 +39,7 @@ def md_row(cells) -> str:
     return "| " + " | ".join(md_cell(c) for c in cells) + " |"
 
 
-def _md_cells(line: str) -> list[str]:
+def md_cells(line: str) -> list[str]:
     """The cells of a table row written by :func:`md_row` (a pipe behind a backslash is text)."""
     cells, cur, i, body = [], [], 0, line.strip()
     body = body[1:] if body.startswith("|") else body

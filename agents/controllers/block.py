@@ -237,6 +237,19 @@ def merge_rows(mask: np.ndarray, fresh, old):
     return np.where(mask, fresh, old)
 
 
+def check_op_limits(block: str, op: np.ndarray, lo: float, hi: float) -> None:
+    """Refuse a start from an output outside ``[lo, hi]`` (the first scan would clip it: a bump)."""
+    if np.any(op < lo) or np.any(op > hi):
+        raise ValueError(f"{block}: op must be the valve input now applied, within the output limits "
+                         f"[op_lo, op_hi] = [{lo:g}, {hi:g}], got {op.tolist()[:10]}")
+
+
+def not_reset_error(block: str) -> ValueError:
+    """The error of ``step()`` called before ``reset()``, the same for every block."""
+    return ValueError(f"{block}: step() called before reset(); call reset(sp, pv, op) first "
+                      "with the valve input now applied (bumpless start)")
+
+
 def _rule_inputs(p: dict, s: Setting) -> str:
     """The settings that a rule-made setting ``s`` reads, as ``name=value`` (those its doc names)."""
     import re
@@ -314,12 +327,6 @@ class FunctionBlock(ABC):
         args = ", ".join(f"{k}={fmt(v)}" for k, v in self.p.items())
         return f"load_controller({self.name!r}, {args})"
 
-    def _check_op(self, op: np.ndarray) -> None:
-        lo, hi = self.p["op_lo"], self.p["op_hi"]
-        if np.any(op < lo) or np.any(op > hi):
-            raise ValueError(f"{self.name}: op must be the valve input now applied, within the output limits "
-                             f"[op_lo, op_hi] = [{lo:g}, {hi:g}], got {op.tolist()[:10]}")
-
     def reset(self, sp, pv, op) -> None:
         """Start bumplessly from the valve input ``op`` now applied.
 
@@ -336,7 +343,7 @@ class FunctionBlock(ABC):
                                  "pass one sp, pv, op per loop")
             sp, pv, op = (np.full(want, x[0]) for x in (sp, pv, op))
             n, scalar = want, False
-        self._check_op(op)
+        check_op_limits(self.name, op, self.p["op_lo"], self.p["op_hi"])
         self._state = self.initial_state(sp, pv, op)
         self._n, self._scalar = n, scalar
 
@@ -352,8 +359,7 @@ class FunctionBlock(ABC):
         op : float (scalar inputs) or (n,) array, valve input [0..1]
         """
         if self._state is None:
-            raise ValueError(f"{self.name}: step() called before reset(); call reset(sp, pv, op) first "
-                             "with the valve input now applied (bumpless start)")
+            raise not_reset_error(self.name)
         sp, pv, scalar = check_step_inputs(self.name, int(self._n or 1), sp, pv)
         self._state, op = self.advance(self._state, sp, pv)
         return float(op[0]) if (scalar and self._scalar) else op

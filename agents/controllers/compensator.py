@@ -149,6 +149,3 @@ class Compensator(FunctionBlock):
     def _rules(self, s: dict) -> dict:
         """Fill the paper-rule defaults (settings still None)."""
         return s
-
-    def _check_op(self, op):
-        self.pi._check_op(op)

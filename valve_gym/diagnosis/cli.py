@@ -168,6 +168,8 @@ def _number(text, name, kind=float, lo=None, hi=None):
     except (TypeError, ValueError):
         raise _UsageError(f"{name} must be a {'whole ' if kind is int else ''}number, "
                           f"got {text!r}") from None
+    if kind is float and not math.isfinite(v):
+        raise _UsageError(f"{name} must be a finite number, got {text!r}")
     if (lo is not None and v < lo) or (hi is not None and v > hi):
         raise _UsageError(f"{name} must be between {lo} and {hi}, got {text!r}")
     return v
@@ -238,10 +240,7 @@ def _sample_time(a) -> dict:
     """``{'dt': seconds}`` from ``--dt`` (a file without a time column), or ``{}``."""
     if a.dt is None:
         return {}
-    dt = _number(a.dt, "--dt", float, 1e-6, 1e6)
-    if not math.isfinite(dt):
-        raise _UsageError(f"--dt must be the sample time in seconds, a finite number, got {a.dt!r}")
-    return {"dt": dt}
+    return {"dt": _number(a.dt, "--dt", float, 1e-6, 1e6)}
 
 
 def _check_mode_options(a) -> None:

@@ -18,12 +18,13 @@ from collections import Counter
 from collections.abc import Sequence
 
 from .._io import write_atomic
-from .._markdown import _md_cells, md_row
+from .._markdown import md_cells, md_row
 from .actions import RULES, S_SEVERE, W_HIGH, W_LOW
 from .result import FleetSettings, LoopResult
 from .sources import LoopSource, load_loop
 
 __all__ = ["rank", "write_worklist", "loop_plots"]
+
 
 def rank(results: Sequence[LoopResult]) -> list[LoopResult]:
     """Loops with status ok, highest score first (ties: larger PV oscillation, then name)."""
@@ -143,7 +144,7 @@ def _html(md_text: str, results: Sequence[LoopResult], sources: Sequence[LoopSou
     table: list[str] = []
     for line in md_text.splitlines():
         if line.startswith("|"):
-            cells = _md_cells(line)
+            cells = md_cells(line)
             if set("".join(cells)) <= set("-: "):
                 continue
             tag = "th" if not table else "td"
