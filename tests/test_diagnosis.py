@@ -344,7 +344,8 @@ def test_search_is_checked():
 ])
 def test_bounded_costs_are_the_costs_of_the_rows_that_can_win(plant, effects, horizon, saturation):
     """The fitter's early stop: a candidate whose error passes its bound costs inf (its true
-    cost is above the bound); every other candidate's cost is bit for bit the unbounded one."""
+    cost is above the bound); every other candidate's cost is the unbounded one (the kernel's running
+    sum, equal to rounding; bit for bit where the PV is read outside the core)."""
     from valve_gym.diagnosis.diagnose import _data_scales
     from valve_gym.diagnosis.fit import _Objective
 
@@ -361,10 +362,11 @@ def test_bounded_costs_are_the_costs_of_the_rows_that_can_win(plant, effects, ho
     bound[:3] = np.inf
     cb = obj(W, bound=bound)
     kept = np.isfinite(cb)
-    np.testing.assert_array_equal(cb[kept], c[kept])
+    np.testing.assert_allclose(cb[kept], c[kept], rtol=1e-12, atol=0)
     assert np.all(c[~kept] > bound[~kept])
     assert kept[:3].all()
     if "sensor_curve" in effects:
         assert kept.all()
+        np.testing.assert_array_equal(cb, c)
     else:
         assert (~kept).sum() >= 0.8 * (c > bound).sum() > 0

@@ -209,24 +209,22 @@ class _Objective:
 
         With ``bound`` (n,), a row whose cost exceeds its bound may be stopped early and cost
         ``inf``: its true cost is larger than the bound, so a comparison with the bound comes out
-        the same (:meth:`~valve_gym.diagnosis.model.ModelStructure.simulate_bounded`).
+        the same (:meth:`~valve_gym.diagnosis.model.ModelStructure.bounded_costs`).
         """
-        dropped = None
         if bound is None:
             Y = self.sim(X)                  # a fresh array: squared in place
-        else:
-            X = np.atleast_2d(X)
-            self.n_evals += X.shape[0]
-            try:
-                Y, dropped = self.s.simulate_bounded(self.full(X), self.u, self.y, bound, reset=self.reset)
-            except (ValueError, ZeroDivisionError, FloatingPointError):
-                Y = np.full((len(self.u), X.shape[0]), np.nan)
-        with np.errstate(over="ignore", invalid="ignore"):
-            Y -= self.y[:, None]
-            c = np.einsum("ij,ij->j", Y, Y)
-        c[~np.isfinite(c)] = _BIG
-        if dropped is not None:
-            c[dropped] = np.inf
+            with np.errstate(over="ignore", invalid="ignore"):
+                Y -= self.y[:, None]
+                c = np.einsum("ij,ij->j", Y, Y)
+            c[~np.isfinite(c)] = _BIG
+            return c
+        X = np.atleast_2d(X)
+        self.n_evals += X.shape[0]
+        try:
+            c = self.s.bounded_costs(self.full(X), self.u, self.y, bound, reset=self.reset)
+        except (ValueError, ZeroDivisionError, FloatingPointError):
+            c = np.full(X.shape[0], np.nan)
+        c[np.isnan(c)] = _BIG                # not finite; ``inf``: stopped early
         return c
 
 

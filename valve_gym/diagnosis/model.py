@@ -607,23 +607,28 @@ class ModelStructure:
         measured level restarts from the recorded PV ``y`` (T,) of the sample before
         (:func:`valve_gym.core.run_packed_reset`; only without measurement effects).
         """
-        return self._simulate(W, u, n_sub, coords, reset)[0]
+        Y = self._simulate(W, u, n_sub, coords, reset)[0]
+        assert Y is not None
+        return Y
 
-    def simulate_bounded(self, W, u, y, bound, reset=None) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`simulate` that stops each row once its squared error to ``y`` passes ``bound``.
+    def bounded_costs(self, W, u, y, bound, reset=None) -> np.ndarray:
+        """Sum of squared errors ``(n,)`` of each row's simulated PV to ``y`` (T,), stopped early.
 
-        The kernel sums each row's squared error to ``y`` (T,) as it runs and stops the row
-        once the sum exceeds its ``bound`` (n,) by a relative ``1e-9``: its whole cost can
-        only be larger (:class:`valve_gym.core.Bound`).  Returns ``(Y, dropped)``: the
-        simulated PV ``(T, n)`` and the mask of the stopped rows (their columns hold no
-        simulation).  Rows not stopped are bit for bit those of :meth:`simulate`.  Every
-        row runs to the end where the PV is read through a measurement effect or the
-        friction model runs a per-scan law outside the core.
+        The kernel sums each row's squared error as it runs and stops the row once the sum
+        exceeds its ``bound`` (n,) by a relative ``1e-9``; such a row costs ``inf`` (its whole
+        cost can only be larger: :class:`valve_gym.core.Bound`).  A row that runs to the end
+        costs the kernel's running sum, which equals ``sum((y - simulate(W, u)) ** 2)`` to
+        rounding; ``nan`` where the simulation is not finite.  Where the PV is read through a
+        measurement effect, the friction model runs a per-scan law outside the core or no bound
+        is finite, every row runs to the end and the cost is summed from its simulated PV.
         """
-        return self._simulate(W, u, None, True, reset, (y, bound))
+        return self._simulate(W, u, None, True, reset, (np.asarray(y, float), bound))[1]
 
-    def _simulate(self, W, u, n_sub, coords: bool, reset, bounded=None) -> tuple[np.ndarray, np.ndarray]:
-        """:meth:`simulate` (``bounded`` None) or :meth:`simulate_bounded` (``bounded = (y, bound)``)."""
+    def _simulate(self, W, u, n_sub, coords: bool, reset, bounded=None) -> tuple[np.ndarray | None, np.ndarray]:
+        """:meth:`simulate` or :meth:`bounded_costs`.
+
+        ``bounded`` None: returns ``(Y, empty)``; ``bounded = (y, bound)``: returns ``(None, costs)``.
+        """
         values = self.decode(W) if coords else W
         mp, init, sign, offset = self.build(values, n_sub=n_sub)
         ns = self.n_sub if n_sub is None else int(n_sub)
@@ -644,9 +649,19 @@ class ModelStructure:
             run_packed(pk, S, buf, U, Dz, ns, Y, H, LV, threads=threads, bound=bd)
         else:
             plant.run(u, Dz, out=(Y, H, LV))
-        dropped = np.zeros(n, bool) if bd is None else bd.acc > bd.limit
-        Y[:, dropped] = 0.0
-        return _nan_bad(self._read(values, Y, sign, offset)), dropped
+        if bd is not None:                 # the kernel's sums: the simulated PV is not read again
+            cost = bd.acc.copy()
+            cost[~np.isfinite(cost)] = np.nan
+            cost[bd.acc > bd.limit] = np.inf
+            return None, cost
+        Y = self._read(values, Y, sign, offset)
+        if bounded is None:
+            return _nan_bad(Y), np.empty(0)
+        with np.errstate(over="ignore", invalid="ignore"):
+            Y -= bounded[0][:T, None]
+            cost = np.einsum("ij,ij->j", Y, Y)
+        cost[~np.isfinite(cost)] = np.nan
+        return None, cost
 
     def _bound(self, plant: Plant, bounded, sign, offset, n: int, T: int):
         """The kernel's early stop (:class:`valve_gym.core.Bound`) for ``bounded = (y, bound)``, or None.
