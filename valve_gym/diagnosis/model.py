@@ -329,6 +329,7 @@ class ModelStructure:
         self.params: list[FreeParam] = self._free_params()
         self.names = [p.name for p in self.params]
         self._index = {p.name: i for i, p in enumerate(self.params)}
+        self._decoder = _Decoder(self.params)
 
     # ---------------------------------------------------------------- description
     @property
@@ -446,8 +447,8 @@ class ModelStructure:
     # ---------------------------------------------------------------- coordinates
     def decode(self, W) -> dict[str, np.ndarray]:
         """Internal parameter values ``{name: (n,)}`` of unit coordinates ``W`` (n, k)."""
-        W = np.atleast_2d(np.asarray(W, float))
-        return {p.name: p.value(W[:, i]) for i, p in enumerate(self.params)}
+        V = self._decoder(np.atleast_2d(np.asarray(W, float)))
+        return {name: V[i] for i, name in enumerate(self.names)}
 
     def encode(self, values: dict[str, float]) -> np.ndarray:
         """Unit coordinates ``(k,)`` of internal values (missing names -> 0.5... or neutral)."""
@@ -480,8 +481,11 @@ class ModelStructure:
                     f = rule(self, v, f)
         return np.maximum(f, 1e-3)
 
-    def build(self, values: dict[str, np.ndarray], n_sub: int | None = None):
+    def build(self, values: dict[str, np.ndarray], n_sub: int | None = None, fresh: bool = False):
         """Core parameters, initial state and measurement map for ``values``.
+
+        ``fresh``: the values are ``(n,)`` float arrays of their own (:meth:`decode`'s), used as they
+        are; otherwise each is broadcast and copied.
 
         Returns
         -------
@@ -491,7 +495,7 @@ class ModelStructure:
         """
         sc = self.scales
         n = len(next(iter(values.values()))) if values else 1
-        v = {k: np.broadcast_to(np.asarray(a, float), (n,)).copy() for k, a in values.items()}
+        v = values if fresh else {k: np.broadcast_to(np.asarray(a, float), (n,)).copy() for k, a in values.items()}
         ns = self.n_sub if n_sub is None else int(n_sub)
         dte = sc.dt / ns
         kind = "cascade" if self.plant == "cascade" else self.plant
@@ -630,7 +634,7 @@ class ModelStructure:
         ``bounded`` None: returns ``(Y, empty)``; ``bounded = (y, bound)``: returns ``(None, costs)``.
         """
         values = self.decode(W) if coords else W
-        mp, init, sign, offset = self.build(values, n_sub=n_sub)
+        mp, init, sign, offset = self.build(values, n_sub=n_sub, fresh=coords)
         ns = self.n_sub if n_sub is None else int(n_sub)
         n = max(mp.batch_size(), len(sign))
         T = len(u)
@@ -828,6 +832,33 @@ class ModelStructure:
             except ParameterError:
                 ns = int(math.ceil(ns * 1.5))
         return cap
+
+
+class _Decoder:
+    """:meth:`FreeParam.value <valve_gym.paramspec.FreeParam.value>` of every coordinate at once.
+
+    Called with unit coordinates ``W`` (n, k), returns the values ``(k, n)`` (one contiguous row per
+    parameter), element for element the numbers ``params[i].value(W[:, i])`` gives.
+    """
+
+    def __init__(self, params: Sequence[FreeParam]):
+        lo = np.array([p.lo for p in params], float)[:, None]
+        hi = np.array([p.hi for p in params], float)[:, None]
+        self.lo, self.span = lo, hi - lo
+        self.log = np.array([i for i, p in enumerate(params) if p.scale == "log"], int)
+        self.sq = np.array([i for i, p in enumerate(params) if p.scale == "sq"], int)
+        self.lo_log, self.ratio_log = lo[self.log], hi[self.log] / lo[self.log]
+        self.lo_sq, self.span_sq = lo[self.sq], self.span[self.sq]
+
+    def __call__(self, W: np.ndarray) -> np.ndarray:
+        Wt = np.minimum(np.maximum(W.T, 0.0), 1.0)
+        V = self.lo + self.span * Wt                   # 'lin'; the other rows are replaced below
+        if self.log.size:
+            V[self.log] = self.lo_log * self.ratio_log ** Wt[self.log]
+        if self.sq.size:
+            w = Wt[self.sq]
+            V[self.sq] = self.lo_sq + self.span_sq * w * w
+        return V
 
 
 class _ProcessPart(NamedTuple):
