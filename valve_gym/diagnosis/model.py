@@ -369,6 +369,7 @@ class ModelStructure:
     def __getstate__(self):
         d = dict(self.__dict__)
         d.pop("_scratch", None)        # kernel scratch arrays: rebuilt on first use
+        d.pop("_scratch_out", None)
         return d
 
     def with_effects(self, effects: Sequence[str], **kw) -> ModelStructure:
@@ -611,35 +612,34 @@ class ModelStructure:
         measured level restarts from the recorded PV ``y`` (T,) of the sample before
         (:func:`valve_gym.core.run_packed_reset`; only without measurement effects).
         """
-        Y = self._simulate(W, u, n_sub, coords, reset)[0]
-        assert Y is not None
-        return Y
+        return self._simulate(W, u, n_sub, coords, reset)[0]
 
     def bounded_costs(self, W, u, y, bound, reset=None) -> np.ndarray:
         """Sum of squared errors ``(n,)`` of each row's simulated PV to ``y`` (T,), stopped early.
 
         The kernel sums each row's squared error as it runs and stops the row once the sum
         exceeds its ``bound`` (n,) by a relative ``1e-9``; such a row costs ``inf`` (its whole
-        cost can only be larger: :class:`valve_gym.core.Bound`).  A row that runs to the end
-        costs the kernel's running sum, which equals ``sum((y - simulate(W, u)) ** 2)`` to
-        rounding; ``nan`` where the simulation is not finite.  Where the PV is read through a
-        measurement effect, the friction model runs a per-scan law outside the core or no bound
-        is finite, every row runs to the end and the cost is summed from its simulated PV.
+        cost can only be larger: :class:`valve_gym.core.Bound`).  Every other row costs
+        ``sum((y - simulate(W, u)) ** 2)``, bit for bit; ``nan`` where its simulation is not finite.
+        Every row runs to the end where the PV is read through a measurement effect, the
+        friction model runs a per-scan law outside the core or no bound is finite.
         """
         return self._simulate(W, u, None, True, reset, (np.asarray(y, float), bound))[1]
 
-    def _simulate(self, W, u, n_sub, coords: bool, reset, bounded=None) -> tuple[np.ndarray | None, np.ndarray]:
+    def _simulate(self, W, u, n_sub, coords: bool, reset, bounded=None) -> tuple[np.ndarray, np.ndarray]:
         """:meth:`simulate` or :meth:`bounded_costs`.
 
-        ``bounded`` None: returns ``(Y, empty)``; ``bounded = (y, bound)``: returns ``(None, costs)``.
+        ``bounded`` None: returns ``(Y, empty)``, ``Y`` a new array; ``bounded = (y, bound)``: returns
+        ``(Y, costs)``, ``Y`` a scratch array of the structure (overwritten by the next call).
         """
         values = self.decode(W) if coords else W
         mp, init, sign, offset = self.build(values, n_sub=n_sub, fresh=coords)
         ns = self.n_sub if n_sub is None else int(n_sub)
         n = max(mp.batch_size(), len(sign))
         T = len(u)
-        Y = np.empty((T, n))
         H, LV, Dz = self._work(T, n)
+        # the costs read only the rows that run to the end: the PV of every call can go in one buffer
+        Y = np.empty((T, n)) if bounded is None else self._out(T, n)
         threads = kernel_threads() if T * n * ns >= _MIN_THREADED_STEPS else 1
         plant = self._plant(mp, init, n, threads)
         bd = None if bounded is None else self._bound(plant, bounded, sign, offset, n, T)
@@ -653,19 +653,17 @@ class ModelStructure:
             run_packed(pk, S, buf, U, Dz, ns, Y, H, LV, threads=threads, bound=bd)
         else:
             plant.run(u, Dz, out=(Y, H, LV))
-        if bd is not None:                 # the kernel's sums: the simulated PV is not read again
-            cost = bd.acc.copy()
-            cost[~np.isfinite(cost)] = np.nan
-            cost[bd.acc > bd.limit] = np.inf
-            return None, cost
         Y = self._read(values, Y, sign, offset)
         if bounded is None:
             return _nan_bad(Y), np.empty(0)
+        # each row's sum reads its own column only, so a stopped row's unwritten samples change no other
         with np.errstate(over="ignore", invalid="ignore"):
             Y -= bounded[0][:T, None]
             cost = np.einsum("ij,ij->j", Y, Y)
         cost[~np.isfinite(cost)] = np.nan
-        return None, cost
+        if bd is not None:
+            cost[bd.acc > bd.limit] = np.inf
+        return Y, cost
 
     def _bound(self, plant: Plant, bounded, sign, offset, n: int, T: int):
         """The kernel's early stop (:class:`valve_gym.core.Bound`) for ``bounded = (y, bound)``, or None.
@@ -710,6 +708,16 @@ class ModelStructure:
             w = (np.empty((T, n)), np.empty((T, n)), np.zeros((T, 1)))
             self.__dict__["_scratch"] = w
         return w[0][:, :n], w[1][:, :n], w[2]
+
+    def _out(self, T: int, n: int) -> np.ndarray:
+        """A C-contiguous scratch PV array ``(T, n)``, reused between calls of the same shape."""
+        cache = self.__dict__.setdefault("_scratch_out", {})
+        Y = cache.get((T, n))
+        if Y is None:
+            if len(cache) >= 8:
+                cache.clear()
+            Y = cache[(T, n)] = np.empty((T, n))
+        return Y
 
     def stem(self, W, u, n_sub: int | None = None) -> np.ndarray:
         """Simulated stem position ``(T,)`` of the first row of ``W`` (0..1)."""
