@@ -341,10 +341,13 @@ def test_search_is_checked():
     ("tank", ("dead_time",), 60, None),
     ("cascade", ("overflow",), None, (0.0, 10.0)),
     ("cascade", ("overflow", "sensor_curve"), None, (0.0, 10.0)),    # read outside the core: never stopped
+    ("first_order", ("dead_time",), None, None),                     # an offset on the reading
+    ("integrating", ("slip_jump",), None, None),                     # a fitted sign: -1 on some rows
 ])
 def test_bounded_costs_are_the_costs_of_the_rows_that_can_win(plant, effects, horizon, saturation):
     """The fitter's early stop: a candidate whose error passes its bound costs inf (its true
-    cost is above the bound); every other candidate's cost is bit for bit the unbounded one."""
+    cost is above the bound); every other candidate's cost is bit for bit the unbounded one (the
+    kernel's running sum of the squared errors, summed in the order numpy sums a column)."""
     from valve_gym.diagnosis.diagnose import _data_scales
     from valve_gym.diagnosis.fit import _Objective
 

@@ -630,7 +630,8 @@ class ModelStructure:
         """:meth:`simulate` or :meth:`bounded_costs`.
 
         ``bounded`` None: returns ``(Y, empty)``, ``Y`` a new array; ``bounded = (y, bound)``: returns
-        ``(Y, costs)``, ``Y`` a scratch array of the structure (overwritten by the next call).
+        ``(Y, costs)``, ``Y`` a scratch array of the structure (overwritten by the next call; the
+        columns of stopped rows not fully written).
         """
         values = self.decode(W) if coords else W
         mp, init, sign, offset = self.build(values, n_sub=n_sub, fresh=coords)
@@ -638,7 +639,6 @@ class ModelStructure:
         n = max(mp.batch_size(), len(sign))
         T = len(u)
         H, LV, Dz = self._work(T, n)
-        # the costs read only the rows that run to the end: the PV of every call can go in one buffer
         Y = np.empty((T, n)) if bounded is None else self._out(T, n)
         threads = kernel_threads() if T * n * ns >= _MIN_THREADED_STEPS else 1
         plant = self._plant(mp, init, n, threads)
@@ -653,16 +653,20 @@ class ModelStructure:
             run_packed(pk, S, buf, U, Dz, ns, Y, H, LV, threads=threads, bound=bd)
         else:
             plant.run(u, Dz, out=(Y, H, LV))
+        if bd is not None:
+            # the kernel's running sums: the sum below in the same order (each row sample after
+            # sample), so the same costs bit for bit without another pass over the PV
+            cost = bd.acc.copy()
+            cost[~np.isfinite(cost)] = np.nan
+            cost[bd.acc > bd.limit] = np.inf
+            return Y, cost
         Y = self._read(values, Y, sign, offset)
         if bounded is None:
             return _nan_bad(Y), np.empty(0)
-        # each row's sum reads its own column only, so a stopped row's unwritten samples change no other
         with np.errstate(over="ignore", invalid="ignore"):
             Y -= bounded[0][:T, None]
             cost = np.einsum("ij,ij->j", Y, Y)
         cost[~np.isfinite(cost)] = np.nan
-        if bd is not None:
-            cost[bd.acc > bd.limit] = np.inf
         return Y, cost
 
     def _bound(self, plant: Plant, bounded, sign, offset, n: int, T: int):
