@@ -714,13 +714,17 @@ class ModelStructure:
         return w[0][:, :n], w[1][:, :n], w[2]
 
     def _out(self, T: int, n: int) -> np.ndarray:
-        """A C-contiguous scratch PV array ``(T, n)``, reused between calls of the same shape."""
+        """A C-contiguous scratch PV array ``(T, n)``, reused between calls of the same shape.
+
+        The two shapes used last are kept (a search alternates its population's batch with a grid's).
+        """
         cache = self.__dict__.setdefault("_scratch_out", {})
-        Y = cache.get((T, n))
+        Y = cache.pop((T, n), None)
         if Y is None:
-            if len(cache) >= 8:
-                cache.clear()
-            Y = cache[(T, n)] = np.empty((T, n))
+            Y = np.empty((T, n))
+            while len(cache) >= 2:
+                del cache[next(iter(cache))]
+        cache[(T, n)] = Y                   # the most recent last
         return Y
 
     def stem(self, W, u, n_sub: int | None = None) -> np.ndarray:
