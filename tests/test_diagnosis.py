@@ -374,3 +374,20 @@ def test_bounded_costs_are_the_costs_of_the_rows_that_can_win(plant, effects, ho
         assert kept.all()
     else:
         assert (~kept).sum() >= 0.8 * (c > bound).sum() > 0
+
+
+def test_decode_is_each_parameter_value_and_checks_the_shape():
+    """The vectorised decoding gives each FreeParam.value's numbers exactly, and refuses a wrong width."""
+    from valve_gym.diagnosis.diagnose import _data_scales
+
+    r = make_case("leak", seed=3, n=600).recording
+    rng = np.random.default_rng(5)
+    for plant, effects in (("tank", ("leak", "slip_jump")), ("first_order", ("dead_time",)),
+                           ("cascade", ("overflow",))):
+        st = ModelStructure(plant, "valve", effects, _data_scales(r, 400, None))
+        W = rng.random((9, len(st.names))) * 1.4 - 0.2          # outside 0..1 too: clipped
+        got = st.decode(W)
+        for i, p in enumerate(st.params):
+            np.testing.assert_array_equal(got[p.name], p.value(W[:, i]))
+        with pytest.raises(ValueError, match="one column per free parameter"):
+            st.decode(W[:, :1])

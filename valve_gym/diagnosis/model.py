@@ -448,7 +448,11 @@ class ModelStructure:
     # ---------------------------------------------------------------- coordinates
     def decode(self, W) -> dict[str, np.ndarray]:
         """Internal parameter values ``{name: (n,)}`` of unit coordinates ``W`` (n, k)."""
-        V = self._decoder(np.atleast_2d(np.asarray(W, float)))
+        W = np.atleast_2d(np.asarray(W, float))
+        if W.ndim != 2 or W.shape[1] != len(self.names):
+            raise ValueError(f"coordinates must have shape (n, {len(self.names)}), one column per free parameter "
+                             f"({', '.join(self.names)}); got {W.shape}")
+        V = self._decoder(W)
         return {name: V[i] for i, name in enumerate(self.names)}
 
     def encode(self, values: dict[str, float]) -> np.ndarray:
