@@ -624,8 +624,10 @@ class ModelStructure:
         The kernel sums each row's squared error as it runs and stops the row once the sum
         exceeds its ``bound`` (n,) by a relative ``1e-9``; such a row costs ``inf`` (its whole
         cost can only be larger: :class:`valve_gym.core.Bound`).  Every other row costs
-        ``sum((y - simulate(W, u)) ** 2)``, bit for bit; ``nan`` where its simulation is not finite.
-        Every row runs to the end where the PV is read through a measurement effect, the
+        ``sum((y - simulate(W, u)) ** 2)``: the kernel's running sum, which adds the squares sample
+        after sample as numpy's ``einsum`` sums a column, the same number bit for bit
+        (``tests/test_diagnosis.py`` checks it on every plant); ``nan`` where the simulation is not
+        finite.  Every row runs to the end where the PV is read through a measurement effect, the
         friction model runs a per-scan law outside the core or no bound is finite.
         """
         return self._simulate(W, u, None, True, reset, (np.asarray(y, float), bound))[1]
