@@ -370,6 +370,10 @@ def test_bounded_costs_are_the_costs_of_the_rows_that_can_win(plant, effects, ho
     np.testing.assert_array_equal(Y, st.simulate(W, r.op[:600], reset=None if horizon is None else (pv, horizon)))
     assert np.all(c[~kept] > bound[~kept])
     assert kept[:3].all()
+    # a batch of one row, and of two (numpy sums a single column in another order than a batch)
+    for rows in (W[3:4], W[3:5]):
+        np.testing.assert_array_equal(obj(rows, bound=np.full(len(rows), np.inf)), obj(rows))
+        np.testing.assert_array_equal(obj(rows, bound=np.full(len(rows), 1e300)), obj(rows))
     if "sensor_curve" in effects:
         assert kept.all()
     else:

@@ -625,10 +625,11 @@ class ModelStructure:
         exceeds its ``bound`` (n,) by a relative ``1e-9``; such a row costs ``inf`` (its whole
         cost can only be larger: :class:`valve_gym.core.Bound`).  Every other row costs
         ``sum((y - simulate(W, u)) ** 2)``: the kernel's running sum, which adds the squares sample
-        after sample as numpy's ``einsum`` sums a column, the same number bit for bit
-        (``tests/test_diagnosis.py`` checks it on every plant); ``nan`` where the simulation is not
-        finite.  Every row runs to the end where the PV is read through a measurement effect, the
-        friction model runs a per-scan law outside the core or no bound is finite.
+        after sample as numpy's ``einsum`` sums a column of a batch of two or more, the same number
+        bit for bit (``tests/test_diagnosis.py`` checks it on every plant; a batch of one row is
+        summed from its PV); ``nan`` where the simulation is not finite.  Every row runs to the end
+        where the PV is read through a measurement effect, the friction model runs a per-scan law
+        outside the core or no bound is finite.
         """
         return self._simulate(W, u, None, True, reset, (np.asarray(y, float), bound))[1]
 
@@ -659,9 +660,10 @@ class ModelStructure:
             run_packed(pk, S, buf, U, Dz, ns, Y, H, LV, threads=threads, bound=bd)
         else:
             plant.run(u, Dz, out=(Y, H, LV))
-        if bd is not None:
-            # the kernel's running sums: the sum below in the same order (each row sample after
-            # sample), so the same costs bit for bit without another pass over the PV
+        if bd is not None and n > 1:
+            # the kernel's running sums: the sum below in the same order (each column sample after
+            # sample), so the same costs bit for bit without another pass over the PV; a single
+            # column numpy sums in another order, so one row takes the sum below
             cost = bd.acc.copy()
             cost[~np.isfinite(cost)] = np.nan
             cost[bd.acc > bd.limit] = np.inf
@@ -671,8 +673,10 @@ class ModelStructure:
             return _nan_bad(Y), np.empty(0)
         with np.errstate(over="ignore", invalid="ignore"):
             Y -= bounded[0][:T, None]
-            cost = np.einsum("ij,ij->j", Y, Y)
+            cost = np.einsum("ij,ij->j", Y, Y)      # a stopped row's column: partly unwritten, costs inf below
         cost[~np.isfinite(cost)] = np.nan
+        if bd is not None:
+            cost[bd.acc > bd.limit] = np.inf
         return Y, cost
 
     def _bound(self, plant: Plant, bounded, sign, offset, n: int, T: int):
