@@ -38,19 +38,27 @@ recording to the diagnosis' convention first (pairs ``op[k-1]``, ``pv[k]``; one 
 Usage::
 
     nice -n 10 python benchmarks/naming_other_sim.py [--per-effect 6] [--jobs 2] [--fixed-plant] [--pv-after-op]
-        [--op-lag 0|1|auto] [--all-effects] [--first 0] [--no-load]
+        [--op-lag 0|1|auto] [--all-effects] [--first 0] [--no-load] [--slip-trace] [--json FILE]
+
+``--slip-trace`` also lists every slip-jump candidate fit of every case (round, confirmed or not, the
+criterion's and the held-out RMSE's change, whether it pays, the fitted S and J against the true ones, and
+how often the fitted valve slips: :func:`valve_gym.diagnosis.diagnose.valve_slips`); ``--json FILE`` writes
+every case's names, verdict, final RMSE and slip-jump candidates, to compare two runs case by case.
 """
 from __future__ import annotations
 
 import argparse
+import json
 import sys
 import time
 from dataclasses import replace
 
 import numpy as np
 
+from valve_gym._io import write_atomic
 from valve_gym.diagnosis import diagnose
 from valve_gym.diagnosis.cli import OP_LAG_CHOICES, op_lag_value
+from valve_gym.diagnosis.diagnose import valve_slips
 from valve_gym.diagnosis.model import process_pool
 from valve_gym.diagnosis.recording import Recording
 from valve_gym.diagnosis.stiction.loops import TANK_SHAPES, LoopSpec, _tuning, simulate_loop
@@ -138,8 +146,31 @@ def run_case(args):
     t0 = time.perf_counter()
     res = diagnose(rec, plant="tank", actuator="valve", jobs=1, op_lag=op_lag)
     s = res.stiction
+    u = res.recording.op                         # as the diagnosis paired it
+    slips = [{"round": c.round, "confirmed": c.confirmed, "delta_ic": c.delta_ic, "holdout_change": c.holdout_change,
+              "pays": c.pays, "accepted": c.accepted, "S": c.fit.physical["slip_jump.S"],
+              "J": c.fit.physical["slip_jump.J"], "slips": valve_slips(c.fit, u)}
+             for c in res.selection.candidates if c.effect == "slip_jump"]
+    detail = {"S_true": float(spec.S) if effect == "slip_jump" else 0.0,
+              "J_true": float(spec.J) if effect == "slip_jump" else 0.0,
+              "final_rmse": float(res.final.rmse_all), "slip_jump_candidates": slips}
     return (effect, seed, list(res.effects), time.perf_counter() - t0, bool(s["present"]),
-            float(s.get("probability", float("nan"))), f"{spec.shape}, Ts {spec.Ts:g} s", spec.shape)
+            float(s.get("probability", float("nan"))), f"{spec.shape}, Ts {spec.Ts:g} s", spec.shape, detail)
+
+
+def slip_trace(out: list) -> str:
+    """Markdown table of every slip-jump candidate fit of every case (``--slip-trace``)."""
+    lines = ["| case | tank | named | true S / J [%] | round | confirmed | ΔBIC | held-out change | pays | "
+             "fitted S / J [%] | slips |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in out:
+        d = r[8]
+        for c in d["slip_jump_candidates"]:
+            lines.append(f"| {r[0]}_{r[1]} | {r[6]} | {','.join(r[2]) or 'none'} | "
+                         f"{100 * d['S_true']:.2f} / {100 * d['J_true']:.2f} | {c['round']} | "
+                         f"{'yes' if c['confirmed'] else 'no'} | {c['delta_ic']:.1f} | "
+                         f"{100 * c['holdout_change']:+.1f} % | "
+                         f"{'yes' if c['pays'] else 'no'} | {100 * c['S']:.2f} / {100 * c['J']:.2f} | {c['slips']} |")
+    return "\n".join(lines)
 
 
 def concealed_named(effects: list[str], shape: str) -> list[str]:
@@ -167,6 +198,11 @@ def main(argv=None):
     ap.add_argument("--first", type=int, default=0,
                     help="index of the first case (seed 70000 + index; e.g. 1000 for a fresh draw of loops "
                          "no earlier run has diagnosed)")
+    ap.add_argument("--slip-trace", action="store_true",
+                    help="also list every slip-jump candidate fit: its criterion and held-out changes, fitted S and J "
+                         "against the truth, and how often the fitted valve slips")
+    ap.add_argument("--json", metavar="FILE", help="write every case's names, verdict, final RMSE and slip-jump "
+                                                   "candidates to FILE (to compare runs case by case)")
     a = ap.parse_args(argv)
     if a.first < 0:
         raise SystemExit("--first must be 0 or more")
@@ -205,7 +241,14 @@ def main(argv=None):
           f"{' --fixed-plant' if a.fixed_plant else ''}{' --pv-after-op' if a.pv_after_op else ''}"
           f"{' --no-load' if a.no_load else ''}"
           f"{' --op-lag ' + a.op_lag if a.op_lag != 'auto' else ''}{' --all-effects' if a.all_effects else ''}"
-          f"{f' --first {a.first}' if a.first else ''}`.")
+          f"{f' --first {a.first}' if a.first else ''}{' --slip-trace' if a.slip_trace else ''}`.")
+    if a.slip_trace:
+        print("\n" + slip_trace(out))
+    if a.json:
+        cases = [{"case": f"{r[0]}_{r[1]}", "effect": r[0], "seed": r[1], "named": r[2], "present": r[4],
+                  "probability": r[5], "plant": r[6], **r[8]} for r in out]
+        data = json.dumps({"command": sys.argv, "cases": cases}, indent=1).encode()
+        write_atomic(a.json, lambda f: f.write(data))
     return 0
 
 
