@@ -359,7 +359,16 @@ def test_bounded_costs_are_the_costs_of_the_rows_that_can_win(plant, effects, ho
     W = rng.random((48, len(st.names)))
     k = len(st.names)
     obj = _Objective(st, r.op, pv, 600, np.arange(k), np.zeros(k), horizon)
+
+    def summed(rows):
+        """The costs summed from the simulated PV, as numpy sums them (the reference)."""
+        E = st.simulate(rows, r.op[:600], reset=None if horizon is None else (pv, horizon)) - pv[:600, None]
+        out = np.einsum("ij,ij->j", E, E)
+        out[~np.isfinite(out)] = 1e300
+        return out
+
     c = obj(W)
+    np.testing.assert_array_equal(c, summed(W))       # no bound: every row's whole cost
     bound = np.quantile(c, 0.4) * rng.uniform(0.5, 1.5, len(c))
     bound[:3] = np.inf
     Y = st.simulate(W, r.op[:600], reset=None if horizon is None else (pv, horizon))
@@ -372,8 +381,8 @@ def test_bounded_costs_are_the_costs_of_the_rows_that_can_win(plant, effects, ho
     assert kept[:3].all()
     # a batch of one row, and of two (numpy sums a single column in another order than a batch)
     for rows in (W[3:4], W[3:5]):
-        np.testing.assert_array_equal(obj(rows, bound=np.full(len(rows), np.inf)), obj(rows))
-        np.testing.assert_array_equal(obj(rows, bound=np.full(len(rows), 1e300)), obj(rows))
+        np.testing.assert_array_equal(obj(rows), summed(rows))
+        np.testing.assert_array_equal(obj(rows, bound=np.full(len(rows), 1e300)), summed(rows))
     if "sensor_curve" in effects:
         assert kept.all()
     else:

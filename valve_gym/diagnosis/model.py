@@ -628,8 +628,8 @@ class ModelStructure:
         after sample as numpy's ``einsum`` sums a column of a batch of two or more, the same number
         bit for bit (``tests/test_diagnosis.py`` checks it on every plant; a batch of one row is
         summed from its PV); ``nan`` where the simulation is not finite.  Every row runs to the end
-        where the PV is read through a measurement effect, the friction model runs a per-scan law
-        outside the core or no bound is finite.
+        where the PV is read through a measurement effect or the friction model runs a per-scan law
+        outside the core; an infinite bound stops nothing (the row's whole cost).
         """
         return self._simulate(W, u, None, True, reset, (np.asarray(y, float), bound))[1]
 
@@ -683,13 +683,14 @@ class ModelStructure:
         """The kernel's early stop (:class:`valve_gym.core.Bound`) for ``bounded = (y, bound)``, or None.
 
         None where the reading is not the core's level through sign, offset and sensor range
-        (a measurement effect), the friction runs outside the kernel, or no bound is finite.
+        (a measurement effect) or the friction runs outside the kernel.  Infinite bounds stop
+        nothing: the kernel then only sums each row's whole cost.
         """
         from ..core import Bound
 
         y, bound = bounded
         lim = np.broadcast_to(np.asarray(bound, float), (n,)) * (1.0 + 1e-9)
-        if plant.sample_law is not None or not self.pv_is_simulated_level or not np.isfinite(lim).any():
+        if plant.sample_law is not None or not self.pv_is_simulated_level:
             return None
         sc = self.scales
         read = np.empty((4, n))
