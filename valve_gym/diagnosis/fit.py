@@ -645,8 +645,7 @@ def fit_structure(structure: ModelStructure, u, y, n_fit: int | None = None, *,
     res = _make_result(structure, w, y, y_sim, n_fit, ns, obj.n_evals, time.perf_counter() - t0)
     if horizon is not None:
         res = replace(res, horizon=int(horizon))
-    for scratch in ("_scratch", "_scratch_out"):      # the search's scratch arrays: not kept with the result
-        structure.__dict__.pop(scratch, None)
+    structure.release_scratch()                  # the search's scratch arrays: not kept with the result
     return res
 
 

@@ -366,11 +366,16 @@ class ModelStructure:
             parts.append(f"{e} ({v})" if v else e)
         return " + ".join(parts)
 
+    #: Attributes holding the kernel's scratch arrays (rebuilt on first use; not pickled, not kept).
+    _SCRATCH = ("_scratch", "_scratch_out")
+
     def __getstate__(self):
-        d = dict(self.__dict__)
-        d.pop("_scratch", None)        # kernel scratch arrays: rebuilt on first use
-        d.pop("_scratch_out", None)
-        return d
+        return {k: v for k, v in self.__dict__.items() if k not in self._SCRATCH}
+
+    def release_scratch(self) -> None:
+        """Drop the kernel's scratch arrays (a search's buffers, not kept with a fitted result)."""
+        for name in self._SCRATCH:
+            self.__dict__.pop(name, None)
 
     def with_effects(self, effects: Sequence[str], **kw) -> ModelStructure:
         """Same plant/actuator/scales with other effects (keyword overrides allowed)."""
