@@ -54,3 +54,30 @@ def test_a_clean_record_confirms_only_what_gains_or_is_rugged(monkeypatch):
     assert sel.effects == []
     assert any(not c.confirmed for c in round1)            # a screening without gain is not refitted
     assert next(c for c in round1 if c.effect == "slip_jump").confirmed
+
+
+def _fit(cost, k, holdout):
+    from types import SimpleNamespace
+    return SimpleNamespace(n_fit=1000, cost=cost, k=k, holdout_rmse=holdout)
+
+
+def test_a_swap_of_equal_size_must_only_predict_the_held_out_end_better():
+    rule = select.SelectionRule()
+    old = _fit(1.0, 6, 0.100)
+    # the criterion falls well past its margin in every case below (n_eff 200, SSE halved)
+    swap_small_gain = _fit(0.5, 6, 0.095)           # held-out 5 % better, no new parameter
+    add_small_gain = _fit(0.5, 7, 0.095)            # the same, with one parameter more
+    add_big_gain = _fit(0.5, 7, 0.089)              # 11 % better, one parameter more
+    swap_worse = _fit(0.5, 6, 0.101)                # no new parameter, held-out 1 % worse
+    assert select.compare(old, swap_small_gain, rule, 200.0)[2]
+    assert not select.compare(old, add_small_gain, rule, 200.0)[2]
+    assert select.compare(old, add_big_gain, rule, 200.0)[2]
+    assert not select.compare(old, swap_worse, rule, 200.0)[2]
+    assert select.holdout_need(rule, 0) == 0.0 and select.holdout_need(rule, 2) == rule.holdout_gain
+    # the reason names what is missing
+    cf = select.CandidateFit(round=1, effect="slip_jump", variant=None, fit=swap_worse, delta_ic=-50.0,
+                             holdout_change=0.01, pays=False)
+    assert select._reason(cf, rule, 0).endswith("held-out RMSE does not fall")
+    cf = select.CandidateFit(round=1, effect="leak", variant=None, fit=add_small_gain, delta_ic=-50.0,
+                             holdout_change=-0.05, pays=False)
+    assert select._reason(cf, rule, 1).endswith("held-out RMSE does not fall by 10 %")

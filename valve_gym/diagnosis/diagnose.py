@@ -46,7 +46,7 @@ from .model import (
 from .pairing import controller_reaction
 from .plant_choice import resolve_plant
 from .recording import Recording, RecordingError
-from .select import Selection, SelectionRule, select_effects
+from .select import Selection, SelectionRule, friction_band, op_working_range, select_effects
 from .stiction import assess_stiction
 from .stiction.combine import public_present
 from .stiction.hammerstein import SEIZED_TRAVEL, friction_moves
@@ -243,14 +243,6 @@ def simulate_same_state(fit: FitResult, other: Recording) -> np.ndarray:
     return fit.structure.simulate(fit.w[None, :], other.op, n_sub=fit.n_sub)[:, 0]
 
 
-def _friction_band(fit: FitResult) -> float:
-    """Size of the fitted friction, fraction of stroke: dead band 2 e_dead, or slip-jump S."""
-    p = fit.physical
-    if "slip_jump.S" in p:
-        return float(p["slip_jump.S"])
-    return float(2.0 * p.get("valve.e_dead", 0.0))
-
-
 def _friction_params(fit: FitResult) -> dict:
     p = fit.physical
     if "slip_jump.S" in p:
@@ -386,7 +378,7 @@ def _kstep_verdict(frictionless: list[FitResult], friction: list[FitResult], rul
 
     best0, best1 = min(frictionless, key=ic), min(friction, key=ic)
     return {"kstep_delta_ic": float(ic(best1) - ic(best0)), "kstep_horizon": int(horizon),
-            "kstep_band": _friction_band(best1), "kstep_slips": valve_slips(best1, u),
+            "kstep_band": friction_band(best1), "kstep_slips": valve_slips(best1, u),
             "kstep_rmse": {"frictionless": float(best0.rmse_all), "friction": float(best1.rmse_all)},
             "kstep_models": {"frictionless": best0.label, "friction": best1.label}}
 
@@ -459,9 +451,9 @@ def _verdict_dict(best0: FitResult, best1: FitResult, d_ic: float, n_eff: float,
     ``d_ic`` is the change of the information criterion from ``best0`` to
     ``best1``; ``compared`` are all the fits of the verdict.
     """
-    band = _friction_band(best1)
-    op_range = float(np.quantile(u, 0.98) - np.quantile(u, 0.02))
-    need = max(rule.min_band, min(rule.abs_band, rule.rel_band * op_range))
+    band = friction_band(best1)
+    op_range = op_working_range(u)
+    need = rule.band_needed(u)
     significant = d_ic < -rule.ic_margin
     big = band >= need
     slips = valve_slips(best1, u)

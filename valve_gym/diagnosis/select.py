@@ -82,6 +82,29 @@ class SelectionRule:
     abs_band: float = 0.01
     rel_band: float = 0.5
 
+    def band_needed(self, u) -> float:
+        """Smallest friction band (fraction of stroke) that governs a loop whose controller output is ``u``.
+
+        ``max(min_band, min(abs_band, rel_band x the output's 2-98 % working range))``: the
+        friction verdict calls no smaller band a sticking valve, and the selection names no
+        friction law (``slip_jump``) whose fitted band is smaller.
+        """
+        return max(self.min_band, min(self.abs_band, self.rel_band * op_working_range(u)))
+
+
+def op_working_range(u) -> float:
+    """The controller output's working range: its 2-98 % percentile range (fraction of stroke)."""
+    u = np.asarray(u, float)
+    return float(np.quantile(u, 0.98) - np.quantile(u, 0.02))
+
+
+def friction_band(fit: FitResult) -> float:
+    """Size of the fitted friction, fraction of stroke: dead band 2 e_dead, or slip-jump S."""
+    p = fit.physical
+    if "slip_jump.S" in p:
+        return float(p["slip_jump.S"])
+    return float(2.0 * p.get("valve.e_dead", 0.0))
+
 
 @dataclass
 class CandidateFit:
@@ -164,11 +187,22 @@ def compare(old: FitResult, new: FitResult, rule: SelectionRule,
     d_ic = ic_new - ic_old
     if np.isfinite(old.holdout_rmse) and np.isfinite(new.holdout_rmse) and old.holdout_rmse > 0:
         h = new.holdout_rmse / old.holdout_rmse - 1.0
-        h_ok = h <= -rule.holdout_gain
+        h_ok = h <= -holdout_need(rule, new.k - old.k) and h < 0.0
     else:
         h = float("nan")
         h_ok = True
     return float(d_ic), float(h), bool(d_ic < -rule.ic_margin and h_ok)
+
+
+def holdout_need(rule: SelectionRule, dk: int) -> float:
+    """Relative fall of the held-out RMSE a candidate with ``dk`` more parameters must show.
+
+    An effect that adds parameters must predict the held-out end better by ``rule.holdout_gain``.
+    One that swaps a block for another with as many parameters (``dk <= 0``: slip-jump friction for
+    the paper's, a quick-opening characteristic for the linear one) cannot win by parameter count,
+    so it must only predict the held-out end better than the block it replaces.
+    """
+    return rule.holdout_gain if dk > 0 else 0.0
 
 
 #: A candidate is refitted with the full budget (confirmed) only when its screening fit lowered the
@@ -271,6 +305,7 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
     pool, skipped = _applicable(candidates, st)
     n_fit = base.n_fit
     n_eff0 = effective_n(base.residual[:n_fit])
+    band_need = rule.band_needed(u)
     current = base
     effects: list[str] = []
     tried: list[CandidateFit] = []
@@ -314,7 +349,7 @@ def select_effects(base: FitResult, u, y, candidates: Sequence[str] = CANDIDATE_
                 for i, r in confirmed.items():
                     if r.cost <= screened[i].cost:
                         results[i] = r
-                fits = _round_fits(cur, meta, results, short, rnd, rule, n_eff)
+                fits = _round_fits(cur, meta, results, short, rnd, rule, n_eff, band_need)
                 paying = [cf for cf in fits if cf.pays]
                 return fits, (min(paying, key=lambda c: c.delta_ic) if paying else None)
 
@@ -402,26 +437,40 @@ def _shortlist(meta: list[tuple[str, str | None]], scores: list[float], n_confir
 
 
 def _round_fits(current: FitResult, meta: list[tuple[str, str | None]], results: list[FitResult],
-                short: list[int], rnd: int, rule: SelectionRule, n_eff: float) -> list[CandidateFit]:
-    """The candidates of one round, judged against ``current``: the best variant of each effect."""
+                short: list[int], rnd: int, rule: SelectionRule, n_eff: float,
+                band_need: float = 0.0) -> list[CandidateFit]:
+    """The candidates of one round, judged against ``current``: the best variant of each effect.
+
+    A candidate that changes the friction law (``slip_jump`` for the paper's friction) pays only
+    when its fitted band is at least ``band_need`` (:meth:`SelectionRule.band_needed`): a smaller
+    band governs no loop, so which law it follows is no finding.
+    """
     by_effect: dict[str, CandidateFit] = {}
     for i, ((e, v), res) in enumerate(zip(meta, results)):
         d_ic, h, pays = compare(current, res, rule, n_eff)
         cf = CandidateFit(round=rnd, effect=e, variant=v, fit=res, delta_ic=d_ic,
-                          holdout_change=h, pays=pays, confirmed=i in short)
+                          holdout_change=h, pays=pays and not _small_friction(current, res, band_need),
+                          confirmed=i in short)
         if e not in by_effect or res.cost < by_effect[e].fit.cost:
             by_effect[e] = cf
     round_fits = list(by_effect.values())
     for cf in round_fits:
-        cf.reason = _reason(cf, rule)
+        cf.reason = _reason(cf, rule, cf.fit.k - current.k, band_need if _small_friction(current, cf.fit, band_need)
+                            else None)
     return round_fits
+
+
+def _small_friction(current: FitResult, new: FitResult, band_need: float) -> bool:
+    """Whether ``new`` brings in another friction law whose band is smaller than ``band_need``."""
+    law_changes = ("slip_jump.S" in new.physical) != ("slip_jump.S" in current.physical)
+    return law_changes and friction_band(new) < band_need
 
 
 def _coords_in(res: FitResult):
     return res.w[None, :]
 
 
-def _reason(cf: CandidateFit, rule: SelectionRule) -> str:
+def _reason(cf: CandidateFit, rule: SelectionRule, dk: int, small_band: float | None = None) -> str:
     crit = rule.criterion.upper()
     parts = [f"{crit} {'-' if cf.delta_ic < 0 else '+'}{abs(cf.delta_ic):.1f}"]
     if np.isfinite(cf.holdout_change):
@@ -431,6 +480,10 @@ def _reason(cf: CandidateFit, rule: SelectionRule) -> str:
     why = []
     if not cf.delta_ic < -rule.ic_margin:
         why.append(f"{crit} does not fall by more than {rule.ic_margin:g}")
-    if np.isfinite(cf.holdout_change) and not cf.holdout_change <= -rule.holdout_gain:
-        why.append(f"held-out RMSE does not fall by {100 * rule.holdout_gain:g} %")
+    need = holdout_need(rule, dk)
+    if small_band is not None:
+        why.append(f"its friction band ({100 * friction_band(cf.fit):.2g} % of the stroke) is smaller than the "
+                   f"{100 * small_band:.2g} % a friction that governs the loop needs")
+    if np.isfinite(cf.holdout_change) and not (cf.holdout_change <= -need and cf.holdout_change < 0.0):
+        why.append(f"held-out RMSE does not fall by {100 * need:g} %" if need > 0 else "held-out RMSE does not fall")
     return "does not pay (" + ", ".join(parts) + "): " + "; ".join(why)

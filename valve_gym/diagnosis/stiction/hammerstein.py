@@ -44,6 +44,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..fit import FitResult, effective_n
+from ..select import op_working_range
 from ._base import Evidence, not_applicable
 
 __all__ = ["SizeEstimate", "hammerstein_evidence", "profile_interval", "slip_jump_profile", "widen", "MIN_SLIPS",
@@ -230,7 +231,7 @@ def _profile(fit: FitResult, u, y, n_s: int, n_j: int, map_fn=None) -> _Profile:
     s_hat = float(p_s.value(fit.w[i_s]))
     s_max = min(float(p_s.hi), max(3.0 * s_hat, 0.01))
     # beyond 3 S_hat up to the controller output's swing: a missed optimum at a larger band shows up
-    swing = min(float(p_s.hi), float(np.quantile(u, 0.98) - np.quantile(u, 0.02)))
+    swing = min(float(p_s.hi), op_working_range(u))
     far = np.geomspace(s_max, swing, 5)[1:] if swing > 1.2 * s_max else []
     s = np.unique(np.concatenate([np.linspace(0.0, s_max, n_s), far, [s_hat]]))
     k0 = int(np.argmin(np.abs(s - s_hat)))
