@@ -81,3 +81,27 @@ def test_a_swap_of_equal_size_must_only_predict_the_held_out_end_better():
     cf = select.CandidateFit(round=1, effect="leak", variant=None, fit=add_small_gain, delta_ic=-50.0,
                              holdout_change=-0.05, pays=False)
     assert select._reason(cf, rule, 1).endswith("held-out RMSE does not fall by 10 %")
+
+
+def test_a_friction_law_is_named_only_with_a_band_that_governs_the_loop():
+    import numpy as np
+    from types import SimpleNamespace
+    rule = select.SelectionRule()
+    wide = np.linspace(0.2, 0.8, 500)                   # output working range 0.58: the 1 % band rules
+    narrow = 0.5 + 0.005 * np.sin(np.arange(500.0))     # range 1 %: half of it, 0.5 %, is enough
+    assert rule.band_needed(wide) == rule.abs_band
+    assert abs(rule.band_needed(narrow) - rule.rel_band * select.op_working_range(narrow)) < 1e-12
+    assert rule.band_needed(np.full(500, 0.5)) == rule.min_band
+    paper = SimpleNamespace(physical={"valve.e_dead": 0.004}, k=6)
+    small = SimpleNamespace(physical={"slip_jump.S": 0.006, "slip_jump.J": 0.003}, k=6)
+    large = SimpleNamespace(physical={"slip_jump.S": 0.02, "slip_jump.J": 0.01}, k=6)
+    leak = SimpleNamespace(physical={"valve.e_dead": 0.004, "leak.q": 0.1}, k=7)
+    need = rule.band_needed(wide)
+    assert select.friction_band(paper) == 0.008 and select.friction_band(small) == 0.006
+    assert select._small_friction(paper, small, need)           # a 0.6 % band governs no loop of this output
+    assert not select._small_friction(paper, large, need)
+    assert not select._small_friction(paper, leak, need)        # not a change of the friction law
+    assert not select._small_friction(small, SimpleNamespace(physical={**small.physical, "leak.q": 0.1}), need)
+    cf = select.CandidateFit(round=1, effect="slip_jump", variant=None, fit=small, delta_ic=-9.5,
+                             holdout_change=-0.07, pays=False)
+    assert "its friction band (0.6 % of the stroke) is smaller than the 1 %" in select._reason(cf, rule, 0, need)
