@@ -3,6 +3,9 @@ fit lowered the criterion, or its effect's fit is rugged (slip-jump friction).""
 from __future__ import annotations
 
 import importlib
+from types import SimpleNamespace
+
+import numpy as np
 
 from valve_gym.diagnosis.fit import fit_with_friction
 from valve_gym.diagnosis.model import DataScales, ModelStructure
@@ -57,7 +60,6 @@ def test_a_clean_record_confirms_only_what_gains_or_is_rugged(monkeypatch):
 
 
 def _fit(cost, k, holdout):
-    from types import SimpleNamespace
     return SimpleNamespace(n_fit=1000, cost=cost, k=k, holdout_rmse=holdout)
 
 
@@ -84,8 +86,6 @@ def test_a_swap_of_equal_size_must_only_predict_the_held_out_end_better():
 
 
 def test_a_friction_law_is_named_only_with_a_band_that_governs_the_loop():
-    import numpy as np
-    from types import SimpleNamespace
     rule = select.SelectionRule()
     wide = np.linspace(0.2, 0.8, 500)                   # output working range 0.58: the 1 % band rules
     narrow = 0.5 + 0.005 * np.sin(np.arange(500.0))     # range 1 %: half of it, 0.5 %, is enough
