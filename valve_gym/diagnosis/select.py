@@ -3,7 +3,7 @@
 Starting from the base model (plant + actuator, friction free, no optional
 effect), every candidate effect is switched on in turn and the model refitted
 (warm-started from the current fit, the new parameters starting where they
-change nothing).  A candidate *pays* when both
+change nothing).  A candidate *pays* when
 
 1. the information criterion of the free-run residual on the fit part falls:
    ``dIC = n_eff ln(SSE_new / SSE_old) + dk ln(n_eff) < -ic_margin``, with
@@ -12,7 +12,12 @@ change nothing).  A candidate *pays* when both
    residuals are autocorrelated, the raw sample count would reward every
    parameter), and
 2. the free-run RMSE on the held-out end of the record falls by at least
-   ``holdout_gain`` (relative), or the record has no holdout.
+   ``holdout_gain`` (relative) for an effect that adds parameters, and falls
+   at all for a swap of equal size (:func:`holdout_need`), or the record has
+   no holdout; and
+3. a candidate that changes the friction law has a fitted band of at least
+   :meth:`SelectionRule.band_needed` (the band the friction verdict calls a
+   sticking valve).
 
 The candidate with the lowest criterion among those that pay is added, and
 the search repeats with the others until none pays or ``max_effects`` are
@@ -56,7 +61,8 @@ class SelectionRule:
     ic_margin : float
         The criterion must fall by more than this.
     holdout_gain : float
-        Relative reduction of the held-out RMSE required (0.10 = 10 %).
+        Relative reduction of the held-out RMSE required of an effect that adds
+        parameters (0.10 = 10 %); a swap of equal size must only reduce it.
     max_effects : int
         Most effects added.
     min_band : float
