@@ -461,8 +461,8 @@ def _round_fits(current: FitResult, meta: list[tuple[str, str | None]], results:
             by_effect[e] = cf
     round_fits = list(by_effect.values())
     for cf in round_fits:
-        cf.reason = _reason(cf, rule, cf.fit.k - current.k, band_need if _small_friction(current, cf.fit, band_need)
-                            else None)
+        small = _small_friction(current, cf.fit, band_need)
+        cf.reason = _reason(cf, rule, cf.fit.k - current.k, band_need if small else None)
     return round_fits
 
 
