@@ -88,12 +88,7 @@ class FreeParam:
 
     def value(self, w):
         """Parameter value(s) for unit coordinate(s) ``w``."""
-        w = np.clip(np.asarray(w, float), 0.0, 1.0)
-        if self.scale == "log":
-            return self.lo * (self.hi / self.lo) ** w
-        if self.scale == "sq":
-            return self.lo + (self.hi - self.lo) * w * w
-        return self.lo + (self.hi - self.lo) * w
+        return unit_value(self.scale, self.lo, self.hi, np.clip(np.asarray(w, float), 0.0, 1.0))
 
     def coord(self, v):
         """Unit coordinate(s) of value(s) ``v`` (clipped to the bounds)."""
@@ -108,6 +103,19 @@ class FreeParam:
         return (v - self.lo) / span
 
 
+
+
+def unit_value(scale: str, lo, hi, w):
+    """Values at unit coordinates ``w`` (already within 0..1) of a ``scale`` from ``lo`` to ``hi``.
+
+    ``lo`` and ``hi`` are numbers or arrays that broadcast against ``w`` (one row per parameter:
+    :class:`valve_gym.diagnosis.model.ModelStructure` decodes a batch of coordinates at once).
+    """
+    if scale == "log":
+        return lo * (hi / lo) ** w
+    if scale == "sq":
+        return lo + (hi - lo) * w * w
+    return lo + (hi - lo) * w
 
 
 class Registry:

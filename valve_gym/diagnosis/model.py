@@ -86,7 +86,7 @@ from ..params import (
     ValveParams,
     unchecked,
 )
-from ..paramspec import FreeParam
+from ..paramspec import FreeParam, unit_value
 from ..plant import Plant
 
 __all__ = ["PLANTS", "ACTUATORS", "CANDIDATE_EFFECTS", "FreeParam", "DataScales",
@@ -870,26 +870,24 @@ class _Decoder:
     """:meth:`FreeParam.value <valve_gym.paramspec.FreeParam.value>` of every coordinate at once.
 
     Called with unit coordinates ``W`` (n, k), returns the values ``(k, n)`` (one contiguous row per
-    parameter), element for element the numbers ``params[i].value(W[:, i])`` gives.
+    parameter): :func:`~valve_gym.paramspec.unit_value` on the rows of each scale, so element for
+    element the numbers ``params[i].value(W[:, i])`` gives.
     """
 
     def __init__(self, params: Sequence[FreeParam]):
         lo = np.array([p.lo for p in params], float)[:, None]
         hi = np.array([p.hi for p in params], float)[:, None]
-        self.lo, self.span = lo, hi - lo
-        self.log = np.array([i for i, p in enumerate(params) if p.scale == "log"], int)
-        self.sq = np.array([i for i, p in enumerate(params) if p.scale == "sq"], int)
-        self.lo_log, self.ratio_log = lo[self.log], hi[self.log] / lo[self.log]
-        self.lo_sq, self.span_sq = lo[self.sq], self.span[self.sq]
+        scales = [p.scale for p in params]
+        self.groups = []
+        for scale in dict.fromkeys(scales):
+            rows = np.array([i for i, sc in enumerate(scales) if sc == scale], int)
+            self.groups.append((scale, rows, lo[rows], hi[rows]))
 
     def __call__(self, W: np.ndarray) -> np.ndarray:
         Wt = np.minimum(np.maximum(W.T, 0.0), 1.0)
-        V = self.lo + self.span * Wt                   # 'lin'; the other rows are replaced below
-        if self.log.size:
-            V[self.log] = self.lo_log * self.ratio_log ** Wt[self.log]
-        if self.sq.size:
-            w = Wt[self.sq]
-            V[self.sq] = self.lo_sq + self.span_sq * w * w
+        V = np.empty_like(Wt)
+        for scale, rows, lo, hi in self.groups:
+            V[rows] = unit_value(scale, lo, hi, Wt[rows])
         return V
 
 

@@ -193,7 +193,7 @@ def compare(old: FitResult, new: FitResult, rule: SelectionRule,
     d_ic = ic_new - ic_old
     if np.isfinite(old.holdout_rmse) and np.isfinite(new.holdout_rmse) and old.holdout_rmse > 0:
         h = new.holdout_rmse / old.holdout_rmse - 1.0
-        h_ok = h <= -holdout_need(rule, new.k - old.k) and h < 0.0
+        h_ok = holdout_pays(h, rule, new.k - old.k)
     else:
         h = float("nan")
         h_ok = True
@@ -209,6 +209,11 @@ def holdout_need(rule: SelectionRule, dk: int) -> float:
     so it must only predict the held-out end better than the block it replaces.
     """
     return rule.holdout_gain if dk > 0 else 0.0
+
+
+def holdout_pays(h: float, rule: SelectionRule, dk: int) -> bool:
+    """Whether a relative held-out RMSE change ``h`` is enough for a candidate with ``dk`` more parameters."""
+    return h < 0.0 and h <= -holdout_need(rule, dk)
 
 
 #: A candidate is refitted with the full budget (confirmed) only when its screening fit lowered the
@@ -490,6 +495,6 @@ def _reason(cf: CandidateFit, rule: SelectionRule, dk: int, small_band: float | 
     if small_band is not None:
         why.append(f"its friction band ({100 * friction_band(cf.fit):.2g} % of the stroke) is smaller than the "
                    f"{100 * small_band:.2g} % a friction that governs the loop needs")
-    if np.isfinite(cf.holdout_change) and not (cf.holdout_change <= -need and cf.holdout_change < 0.0):
+    if np.isfinite(cf.holdout_change) and not holdout_pays(cf.holdout_change, rule, dk):
         why.append(f"held-out RMSE does not fall by {100 * need:g} %" if need > 0 else "held-out RMSE does not fall")
     return "does not pay (" + ", ".join(parts) + "): " + "; ".join(why)
