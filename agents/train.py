@@ -405,18 +405,26 @@ def _policy_kwargs(pk: PolicyKwargs) -> dict:
 
 
 def make_model(cfg: TrainConfig, env, seed: int, tb_dir: str | None = None):
-    """A fresh SB3 PPO model for ``cfg`` on ``env``."""
+    """A fresh SB3 PPO model for ``cfg`` on ``env``.
+
+    ``tb_dir``: where its TensorBoard logs go; without one the model logs nowhere (SB3's own default
+    would make an empty ``SB3-<time>`` folder in the system's temporary folder on every ``learn``).
+    """
     from stable_baselines3 import PPO
+    from stable_baselines3.common.logger import Logger
 
     h = cfg.ppo
     lr = _LinearSchedule(h.learning_rate) if h.lr_schedule == "linear" else h.learning_rate
     clip = _LinearSchedule(h.clip_range) if h.lr_schedule == "linear" else h.clip_range
-    return PPO("MlpPolicy", env, learning_rate=lr, n_steps=h.n_steps, batch_size=h.batch_size,
+    model = PPO("MlpPolicy", env, learning_rate=lr, n_steps=h.n_steps, batch_size=h.batch_size,
                n_epochs=h.n_epochs, gamma=h.gamma, gae_lambda=h.gae_lambda, clip_range=clip,
                ent_coef=h.ent_coef, vf_coef=h.vf_coef, max_grad_norm=h.max_grad_norm,
                target_kl=h.target_kl or None, normalize_advantage=h.normalize_advantage,
                policy_kwargs=_policy_kwargs(h.policy_kwargs), tensorboard_log=tb_dir, seed=seed,
                device="cpu", verbose=0)
+    if tb_dir is None:
+        model.set_logger(Logger(folder=None, output_formats=[]))
+    return model
 
 
 def policy_meta(cfg: TrainConfig, model, command: str, seed: int, wall_s: float | None = None) -> dict:

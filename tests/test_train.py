@@ -119,6 +119,23 @@ def test_ppo_smoke_training_checkpoint_and_resume(tmp_path, capsys):
     assert read_policy_meta(str(out / "final.json"))["num_timesteps"] == s2["total_timesteps"]
 
 
+def test_model_without_tensorboard_folder_makes_no_log_folder(tmp_path, monkeypatch):
+    import tempfile
+
+    from agents.train import build_training_env, make_model
+
+    scratch = tmp_path / "tmp"
+    scratch.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(scratch))
+    cfg = load_train_config(TINY)
+    env = build_training_env(cfg, 0)
+    model = make_model(cfg, env, 0)
+    model.learn(64)
+    env.close()
+    assert model.num_timesteps >= 64
+    assert [p.name for p in scratch.iterdir() if p.name.startswith("SB3-")] == []
+
+
 def test_ppo_checkpoint_restores_optimiser_and_rng(tmp_path):
     import torch
 
