@@ -98,10 +98,12 @@ def test_make_vec_env_subproc_pickles():
 def test_ppo_learns_a_few_steps_on_the_adapter():
     torch = pytest.importorskip("torch")
     from stable_baselines3 import PPO
+    from stable_baselines3.common.logger import Logger
 
     torch.set_num_threads(1)
     venv = SB3VecEnv(4, SHORT)
     model = PPO("MlpPolicy", venv, n_steps=16, batch_size=32, n_epochs=1, seed=0, device="cpu")
+    model.set_logger(Logger(folder=None, output_formats=[]))    # SB3's default makes a folder in /tmp
     model.learn(total_timesteps=64)
     act, _ = model.predict(venv.reset(), deterministic=True)
     assert act.shape == (4, 1)
