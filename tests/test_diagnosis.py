@@ -404,3 +404,16 @@ def test_decode_is_each_parameter_value_and_checks_the_shape():
             np.testing.assert_array_equal(got[p.name], p.value(W[:, i]))
         with pytest.raises(ValueError, match="one column per free parameter"):
             st.decode(W[:, :1])
+
+
+def test_the_report_states_the_effective_samples_the_criterion_counts(overflow_result):
+    from valve_gym.diagnosis.fit import effective_n
+    from valve_gym.diagnosis.report import render_markdown
+
+    d = json.loads(overflow_result.to_json())
+    sel = overflow_result.selection
+    assert d["holdout"]["n_eff"] == effective_n(sel.base.residual[:sel.base.n_fit])
+    assert 5 <= d["holdout"]["n_eff"] <= d["holdout"]["n_fit"]
+    md = render_markdown(overflow_result, {})
+    h = d["holdout"]
+    assert f"The criterion counts {h['n_eff']:.0f} effective samples in the {h['n_fit']} fitted" in md

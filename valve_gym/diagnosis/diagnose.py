@@ -136,7 +136,8 @@ class DiagnosisResult:
                 "base_rmse": _f(self.base_split.holdout_rmse),
                 "final_rmse": _f(self.final_split.holdout_rmse),
                 "base_fit_percent": _f(self.base_split.holdout_fit_percent),
-                "final_fit_percent": _f(self.final_split.holdout_fit_percent)}
+                "final_fit_percent": _f(self.final_split.holdout_fit_percent),
+                "n_eff": _f(self.selection.n_eff)}
         d = {
             "recording": {"name": rec.name, "n": len(rec), "dt": rec.dt,
                           "duration": rec.duration, "op_range": list(rec.op_range),

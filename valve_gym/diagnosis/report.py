@@ -413,7 +413,23 @@ def _md_candidates(d: dict) -> list[str]:
                  f"{'**added**' if c['accepted'] else ('pays' if c['pays'] else 'no')} |")
     for e, why in d["skipped"].items():
         L.append(f"| – | {md_cell(e)} | – | – | – | {md_cell('skipped: ' + str(why))} |")
+    L += _md_evidence(d["holdout"])
     return L
+
+
+def _md_evidence(hold: dict) -> list[str]:
+    """How many independent samples the criterion changes above rest on."""
+    n_eff, n_fit = hold.get("n_eff"), hold.get("n_fit")
+    if n_eff is None or not n_fit:
+        return []
+    share = 100.0 * n_eff / n_fit
+    pct = f"{share:.0f}" if share >= 10 else f"{share:.2g}"
+    return ["", f"The criterion counts {n_eff:.0f} effective samples in the {n_fit} fitted ({pct} %): the base "
+                f"model's free-run residual, whose consecutive errors that move together count as one. A residual "
+                f"that drifts slowly (an unmeasured load or drift the model cannot reproduce from the controller "
+                f"output) has few, and every criterion change above is measured in them: with few, an effect "
+                f"must lower the error by more to pass the margin, and a small change is weak evidence either "
+                f"way."]
 
 
 def _signature_seen(effect: str, d: dict) -> str:
