@@ -968,16 +968,9 @@ def test_kernel_threads_from_several_caller_threads_at_once():
 
 
 @pytest.fixture(scope="module")
-def reference_kernel():
+def reference_kernel(repo_module):
     """The frozen pre-split kernel of benchmarks/kernel_reference.py (compiled once per test module)."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "kernel_reference.py"
-    spec = importlib.util.spec_from_file_location("valve_gym_kernel_reference", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod.reference_kernel
+    return repo_module("benchmarks/kernel_reference.py", "valve_gym_kernel_reference").reference_kernel
 
 
 def _random_batch(rng, n):

@@ -1,7 +1,6 @@
 """The effect registry: every effect is one spec, and a new one is one file (docs/examples/sensor_drift.py)."""
 from __future__ import annotations
 
-import importlib.util
 import pathlib
 from dataclasses import replace
 
@@ -82,14 +81,9 @@ def test_a_spec_must_say_how_it_enters():
 
 
 @pytest.fixture
-def sensor_drift():
+def sensor_drift(repo_module):
     """The one-file toy effect of docs/extending.md, registered for the test only."""
-    path = ROOT / "docs" / "examples" / "sensor_drift.py"
-    spec = importlib.util.spec_from_file_location("sensor_drift_example", path)
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    yield mod
+    yield repo_module("docs/examples/sensor_drift.py", "sensor_drift_example")
     unregister_effect("sensor_drift")
 
 

@@ -1,27 +1,20 @@
 """The noise-model readings of ``benchmarks/naming_readings.py`` compute what their docstrings say."""
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
+import pytest
 
 from valve_gym.diagnosis.select import SelectionRule
 
 
-def _module():
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "naming_readings.py"
-    spec = importlib.util.spec_from_file_location("naming_readings", path)
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+@pytest.fixture(scope="module")
+def nr(repo_module):
+    return repo_module("benchmarks/naming_readings.py", "naming_readings")
 
 
-def test_kalman_likelihood_is_the_dense_gaussian_one():
+def test_kalman_likelihood_is_the_dense_gaussian_one(nr):
     """``-2 log L`` with the scale profiled out, against the covariance written out: a stationary AR(1)
     state (pole rho, innovation variance lam) plus unit white noise."""
-    nr = _module()
     rng = np.random.default_rng(3)
     n = 40
     r = np.cumsum(rng.normal(size=n)) * 0.3 + rng.normal(size=n)
@@ -33,8 +26,7 @@ def test_kalman_likelihood_is_the_dense_gaussian_one():
         assert abs(nr.kalman_m2ll(r, rho, lam) - dense) < 1e-8 * max(1.0, abs(dense))
 
 
-def test_ar_filter_returns_the_innovations_of_an_ar_process():
-    nr = _module()
+def test_ar_filter_returns_the_innovations_of_an_ar_process(nr):
     rng = np.random.default_rng(0)
     e = rng.normal(size=500)
     x = np.zeros(500)
@@ -44,10 +36,9 @@ def test_ar_filter_returns_the_innovations_of_an_ar_process():
     assert np.allclose(nr.ar_fit(x, 2), [1.2, -0.5], atol=0.1)
 
 
-def test_the_decision_is_the_selection_rule():
+def test_the_decision_is_the_selection_rule(nr):
     """A candidate wins when the criterion falls past the margin, the held-out test passes for its size
     and its band governs the loop; the lowest criterion among those wins; none when nothing pays."""
-    nr = _module()
     rule = SelectionRule()
     rows = [("leak", -10.0, -0.2, 1, True),              # pays
             ("slip_jump", -30.0, -0.01, 0, True),        # a swap: any held-out fall pays, lower criterion

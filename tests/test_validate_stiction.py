@@ -2,21 +2,10 @@
 from __future__ import annotations
 
 import copy
-import importlib.util
-from pathlib import Path
 
 
-def _module():
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "validate_stiction.py"
-    spec = importlib.util.spec_from_file_location("validate_stiction", path)
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-def test_refresh_reproduces_the_features_of_diagnose():
-    vs = _module()
+def test_refresh_reproduces_the_features_of_diagnose(repo_module):
+    vs = repo_module("benchmarks/validate_stiction.py", "validate_stiction")
     # a sticky textbook loop logged as the simulator scans (pairing 1): the model reads it re-paired,
     # the data-driven methods as logged; the refresh must recompute exactly what diagnose gave
     items = [dict(it, op_lag="auto") for it in vs._sim_items(4)]
