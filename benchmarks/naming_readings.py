@@ -5,8 +5,9 @@ limited by the loops' slowly drifting unmeasured load.  This script reads the fi
 diagnosis' selection in several ways, all on the same free-run fits, and counts how often the first
 effect it would name is the concealed one:
 
-* ``free run``: the release's reading (criterion on the effective samples of the free-run residual,
-  held-out RMSE; :func:`valve_gym.diagnosis.select.compare`);
+* ``free run``: the release's reading, the selection's own verdict on each candidate (criterion on the
+  effective samples of the free-run residual, held-out RMSE, friction band;
+  :func:`valve_gym.diagnosis.select.compare`);
 * ``whitened AR(p), base``: every model's residual filtered by the AR(p) noise model of the base
   model's fit-part residual (one-step prediction errors), criterion on the filtered samples, held-out
   RMSE of the filtered held-out part;
@@ -42,7 +43,6 @@ from naming_other_sim import EFFECTS, make_case  # noqa: E402
 
 from valve_gym._numba import njit  # noqa: E402
 from valve_gym.diagnosis import diagnose  # noqa: E402
-from valve_gym.diagnosis.fit import effective_n, information_criterion  # noqa: E402
 from valve_gym.diagnosis.select import SelectionRule, friction_band, holdout_pays  # noqa: E402
 
 #: Grid of the load model's pole and variance ratio (load innovations over white noise).
@@ -104,21 +104,21 @@ def _decide(rows, rule: SelectionRule) -> str:
 def readings(case) -> dict[str, str]:
     """The first effect each reading names for one diagnosed case.
 
-    ``case``: ``n_fit``, ``base`` (FitResult), ``cands`` (list of (effect, FitResult) of the first round's
-    confirmed candidates), ``u`` (the controller output as paired).
+    ``case``: ``n_fit``, ``base`` (FitResult), ``cands`` (the first round's confirmed candidates,
+    :class:`~valve_gym.diagnosis.select.CandidateFit`), ``u`` (the controller output as paired).
+    The free-run reading is the selection's own judgement of each candidate (``pays``, ``delta_ic``).
     """
     n, base, cands, u, rule = case["n_fit"], case["base"], case["cands"], case["u"], SelectionRule()
     need = rule.band_needed(u)
-    out: dict[str, str] = {}
+    paying = [c for c in cands if c.pays]
+    out: dict[str, str] = {"free run": min(paying, key=lambda c: c.delta_ic).effect if paying else "none"}
 
     def run(name, crit, hold):
         cb, hb = crit(base), hold(base)
-        rows = [(effect, crit(f) - cb, hold(f) / hb - 1.0, f.k - base.k,
-                 effect != "slip_jump" or friction_band(f) >= need) for effect, f in cands]
+        rows = [(c.effect, crit(c.fit) - cb, hold(c.fit) / hb - 1.0, c.fit.k - base.k,
+                 c.effect != "slip_jump" or friction_band(c.fit) >= need) for c in cands]
         out[name] = _decide(rows, rule)
 
-    ne = effective_n(base.residual[:n])
-    run("free run", lambda f: information_criterion(f.cost, ne, f.k, n), lambda f: f.holdout_rmse)
     for p in (1, 2, 4):
         a = ar_fit(base.residual[:n], p)
         N = n - p
@@ -139,7 +139,7 @@ def run_case(args):
     _, rec = make_case(effect, seed, True, True)
     res = diagnose(rec, plant="tank", actuator="valve", jobs=1)
     sel = res.selection
-    cands = [(c.effect, c.fit) for c in sel.candidates if c.round == 1 and c.confirmed]
+    cands = [c for c in sel.candidates if c.round == 1 and c.confirmed]
     case = {"n_fit": sel.base.n_fit, "base": sel.base, "cands": cands, "u": res.recording.op}
     return effect, seed, readings(case)
 

@@ -139,27 +139,21 @@ def test_two_size_methods_combine_on_the_log_scale_with_the_union_interval():
     assert combine_size_estimates([ham]) == (ham, None)
 
 
-def _benchmark_loop(i: int, seed=None):
+def _benchmark_loop(repo_module, i: int, seed=None):
     """Regulation loop ``i`` of the benchmark (``benchmarks/sizes_on_benchmark_loops.py``) as a Recording."""
-    import importlib.util
-    from pathlib import Path
-
     from valve_gym.diagnosis import Recording
 
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "sizes_on_benchmark_loops.py"
-    spec = importlib.util.spec_from_file_location("sizes_on_benchmark_loops", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
+    mod = repo_module("benchmarks/sizes_on_benchmark_loops.py", "sizes_on_benchmark_loops")
     loop = mod.benchmark_loops(36, seed)[i]
     return loop, Recording(t=loop["t"], op=loop["op"], pv=loop["pv"], sp=loop["sp"], dt=loop["dt"],
                            name=loop["name"])
 
 
-def test_kstep_test_finds_a_sticky_valve_under_a_drifting_load():
+def test_kstep_test_finds_a_sticky_valve_under_a_drifting_load(repo_module):
     """The compensator benchmark's cycling Choudhury valve (S 9.3 %) under its Ornstein-Uhlenbeck load: the
     free-run friction test is blind to it (the load's error outweighs the friction's), the k-step one is not
     (docs/diagnosis.md, 'The k-step friction test')."""
-    loop, rec = _benchmark_loop(25)
+    loop, rec = _benchmark_loop(repo_module, 25)
     assert loop["name"] == "choudhury_severe_25" and loop["S_true"] > 0.09
     s = diagnose(rec, plant="tank", candidates=(), effort="fast").stiction
     assert s["delta_ic"] > 0 and not s["model_based_present"]
@@ -169,14 +163,14 @@ def test_kstep_test_finds_a_sticky_valve_under_a_drifting_load():
     assert ks["verdict"] == "stiction"              # its own verdict; the public one reads it as a check only
 
 
-def test_kstep_fit_that_holds_the_valve_still_does_not_call_alone():
+def test_kstep_fit_that_holds_the_valve_still_does_not_call_alone(repo_module):
     """A sticky Riihilahti valve under the benchmark's Ornstein-Uhlenbeck load: neither the free run (criterion up
     with friction) nor the methods combined call it.  Where the k-step predictions want friction (criterion below
     -2), the band is about 15 % of the stroke against an output working range of 5.5 %: the fitted valve never
     moves (the true one moves hundreds of times), so the fit explains the level without the output's moves, as it
     would a quiet healthy loop with coloured noise, and the public verdict does not call it on that fit alone (the
     rule itself: ``test_friction_moves_and_the_evidence_of_a_still_valve``)."""
-    loop, rec = _benchmark_loop(14)
+    loop, rec = _benchmark_loop(repo_module, 14)
     assert loop["name"] == "riihilahti_sticky_14" and loop["label"] == 1
     s = diagnose(rec, plant="tank", candidates=(), effort="fast").stiction
     assert s["delta_ic"] > 0 and not s["model_based_present"] and s["verdict"] != "stiction"

@@ -459,16 +459,13 @@ def _round_fits(current: FitResult, meta: list[tuple[str, str | None]], results:
     by_effect: dict[str, CandidateFit] = {}
     for i, ((e, v), res) in enumerate(zip(meta, results)):
         d_ic, h, pays = compare(current, res, rule, n_eff)
+        small = _small_friction(current, res, band_need)
         cf = CandidateFit(round=rnd, effect=e, variant=v, fit=res, delta_ic=d_ic,
-                          holdout_change=h, pays=pays and not _small_friction(current, res, band_need),
-                          confirmed=i in short)
+                          holdout_change=h, pays=pays and not small, confirmed=i in short)
+        cf.reason = _reason(cf, rule, res.k - current.k, band_need if small else None)
         if e not in by_effect or res.cost < by_effect[e].fit.cost:
             by_effect[e] = cf
-    round_fits = list(by_effect.values())
-    for cf in round_fits:
-        small = _small_friction(current, cf.fit, band_need)
-        cf.reason = _reason(cf, rule, cf.fit.k - current.k, band_need if small else None)
-    return round_fits
+    return list(by_effect.values())
 
 
 def _small_friction(current: FitResult, new: FitResult, band_need: float) -> bool:
