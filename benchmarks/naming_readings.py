@@ -14,7 +14,11 @@ effect it would name is the concealed one:
 * ``own AR(p)``: each model's residual filtered by an AR(p) fitted to its own residual;
 * ``load model (Kalman)``: each model's residual read as a stationary AR(1) level disturbance plus white
   noise, pole (at most 0.9999) and variance ratio by maximum likelihood per model, the criterion the
-  Kalman filter's ``-2 log L``; the held-out test the free-run one.
+  Kalman filter's ``-2 log L``; the held-out test the free-run one;
+* ``blocks w/B`` (``+ held-out``): the free-run criterion and band, with the held-out test replaced by
+  (or joined to) a consistency test: the whole record (fit part and held-out end) cut into ``B`` equal
+  blocks, the candidate must lower the squared error of at least ``w`` of them.  A real effect should fit
+  better at every level the loop visits; a term that fits one stretch of the drifting load should not.
 
 The decision is the default rule's (:class:`valve_gym.diagnosis.select.SelectionRule`: the criterion
 falls past its margin, the held-out test, the friction band) on the round's confirmed candidates; the
@@ -101,6 +105,17 @@ def _decide(rows, rule: SelectionRule) -> str:
     return "none" if best is None else best[0]
 
 
+#: The block readings measured: (blocks, blocks the candidate must win).
+BLOCKS = ((6, 4), (6, 5), (9, 5), (9, 6), (9, 8))
+
+
+def block_wins(base_residual: np.ndarray, residual: np.ndarray, blocks: int) -> int:
+    """In how many of ``blocks`` equal blocks of the record ``residual`` has less squared error than the base's."""
+    edges = np.linspace(0, len(base_residual), blocks + 1).astype(int)
+    return sum(float(np.sum(residual[a:b] ** 2)) < float(np.sum(base_residual[a:b] ** 2))
+               for a, b in zip(edges[:-1], edges[1:]))
+
+
 def readings(case) -> dict[str, str]:
     """The first effect each reading names for one diagnosed case.
 
@@ -131,6 +146,13 @@ def readings(case) -> dict[str, str]:
             lambda f, p=p: float(np.sqrt(np.mean(
                 ar_filter(f.residual[n - p:], ar_fit(f.residual[:n], p)) ** 2))))
     run("load model (Kalman)", lambda f: load_m2ll(f.residual[:n]) + f.k * np.log(n), lambda f: f.holdout_rmse)
+    for blocks, need_w in BLOCKS:
+        wins = {id(c): block_wins(base.residual, c.fit.residual, blocks) >= need_w for c in cands}
+        for keep_h in (False, True):
+            rows = [(c.effect, c.delta_ic if wins[id(c)] else np.inf,
+                     c.holdout_change if keep_h else -np.inf, c.fit.k - base.k,
+                     c.effect != "slip_jump" or friction_band(c.fit) >= need) for c in cands]
+            out[f"blocks {need_w}/{blocks}" + (" + held-out" if keep_h else "")] = _decide(rows, rule)
     return out
 
 

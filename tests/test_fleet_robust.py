@@ -170,6 +170,37 @@ def test_max_loops_says_the_run_is_partial_and_how_to_go_on(ray_session, recs, t
     assert "partial" not in md and "- loops: 3; analysed: 3; failed: 0\n" in md
 
 
+def test_a_signal_while_the_table_and_worklist_are_written_lets_them_finish(ray_session, recs, tmp_path, capsys,
+                                                                          monkeypatch):
+    """A SIGTERM (a scheduler's stop) while the table and the worklist are written used to end the command with
+    143 and no table; now both are written whole, the command exits 130 and says that every loop had finished."""
+    from valve_gym.diagnosis.cli import main
+    from valve_gym.fleet import runner
+
+    out = tmp_path / "fleet"
+    argv = [recs, "--out", str(out), *FAST, "--quiet"]
+    assert main(argv) == 0
+    for name in ("loops.csv", "loops.parquet", "worklist.md", "worklist.html"):
+        (out / name).unlink()
+    write_table = runner.write_table
+
+    def stopped_then_written(*a, **k):
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(0.05)                    # the handler runs here
+        return write_table(*a, **k)
+
+    monkeypatch.setattr(runner, "write_table", stopped_then_written)
+    before = signal.getsignal(signal.SIGTERM)
+    assert main(argv) == 130                # nothing left to run: only the table and the worklist
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last == (f"valve-gym diagnose: interrupted: 0 loop(s) finished in this run, 3 of 3 in all, are kept in "
+                    f"{out / 'loops'}; every loop had finished, and the table and the worklist are written")
+    assert "- loops: 3; analysed: 3; failed: 0\n" in (out / "worklist.md").read_text()
+    assert len((out / "loops.csv").read_text().strip().splitlines()) == 4
+    assert (out / "loops.parquet").stat().st_size > 0 and (out / "worklist.html").stat().st_size > 0
+    assert signal.getsignal(signal.SIGTERM) == before                     # put back as it was
+
+
 # --------------------------------------------------------------------------- Markdown cells
 HOSTILE = ("bad | pipe\nsecond line\r\nthird <script>alert(1)</script> `tick *star* _under_ [a](b) ~~s~~ "
            "&amp; back\\slash |")

@@ -46,3 +46,13 @@ def test_the_decision_is_the_selection_rule(nr):
     assert nr._decide(rows, rule) == "slip_jump"
     assert nr._decide([("slip_jump", -30.0, -0.01, 0, False)] + rows[:1], rule) == "leak"   # band too small
     assert nr._decide([("leak", -1.0, -0.5, 1, True), ("overflow", -50.0, 0.01, 2, True)], rule) == "none"
+
+
+def test_block_wins_counts_the_blocks_where_the_candidate_fits_better(nr):
+    base = np.ones(60)
+    cand = np.ones(60)
+    cand[:20] = 0.5                                   # better in the first third only
+    assert nr.block_wins(base, cand, 6) == 2
+    assert nr.block_wins(base, cand, 3) == 1
+    assert nr.block_wins(base, base, 6) == 0          # equal is not better
+    assert nr.block_wins(base, np.zeros(60), 9) == 9

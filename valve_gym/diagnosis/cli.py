@@ -368,9 +368,10 @@ def _fleet(a, path, jobs, seed, holdout, cands, op_range, max_gap, say) -> int:
                           allow_nan=False).encode()
         write_atomic(a.json, lambda f: f.write(text))
     if run.interrupted:
+        rest = (f"run the same command again to continue the other {run.remaining}" if run.remaining else
+                "every loop had finished, and the table and the worklist are written")
         print(f"valve-gym diagnose: interrupted: {run.done} loop(s) finished in this run, {len(run.results)} of "
-              f"{run.n_loops} in all, are kept in {kept}; run the same command again to continue the other "
-              f"{run.remaining}", file=sys.stderr)
+              f"{run.n_loops} in all, are kept in {kept}; {rest}", file=sys.stderr)
         return 130
     statuses = {r.status for r in run.results}
     return 1 if "error" in statuses else 2 if "failed" in statuses else 0

@@ -54,7 +54,8 @@ class FleetRun(NamedTuple):
     done : int, loops analysed in this run
     resumed : int, loops whose stored result was reused
     failed : int, loops with status other than ``'ok'`` (this run and resumed)
-    interrupted : bool, stopped by Ctrl-C / SIGTERM before the end
+    interrupted : bool, a Ctrl-C / SIGTERM came during the run (loops may be left; the table and the
+        worklist are written whole)
     remaining : int, loops left for a later run (interrupted or ``max_loops``)
     seconds : float, wall time [s] of this call
     results : list of LoopResult, of every loop with a result, in discovery order
@@ -388,6 +389,9 @@ class _Stop:
         self.note = note
         self.signum: int | None = None
         self._old: dict = {}
+        #: what the run does when a first signal arrives (told to ``note``); the run sets it as it goes on
+        self.text = ("stopping: the finished loops are kept, those in flight cancelled; Ray is shut down first (a "
+                     "few seconds; Ctrl-C again to stop at once)")
 
     @property
     def requested(self) -> bool:
@@ -403,8 +407,7 @@ class _Stop:
                 raise KeyboardInterrupt
             return
         self.signum = signum
-        self._say("stopping: the finished loops are kept, those in flight cancelled; Ray is shut down first (a few "
-                  "seconds; Ctrl-C again to stop at once)")
+        self._say(self.text)
 
     def _say(self, text: str) -> None:
         if self.note is not None:
@@ -518,6 +521,47 @@ def _stream(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs: i
     return []
 
 
+@contextlib.contextmanager
+def _ray_up(jobs: int, address: str | None, say, stop: _Stop) -> Iterator[bool]:
+    """Within: Ray started (unless one runs already: yields whether this call started it), shut down after.
+
+    Signals are only noted while Ray starts and while it shuts down; Ray's core worker, shut down, leaves
+    SIGTERM to its default action (the command ended with 143 in that second), so the table and the
+    worklist are written before this context ends, and the handler is put back in front after it.
+    """
+    started = False
+    try:
+        with stop.kept():
+            started = _start_ray(jobs, address, say, lambda: stop.requested)  # refused: nothing on disk
+        stop.rearm()
+        yield started
+    finally:
+        if started:
+            import ray
+            ray.shutdown()
+            stop.rearm()
+
+
+def _run_todo(todo, keys, settings, jobs, address, out_dir, results, bar, on_result, stream, stop: _Stop,
+              ray_stack: contextlib.ExitStack) -> list[LoopSource]:
+    """Start Ray on ``ray_stack`` (shut down when it closes) and run the loops of ``todo``; the loops left.
+
+    All of them when a signal came while Ray started.
+    """
+    say = None if stream is None else (lambda m: print(m, file=stream, flush=True))
+    try:
+        started = ray_stack.enter_context(_ray_up(jobs, address, say, stop))
+        if stop.requested:
+            return list(todo)
+        os.makedirs(os.path.join(out_dir, "loops"), exist_ok=True)
+        return _stream(todo, keys, settings, jobs, out_dir, results, bar, on_result,
+                       ship=bool(address) or not started, stop=stop)
+    except KeyboardInterrupt:       # while Ray started (or its start was cut short): no loop ran
+        return list(todo)
+    finally:
+        bar.close()
+
+
 def run_fleet(path: str, out_dir: str, settings: FleetSettings = FleetSettings(), jobs: int = 2,
               address: str | None = None, max_loops: int | None = None, stream=sys.stderr,
               top: int = 10, on_result: Callable[[LoopResult], None] | None = None) -> FleetRun:
@@ -525,9 +569,10 @@ def run_fleet(path: str, out_dir: str, settings: FleetSettings = FleetSettings()
 
     Ctrl-C (SIGINT) or SIGTERM from the moment Ray starts (main thread): the loops in flight are
     cancelled, Ray is shut down, the table and the worklist of the finished loops are written and
-    the result says ``interrupted``; a signal while Ray starts takes effect once it is up.  Before
-    that (finding the loops) or while the table and the worklist are written, KeyboardInterrupt is
-    raised as usual: every finished loop is in ``out_dir/loops/`` already.
+    the result says ``interrupted``; a signal while Ray starts takes effect once it is up, one while
+    the table and the worklist are written once they are (both written whole).  Before that (finding
+    the loops) KeyboardInterrupt is raised as usual; a second Ctrl-C raises it at once.  Every finished
+    loop is in ``out_dir/loops/`` already.
 
     Parameters
     ----------
@@ -570,31 +615,18 @@ def run_fleet(path: str, out_dir: str, settings: FleetSettings = FleetSettings()
     results: dict[str, LoopResult] = dict(stored)
     bar = Progress(len(todo), skipped=len(stored), stream=stream)
     left: list[LoopSource] = []
-    if todo:
-        say = None if stream is None else (lambda m: print(m, file=stream, flush=True))
-        with _Stop(None if stream is None else bar.note) as stop:     # signals noted, acted on between steps
-            started = False
-            try:
-                with stop.kept():
-                    started = _start_ray(jobs, address, say, lambda: stop.requested)  # refused: nothing on disk
-                stop.rearm()
-                if stop.requested:
-                    raise KeyboardInterrupt
-                os.makedirs(os.path.join(out_dir, "loops"), exist_ok=True)
-                left = _stream(todo, keys, settings, jobs, out_dir, results, bar, on_result,
-                               ship=bool(address) or not started, stop=stop)
-            except KeyboardInterrupt:       # while Ray started (or its start was cut short): no loop ran
-                left = list(todo)
-            finally:
-                bar.close()
-                if started:
-                    import ray
-                    ray.shutdown()          # signals still only noted: the shutdown is not cut short either
-    ordered = [results[s.name] for s in sources if s.name in results]
-    remaining = len(left) + len(later)
-    p_table, p_csv = write_table(ordered, out_dir)
-    md, html = write_worklist(ordered, sources, out_dir, settings, top=top, pending=remaining)
+    # signals noted, acted on between steps; the table and the worklist are written whole either way, before
+    # Ray is shut down (the ExitStack closes first)
+    with _Stop(None if stream is None else bar.note) as stop, contextlib.ExitStack() as ray_stack:
+        if todo:
+            left = _run_todo(todo, keys, settings, jobs, address, out_dir, results, bar, on_result, stream, stop,
+                             ray_stack)
+        stop.text = "stopping once the table and the worklist are written (a few seconds)"
+        ordered = [results[s.name] for s in sources if s.name in results]
+        remaining = len(left) + len(later)
+        p_table, p_csv = write_table(ordered, out_dir)
+        md, html = write_worklist(ordered, sources, out_dir, settings, top=top, pending=remaining)
     n_failed = sum(r.status != "ok" for r in ordered)
-    return FleetRun(len(sources), len(todo) - len(left), len(stored), n_failed, bool(left),
+    return FleetRun(len(sources), len(todo) - len(left), len(stored), n_failed, bool(left) or stop.requested,
                     remaining, time.perf_counter() - t0, ordered,
                     {"table": p_table, "csv": p_csv, "worklist_md": md, "worklist_html": html})
