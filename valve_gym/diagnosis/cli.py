@@ -354,7 +354,7 @@ def _fleet(a, path, jobs, seed, holdout, cands, op_range, max_gap, say) -> int:
     try:
         run = run_fleet(path, a.out, settings, jobs=jobs, address=a.address, max_loops=max_loops,
                         stream=None if a.quiet else sys.stderr, top=top)
-    except KeyboardInterrupt:       # before Ray was started, or while the table and the worklist were written
+    except KeyboardInterrupt:       # while the loops were found, or a second Ctrl-C
         print(f"valve-gym diagnose: interrupted: the loops finished so far are kept in {kept}; run the same "
               f"command again to continue (it also writes the table and the worklist)", file=sys.stderr)
         return 130

@@ -9,8 +9,10 @@ written as ``OUT/loops/<loop>.json`` the moment it arrives (``ray.wait``;
 atomic), the table ``loops.parquet``/``loops.csv`` every 30 s and at the end,
 then the worklist.  Ctrl-C (or SIGTERM) cancels the loops in flight and keeps
 every finished one; running again continues.  A signal is only noted while Ray
-starts or shuts down (:class:`_Stop`): the run stops once Ray is up, and Ray is
-always shut down before the call returns.
+starts and while the table and the worklist are written (:class:`_Stop`): the run
+stops once Ray is up, the table and the worklist are written whole, and Ray is
+always shut down before the call returns (after them: as it shuts down, Ray's core
+worker leaves SIGTERM to its default action).
 
 Ray runs in this process by default (``ray.init(address='local', num_cpus=jobs)``, no
 dashboard, nothing to start, whatever cluster runs nearby); ``address`` joins an existing
@@ -568,7 +570,7 @@ def run_fleet(path: str, out_dir: str, settings: FleetSettings = FleetSettings()
     """Diagnose every loop of ``path`` on Ray, streaming results into ``out_dir``.
 
     Ctrl-C (SIGINT) or SIGTERM from the moment Ray starts (main thread): the loops in flight are
-    cancelled, Ray is shut down, the table and the worklist of the finished loops are written and
+    cancelled, the table and the worklist of the finished loops are written, Ray is shut down and
     the result says ``interrupted``; a signal while Ray starts takes effect once it is up, one while
     the table and the worklist are written once they are (both written whole).  Before that (finding
     the loops) KeyboardInterrupt is raised as usual; a second Ctrl-C raises it at once.  Every finished
