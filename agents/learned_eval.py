@@ -7,9 +7,10 @@ same scores) on ``n`` loops drawn with ``--seed`` (pick one that is not the benc
 frictionless PI, the SIMC PI, a PI with twice its gain (is the gain compensation or just a faster
 controller?), the classical compensators with the true stiction estimate, and the learned block;
 prints per band group the limit-cycle share and amplitude, IAE, compensation ratio ``R``, stem
-travel, reversals and offset, and the targets of the learned block. ``--noise`` sets the measurement
-noise of the loops (standard deviation, m; the benchmark's is 0.002), to check a block at noise levels
-it was not trained on.
+travel, reversals and offset, and the targets of the learned block; then, for the sticky and severe
+valves, the learned block's median ``R`` and limit-cycle share (and the SIMC PI's) by friction model.
+``--noise`` sets the measurement noise of the loops (standard deviation, m; the benchmark's is 0.002),
+to check a block at noise levels it was not trained on.
 """
 from __future__ import annotations
 
@@ -81,6 +82,27 @@ def _table(res: dict) -> str:
     return "\n".join(lines)
 
 
+def _by_model(res: dict) -> str:
+    """Sticky + severe loops by friction model: median R and LC share of the learned block against the SIMC PI."""
+    from agents.bench.scores import compensation_ratio
+
+    sc, scen = res["scores"], res["scenarios"]
+    if "learned" not in sc:
+        return ""
+    floor = res["config"].scores.r_floor
+    sticky = _groups(scen)["sticky+severe"]
+    models = np.asarray(scen.model).astype(str)
+    lines = ["\nsticky+severe by friction model (medians)",
+             "| friction model | loops | R learned | LC share learned | LC share PI (SIMC) |", "|---|---|---|---|---|"]
+    for name in sorted(set(models[sticky])):
+        m = sticky & (models == name)
+        pi, z = sc["PI (SIMC)"].iae_per_h[m], sc["PI frictionless"].iae_per_h[m]
+        r = compensation_ratio(pi, sc["learned"].iae_per_h[m], z, floor)
+        lines.append(f"| {name} | {int(m.sum())} | {np.median(r):.2f} | {sc['learned'].lc_present[m].mean():.2f} | "
+                     f"{sc['PI (SIMC)'].lc_present[m].mean():.2f} |")
+    return "\n".join(lines)
+
+
 def main(argv=None) -> int:
     """Command line; exit 0 done, 1 failed, 2 bad usage."""
     p = argparse.ArgumentParser(prog="python -m agents.learned_eval", description=(__doc__ or "").split("\n\n")[0])
@@ -101,6 +123,7 @@ def main(argv=None) -> int:
         print(f"learned_eval: {exc}", file=sys.stderr)
         return 1
     print(_table(res))
+    print(_by_model(res))
     return 0
 
 
