@@ -392,8 +392,8 @@ class _Stop:
         self.signum: int | None = None
         self._old: dict = {}
         #: what the run does when a first signal arrives (told to ``note``); the run sets it as it goes on
-        self.text = ("stopping: the finished loops are kept, those in flight cancelled; Ray is shut down first (a "
-                     "few seconds; Ctrl-C again to stop at once)")
+        self.text = ("stopping: the finished loops are kept, those in flight cancelled; the table and the worklist "
+                     "are written and Ray is shut down first (a few seconds; Ctrl-C again to stop at once)")
 
     @property
     def requested(self) -> bool:
@@ -527,9 +527,9 @@ def _stream(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs: i
 def _ray_up(jobs: int, address: str | None, say, stop: _Stop) -> Iterator[bool]:
     """Within: Ray started (unless one runs already: yields whether this call started it), shut down after.
 
-    Signals are only noted while Ray starts and while it shuts down; Ray's core worker, shut down, leaves
-    SIGTERM to its default action (the command ended with 143 in that second), so the table and the
-    worklist are written before this context ends, and the handler is put back in front after it.
+    A signal is only noted while Ray starts.  As it shuts down, Ray's core worker leaves SIGTERM to its
+    default action (a SIGTERM in that second ends the command with 143), so the table and the worklist are
+    written before this context ends, and the handler is put back in front after it.
     """
     started = False
     try:
