@@ -104,6 +104,69 @@ def test_ctrl_c_while_ray_starts_stops_cleanly_and_leaves_no_process(recs, tmp_p
     assert "partial run: 3 of 3 loops not analysed yet" in (out / "worklist.md").read_text()
 
 
+#: The command line in a process that receives SIGTERM just after Ray's shutdown call, before the command
+#: has put its handler back in front: where Ray's core worker had installed its crash handler, its
+#: shutdown left SIGTERM to the default action there and the command ended with 143.
+_SIGTERM_AS_RAY_SHUTS_DOWN = """
+import os, signal, sys, time
+import ray
+shutdown = ray.shutdown
+def shut(*a, **k):
+    out = shutdown(*a, **k)
+    os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(0.05)
+    return out
+ray.shutdown = shut
+from valve_gym.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads the processes from /proc (Linux)")
+def test_sigterm_as_ray_shuts_down_is_noted(recs, tmp_path):
+    """Ray's driver starts without its own crash handler, so a SIGTERM while Ray shuts down reaches the
+    command's handler: exit 130 with the table and the worklist written, no process left."""
+    pytest.importorskip("ray._private.ray_constants")
+    out = tmp_path / "fleet"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")]))
+    env.pop("RAY_ADDRESS", None)
+    p = subprocess.Popen([sys.executable, "-c", _SIGTERM_AS_RAY_SHUTS_DOWN, "diagnose", recs, "--out", str(out),
+                          *FAST], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         start_new_session=True)
+    try:
+        stdout, stderr = p.communicate(timeout=240)
+        left = _session_processes(p.pid)
+        deadline = time.monotonic() + 30
+        while left and time.monotonic() < deadline:
+            time.sleep(0.5)
+            left = _session_processes(p.pid)
+    finally:
+        if p.poll() is None:
+            p.kill()
+        for line in _session_processes(p.pid):
+            try:
+                os.kill(int(line.split()[0]), signal.SIGKILL)
+            except OSError:
+                pass
+    assert not left, f"processes left running after the command exited: {left}"
+    assert p.returncode == 130, (stdout + stderr)[-2000:]
+    assert stderr.strip().splitlines()[-1].endswith("every loop had finished, and the table and the worklist are "
+                                                     "written")
+    assert (out / "loops.csv").is_file() and (out / "worklist.md").is_file()
+
+
+def test_rays_crash_handler_is_left_out_only_while_ray_starts():
+    """The switch is Ray's module constant, set for this process while Ray starts and put back after (a later
+    ``ray.init`` of the user's own gets Ray's default)."""
+    rc = pytest.importorskip("ray._private.ray_constants")
+    from valve_gym.fleet.runner import _signals_left_to_python
+
+    before = rc.RAY_DISABLE_FAILURE_SIGNAL_HANDLER
+    with _signals_left_to_python():
+        assert rc.RAY_DISABLE_FAILURE_SIGNAL_HANDLER is True
+    assert rc.RAY_DISABLE_FAILURE_SIGNAL_HANDLER == before
+
+
 def test_a_signal_is_noted_and_a_handler_ray_would_set_is_not(ctrl_c_as_in_a_terminal):
     """Inside a run a signal sets a flag (the run stops where it is safe), never an exception in the middle
     of Ray's start; ``ray.init`` may not put its own SIGTERM handler in place meanwhile."""

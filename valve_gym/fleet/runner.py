@@ -233,11 +233,13 @@ def _start_ray(jobs: int, address: str | None, say: Callable[[str], None] | None
     kw = {"include_dashboard": False, "configure_logging": True, "logging_level": logging.ERROR,
           "log_to_driver": False}
     if not address:
-        _init(address="local", num_cpus=int(jobs), **kw)
+        with _signals_left_to_python():
+            _init(address="local", num_cpus=int(jobs), **kw)
         return True
     check_address(address)
     try:
-        _init(address=address, **kw)
+        with _signals_left_to_python():
+            _init(address=address, **kw)
     except ConnectionError as e:
         raise ValueError(
             f"could not join the Ray cluster at {address}: {e}. A cluster started with token "
@@ -253,6 +255,34 @@ def _start_ray(jobs: int, address: str | None, say: Callable[[str], None] | None
         say(f"note: valve_gym is not installed on the nodes of {address}: sent along with this run (each "
             f"node compiles its kernels first, about a minute)")
     return True
+
+
+@contextlib.contextmanager
+def _signals_left_to_python() -> Iterator[None]:
+    """Within: a Ray driver started here installs no crash handler of its own (the workers keep theirs).
+
+    Ray's core worker installs a C++ failure-signal handler (abseil's) for SIGTERM among others, in front of
+    Python's: a SIGTERM in the last moments of Ray's start then aborted the command (exit 134, a stack
+    printed), and as Ray shuts down it puts the default action back (a SIGTERM in that second ended the
+    command with 143, the handler of :class:`_Stop` never told).  Ray's own switch for this,
+    ``RAY_DISABLE_FAILURE_SIGNAL_HANDLER``, is read as a constant when the core worker starts; it is set
+    for this process only while Ray starts, and put back after.
+    """
+    try:
+        from ray._private import ray_constants
+    except ImportError:                          # another Ray layout: its handler stays
+        yield
+        return
+    name = "RAY_DISABLE_FAILURE_SIGNAL_HANDLER"
+    if not hasattr(ray_constants, name):
+        yield
+        return
+    old = getattr(ray_constants, name)
+    setattr(ray_constants, name, True)
+    try:
+        yield
+    finally:
+        setattr(ray_constants, name, old)
 
 
 #: Seconds the probe of a cluster (:func:`_probe_cluster`) waits for a free CPU before the run goes on unprobed.
