@@ -262,8 +262,8 @@ def _signals_left_to_python() -> Iterator[None]:
     """Within: a Ray driver started here installs no crash handler of its own (the workers keep theirs).
 
     Ray's core worker installs a C++ failure-signal handler (abseil's) for SIGTERM among others, in front of
-    Python's: a SIGTERM in the last moments of Ray's start then aborted the command (exit 134, a stack
-    printed), and as Ray shuts down it puts the default action back (a SIGTERM in that second ended the
+    Python's: a SIGTERM in the last moments of Ray's start met it first (a stack printed; the exit status
+    could be 134), and as Ray shuts down it puts the default action back (a SIGTERM in that second ended the
     command with 143, the handler of :class:`_Stop` never told).  Ray's own switch for this,
     ``RAY_DISABLE_FAILURE_SIGNAL_HANDLER``, is read as a constant when the core worker starts; it is set
     for this process only while Ray starts, and put back after.
