@@ -49,6 +49,31 @@ def _session_processes(sid: int) -> list[str]:
     return out
 
 
+def _command_in_own_session(code: str, args: list[str]) -> tuple[int, str, str, list[str]]:
+    """Run ``python -c code *args`` in a session of its own: exit status, stdout, stderr and the processes of
+    that session still running 30 s after it exited (then ended, whatever they are)."""
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")]))
+    env.pop("RAY_ADDRESS", None)
+    p = subprocess.Popen([sys.executable, "-c", code, *args], env=env, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True, start_new_session=True)   # its processes: session p.pid
+    try:
+        stdout, stderr = p.communicate(timeout=240)
+        left = _session_processes(p.pid)
+        deadline = time.monotonic() + 30                               # Ray's processes end on their own
+        while left and time.monotonic() < deadline:
+            time.sleep(0.5)
+            left = _session_processes(p.pid)
+    finally:
+        if p.poll() is None:
+            p.kill()
+        for line in _session_processes(p.pid):                        # whatever is left is ours: ended
+            try:
+                os.kill(int(line.split()[0]), signal.SIGKILL)
+            except OSError:
+                pass
+    return p.returncode, stdout, stderr, left
+
+
 #: The command line in a process that presses Ctrl-C on itself while Ray starts: its raylet is up (and
 #: starting Ray's agents), the driver not yet connected.
 _CTRL_C_WHILE_RAY_STARTS = """
@@ -75,28 +100,10 @@ def test_ctrl_c_while_ray_starts_stops_cleanly_and_leaves_no_process(recs, tmp_p
     if not hasattr(node.Node, "start_raylet"):
         pytest.skip("this Ray version starts its raylet another way")
     out = tmp_path / "fleet"
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")]))
-    env.pop("RAY_ADDRESS", None)
-    p = subprocess.Popen([sys.executable, "-c", _CTRL_C_WHILE_RAY_STARTS, "diagnose", recs, "--out", str(out),
-                          *FAST], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         start_new_session=True)                      # its processes: session p.pid
-    try:
-        stdout, stderr = p.communicate(timeout=240)
-        left = _session_processes(p.pid)
-        deadline = time.monotonic() + 30                               # Ray's processes end on their own
-        while left and time.monotonic() < deadline:
-            time.sleep(0.5)
-            left = _session_processes(p.pid)
-    finally:
-        if p.poll() is None:
-            p.kill()
-        for line in _session_processes(p.pid):                        # whatever is left is ours: ended
-            try:
-                os.kill(int(line.split()[0]), signal.SIGKILL)
-            except OSError:
-                pass
+    rc, stdout, stderr, left = _command_in_own_session(_CTRL_C_WHILE_RAY_STARTS,
+                                                       ["diagnose", recs, "--out", str(out), *FAST])
     assert not left, f"processes left running after the command exited: {left}"
-    assert p.returncode == 130, (stdout + stderr)[-2000:]
+    assert rc == 130, (stdout + stderr)[-2000:]
     assert "Traceback" not in stderr, stderr[-2000:]
     last = stderr.strip().splitlines()[-1]
     assert last == (f"valve-gym diagnose: interrupted: 0 loop(s) finished in this run, 0 of 3 in all, are kept in "
@@ -128,28 +135,10 @@ def test_sigterm_as_ray_shuts_down_is_noted(recs, tmp_path):
     command's handler: exit 130 with the table and the worklist written, no process left."""
     pytest.importorskip("ray._private.ray_constants")
     out = tmp_path / "fleet"
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([ROOT, os.environ.get("PYTHONPATH", "")]))
-    env.pop("RAY_ADDRESS", None)
-    p = subprocess.Popen([sys.executable, "-c", _SIGTERM_AS_RAY_SHUTS_DOWN, "diagnose", recs, "--out", str(out),
-                          *FAST], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                         start_new_session=True)
-    try:
-        stdout, stderr = p.communicate(timeout=240)
-        left = _session_processes(p.pid)
-        deadline = time.monotonic() + 30
-        while left and time.monotonic() < deadline:
-            time.sleep(0.5)
-            left = _session_processes(p.pid)
-    finally:
-        if p.poll() is None:
-            p.kill()
-        for line in _session_processes(p.pid):
-            try:
-                os.kill(int(line.split()[0]), signal.SIGKILL)
-            except OSError:
-                pass
+    rc, stdout, stderr, left = _command_in_own_session(_SIGTERM_AS_RAY_SHUTS_DOWN,
+                                                       ["diagnose", recs, "--out", str(out), *FAST])
     assert not left, f"processes left running after the command exited: {left}"
-    assert p.returncode == 130, (stdout + stderr)[-2000:]
+    assert rc == 130, (stdout + stderr)[-2000:]
     assert stderr.strip().splitlines()[-1].endswith("every loop had finished, and the table and the worklist are "
                                                      "written")
     assert (out / "loops.csv").is_file() and (out / "worklist.md").is_file()
