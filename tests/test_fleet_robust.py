@@ -74,6 +74,15 @@ def _command_in_own_session(code: str, args: list[str]) -> tuple[int, str, str, 
     return p.returncode, stdout, stderr, left
 
 
+def _stopped_fleet_run(code: str, recs: str, out) -> str:
+    """A fleet run of ``recs`` into ``out`` by ``code`` that stops itself: it exits 130 and leaves no process;
+    its stderr."""
+    rc, stdout, stderr, left = _command_in_own_session(code, ["diagnose", recs, "--out", str(out), *FAST])
+    assert not left, f"processes left running after the command exited: {left}"
+    assert rc == 130, (stdout + stderr)[-2000:]
+    return stderr
+
+
 #: The command line in a process that presses Ctrl-C on itself while Ray starts: its raylet is up (and
 #: starting Ray's agents), the driver not yet connected.
 _CTRL_C_WHILE_RAY_STARTS = """
@@ -100,10 +109,7 @@ def test_ctrl_c_while_ray_starts_stops_cleanly_and_leaves_no_process(recs, tmp_p
     if not hasattr(node.Node, "start_raylet"):
         pytest.skip("this Ray version starts its raylet another way")
     out = tmp_path / "fleet"
-    rc, stdout, stderr, left = _command_in_own_session(_CTRL_C_WHILE_RAY_STARTS,
-                                                       ["diagnose", recs, "--out", str(out), *FAST])
-    assert not left, f"processes left running after the command exited: {left}"
-    assert rc == 130, (stdout + stderr)[-2000:]
+    stderr = _stopped_fleet_run(_CTRL_C_WHILE_RAY_STARTS, recs, out)
     assert "Traceback" not in stderr, stderr[-2000:]
     last = stderr.strip().splitlines()[-1]
     assert last == (f"valve-gym diagnose: interrupted: 0 loop(s) finished in this run, 0 of 3 in all, are kept in "
@@ -135,10 +141,7 @@ def test_sigterm_as_ray_shuts_down_is_noted(recs, tmp_path):
     command's handler: exit 130 with the table and the worklist written, no process left."""
     pytest.importorskip("ray._private.ray_constants")
     out = tmp_path / "fleet"
-    rc, stdout, stderr, left = _command_in_own_session(_SIGTERM_AS_RAY_SHUTS_DOWN,
-                                                       ["diagnose", recs, "--out", str(out), *FAST])
-    assert not left, f"processes left running after the command exited: {left}"
-    assert rc == 130, (stdout + stderr)[-2000:]
+    stderr = _stopped_fleet_run(_SIGTERM_AS_RAY_SHUTS_DOWN, recs, out)
     assert stderr.strip().splitlines()[-1].endswith("every loop had finished, and the table and the worklist are "
                                                      "written")
     assert (out / "loops.csv").is_file() and (out / "worklist.md").is_file()
