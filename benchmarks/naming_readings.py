@@ -18,7 +18,10 @@ effect it would name is the concealed one:
 * ``blocks w/B`` (``+ held-out``): the free-run criterion and band, with the held-out test replaced by
   (or joined to) a consistency test: the whole record (fit part and held-out end) cut into ``B`` equal
   blocks, the candidate must lower the squared error of at least ``w`` of them.  A real effect should fit
-  better at every level the loop visits; a term that fits one stretch of the drifting load should not.
+  better at every level the loop visits; a term that fits one stretch of the drifting load should not;
+* ``swap on the whole record``: a candidate that adds no parameter (slip-jump friction in place of the
+  paper's) judged by the criterion on the whole record's residual (fit part and held-out end, its
+  effective samples), with no held-out test: in these loops the two parts often disagree under the load.
 
 The decision is the default rule's (:class:`valve_gym.diagnosis.select.SelectionRule`: the criterion
 falls past its margin, the held-out test, the friction band) on the round's confirmed candidates; the
@@ -47,6 +50,7 @@ from naming_other_sim import EFFECTS, make_case  # noqa: E402
 
 from valve_gym._numba import njit  # noqa: E402
 from valve_gym.diagnosis import diagnose  # noqa: E402
+from valve_gym.diagnosis.fit import effective_n  # noqa: E402
 from valve_gym.diagnosis.select import SelectionRule, friction_band, holdout_pays  # noqa: E402
 
 #: Grid of the load model's pole and variance ratio (load innovations over white noise).
@@ -146,6 +150,12 @@ def readings(case) -> dict[str, str]:
             lambda f, p=p: float(np.sqrt(np.mean(
                 ar_filter(f.residual[n - p:], ar_fit(f.residual[:n], p)) ** 2))))
     run("load model (Kalman)", lambda f: load_m2ll(f.residual[:n]) + f.k * np.log(n), lambda f: f.holdout_rmse)
+    # a swap (no parameter added: slip-jump friction for the paper's) judged on the whole record's residual
+    ne_all, sse_b = effective_n(base.residual), float(np.sum(base.residual ** 2))
+    rows = [(c.effect, ne_all * np.log(float(np.sum(c.fit.residual ** 2)) / sse_b), -np.inf, 0,
+             c.effect != "slip_jump" or friction_band(c.fit) >= need) if c.fit.k == base.k else
+            (c.effect, c.delta_ic, c.holdout_change, c.fit.k - base.k, True) for c in cands]
+    out["swap on the whole record"] = _decide(rows, rule)
     for blocks, need_w in BLOCKS:
         wins = {id(c): block_wins(base.residual, c.fit.residual, blocks) >= need_w for c in cands}
         for keep_h in (False, True):
