@@ -11,8 +11,8 @@ then the worklist.  Ctrl-C (or SIGTERM) cancels the loops in flight and keeps
 every finished one; running again continues.  A signal is only noted while Ray
 starts and while the table and the worklist are written (:class:`_Stop`): the run
 stops once Ray is up, the table and the worklist are written whole, and Ray is
-always shut down before the call returns (after them: as it shuts down, Ray's core
-worker leaves SIGTERM to its default action).
+always shut down before the call returns, after them (a Ray without the switch of
+:func:`_signals_left_to_python` leaves SIGTERM to its default action as it shuts down).
 
 Ray runs in this process by default (``ray.init(address='local', num_cpus=jobs)``, no
 dashboard, nothing to start, whatever cluster runs nearby); ``address`` joins an existing
@@ -557,9 +557,11 @@ def _stream(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs: i
 def _ray_up(jobs: int, address: str | None, say, stop: _Stop) -> Iterator[bool]:
     """Within: Ray started (unless one runs already: yields whether this call started it), shut down after.
 
-    A signal is only noted while Ray starts.  As it shuts down, Ray's core worker leaves SIGTERM to its
-    default action (a SIGTERM in that second ends the command with 143), so the table and the worklist are
-    written before this context ends, and the handler is put back in front after it.
+    A signal is only noted while Ray starts, which it does without its own crash handler where Ray has a
+    switch for it (:func:`_signals_left_to_python`).  Without the switch, Ray's core worker leaves SIGTERM
+    to its default action as it shuts down (a SIGTERM in that second ended the command with 143): so the
+    table and the worklist are written before this context ends, and the handler is put back in front
+    after it.
     """
     started = False
     try:
