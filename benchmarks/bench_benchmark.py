@@ -4,9 +4,9 @@ Measures, on the regulation loops of the shipped configuration (135 loops, 3600 
 
 (a) the plant alone: the batched :class:`valve_gym.plant.Plant` of each friction model stepped with the
     steady input held (the reference: what the physics costs);
-(b) :func:`agents.bench.runner.run_loops` with the SIMC PI (plant + one block over all loops per scan);
+(b) :func:`valve_gym.agents.bench.runner.run_loops` with the SIMC PI (plant + one block over all loops per scan);
 (c) the same with the knocker at the loops' stiction estimates, and with the learned block;
-(d) scoring one run (:func:`agents.bench.scores.score_runs`: the ACF detector per loop, travel, reversals).
+(d) scoring one run (:func:`valve_gym.agents.bench.scores.score_runs`: the ACF detector per loop, travel, reversals).
 
 Loop-scans/s and the ratio to (a); best of ``--repeat`` after a warm-up; CPU time of this process. Prints a
 markdown table.
@@ -22,11 +22,11 @@ import time
 
 import numpy as np
 
-from agents import load_controller
-from agents.bench.config import BenchConfig
-from agents.bench.runner import ControllerSpec, make_controller, make_plant, run_loops, valve_model
-from agents.bench.scenarios import regulation_scenarios
-from agents.bench.scores import score_runs
+from valve_gym.agents import load_controller
+from valve_gym.agents.bench.config import BenchConfig
+from valve_gym.agents.bench.runner import ControllerSpec, make_controller, make_plant, run_loops, valve_model
+from valve_gym.agents.bench.scenarios import regulation_scenarios
+from valve_gym.agents.bench.scores import score_runs
 
 
 def _plant_only(sc) -> None:

@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from agents import load_controller
+from valve_gym.agents import load_controller
 from valve_gym import core
 from valve_gym.params import ModelParams, SlipJump
 

@@ -38,7 +38,7 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def rollout_speed(cfg, kind, n_steps):
     """Env-steps/s of the bare VecEnv (random actions), best of 3."""
-    from agents.train import make_vec_env
+    from valve_gym.agents.train import make_vec_env
 
     venv = make_vec_env(cfg.env, cfg.ppo.n_envs, cfg.seed, kind)
     n = venv.num_envs
@@ -61,7 +61,7 @@ def ppo_speed(cfg, kind, n_steps):
     """Env-steps/s of ``PPO.learn`` (after one warm-up rollout)."""
     import torch
 
-    from agents.train import build_training_env, make_model
+    from valve_gym.agents.train import build_training_env, make_model
 
     torch.set_num_threads(1)
     env = build_training_env(cfg, cfg.seed, kind)
@@ -87,7 +87,7 @@ def main(argv=None) -> int:
     import torch
 
     torch.set_num_threads(1)
-    from agents.train import load_train_config
+    from valve_gym.agents.train import load_train_config
 
     cfg = load_train_config(args.config)
     if args.n_envs:

@@ -18,7 +18,7 @@ import argparse
 
 import numpy as np
 
-from agents import load_controller
+from valve_gym.agents import load_controller
 from valve_gym.friction import valve_model
 from valve_gym.params import ModelParams, TankParams
 from valve_gym.plant import Plant

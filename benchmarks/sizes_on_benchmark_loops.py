@@ -1,6 +1,6 @@
 """Stiction verdict and size (S, J with 90 % intervals) on the benchmark's regulation loops.
 
-The benchmark (``configs/benchmark.yaml``, :mod:`agents.bench`) draws valves with Riihilahti,
+The benchmark (``configs/benchmark.yaml``, :mod:`valve_gym.agents.bench`) draws valves with Riihilahti,
 Choudhury or Kano friction of known stick band ``S`` and slip jump ``J`` (fractions of stroke) on a
 level tank, with an Ornstein-Uhlenbeck load inflow and 2 mm measurement noise.  Here every loop
 runs under the benchmark's PI (SIMC tuning) at its constant set point, its OP and PV become a
@@ -49,9 +49,9 @@ GRID = np.round(np.arange(0.0, 3.0001, 0.05), 2)
 
 def benchmark_loops(n: int, seed: int | None) -> list[dict]:
     """``n`` regulation loops of the benchmark under its SIMC PI: OP, PV, the stem and the true valve."""
-    from agents.bench.config import load_bench_config
-    from agents.bench.runner import ControllerSpec, run_spec
-    from agents.bench.scenarios import regulation_scenarios
+    from valve_gym.agents.bench.config import load_bench_config
+    from valve_gym.agents.bench.runner import ControllerSpec, run_spec
+    from valve_gym.agents.bench.scenarios import regulation_scenarios
 
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     cfg = load_bench_config(os.path.join(root, "configs", "benchmark.yaml"))

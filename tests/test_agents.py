@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from agents import KnockerController, PIController
-from agents.base import Controller, action_to_u
-from agents.pi import default_tuning, simc_pi, tank_model
+from valve_gym.agents import KnockerController, PIController
+from valve_gym.agents.base import Controller, action_to_u
+from valve_gym.agents.pi import default_tuning, simc_pi, tank_model
 from valve_gym.core import initial_state, step
 from valve_gym.params import ModelParams, TankParams, ValveParams
 
@@ -135,7 +135,7 @@ def _untrained_ppo(transform, mode="direct"):
     import gymnasium as gym
     from stable_baselines3 import PPO
 
-    from agents.ppo import PPOController
+    from valve_gym.agents.ppo import PPOController
 
     d = transform.out_dim(4)
     space = gym.spaces.Box(-np.inf, np.inf, (d,), np.float32)
@@ -156,7 +156,7 @@ def _untrained_ppo(transform, mode="direct"):
 
 
 def test_ppo_predict_signature_and_batch_shapes():
-    from agents.ppo import ObsTransform, PPOState
+    from valve_gym.agents.ppo import ObsTransform, PPOState
 
     ctrl = _untrained_ppo(ObsTransform(frame_stack=3, deltas=True))
     assert isinstance(ctrl, Controller)
@@ -174,7 +174,7 @@ def test_ppo_predict_signature_and_batch_shapes():
 
 
 def test_obs_transform_history_and_restart():
-    from agents.ppo import ObsTransform
+    from valve_gym.agents.ppo import ObsTransform
 
     tf = ObsTransform(frame_stack=2, deltas=True)
     o1 = np.array([[1.0, 1.0, 0.0, 0.5], [1.2, 1.0, -0.2, 0.4]])

@@ -1,9 +1,9 @@
-"""agents.bench.config: the YAML file is the default; every mistake names its key path."""
+"""valve_gym.agents.bench.config: the YAML file is the default; every mistake names its key path."""
 from pathlib import Path
 
 import pytest
 
-from agents.bench.config import DEFAULT_CONFIG_PATH, BenchConfig, bench_config_to_dict, load_bench_config
+from valve_gym.agents.bench.config import DEFAULT_CONFIG_PATH, BenchConfig, bench_config_to_dict, load_bench_config
 from valve_gym.config import ConfigError
 
 
@@ -83,10 +83,10 @@ if given is not None:
 def test_docstring_examples_of_the_benchmark_modules():
     import doctest
 
-    import agents.bench.config
-    import agents.bench.scenarios
-    import agents.bench.scores
+    import valve_gym.agents.bench.config
+    import valve_gym.agents.bench.scenarios
+    import valve_gym.agents.bench.scores
 
-    for mod in (agents.bench.config, agents.bench.scenarios, agents.bench.scores):
+    for mod in (valve_gym.agents.bench.config, valve_gym.agents.bench.scenarios, valve_gym.agents.bench.scores):
         res = doctest.testmod(mod)
         assert res.attempted > 0 and res.failed == 0, mod.__name__

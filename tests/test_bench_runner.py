@@ -1,11 +1,11 @@
-"""agents.bench.runner: batched runs equal single-loop runs; banks of blocks; the detector on real loops."""
+"""valve_gym.agents.bench.runner: batched runs equal single-loop runs; banks of blocks; the detector on real loops."""
 import numpy as np
 import pytest
 
-from agents import load_controller
-from agents.bench.config import BenchConfig, load_bench_config
-from agents.bench.runner import ControllerBank, ControllerSpec, lineup, make_controller, run_loops, run_spec
-from agents.bench.scenarios import regulation_scenarios, servo_scenarios
+from valve_gym.agents import load_controller
+from valve_gym.agents.bench.config import BenchConfig, load_bench_config
+from valve_gym.agents.bench.runner import ControllerBank, ControllerSpec, lineup, make_controller, run_loops, run_spec
+from valve_gym.agents.bench.scenarios import regulation_scenarios, servo_scenarios
 from valve_gym.metrics import acf_oscillation
 
 CFG = load_bench_config({"regulation": {"duration_s": 400.0}})

@@ -1,9 +1,9 @@
-"""agents.bench.scenarios: seeded, reproducible, prefix-stable loops with the configured bands."""
+"""valve_gym.agents.bench.scenarios: seeded, reproducible, prefix-stable loops with the configured bands."""
 import numpy as np
 import pytest
 
-from agents.bench.config import BenchConfig, load_bench_config
-from agents.bench.scenarios import band_labels, benchmark_scenarios, regulation_scenarios, servo_scenarios
+from valve_gym.agents.bench.config import BenchConfig, load_bench_config
+from valve_gym.agents.bench.scenarios import band_labels, benchmark_scenarios, regulation_scenarios, servo_scenarios
 
 
 def test_regulation_population_and_signals():

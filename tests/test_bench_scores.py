@@ -1,10 +1,10 @@
-"""agents.bench.scores: compensation ratio on constructed numbers, bootstrap CIs, the learned comparison."""
+"""valve_gym.agents.bench.scores: compensation ratio on constructed numbers, bootstrap CIs, the learned comparison."""
 import numpy as np
 import pytest
 
-from agents.bench.config import BenchConfig
-from agents.bench.scenarios import regulation_scenarios
-from agents.bench.scores import (
+from valve_gym.agents.bench.config import BenchConfig
+from valve_gym.agents.bench.scenarios import regulation_scenarios
+from valve_gym.agents.bench.scores import (
     REFERENCE_FRICTIONLESS,
     REFERENCE_PI,
     LoopScores,

@@ -5,8 +5,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from agents.bench.config import BenchConfig, load_bench_config
-from agents.bench.scores import BAND_GROUPS
+from valve_gym.agents.bench.config import BenchConfig, load_bench_config
+from valve_gym.agents.bench.scores import BAND_GROUPS
 from valve_gym.cli import main as cli_main
 
 FILES = ("results.md", "results.csv", "loops.csv", "config.yaml", "trends.png", "bands.png", "pareto.png")
@@ -67,10 +67,3 @@ def test_bad_config_and_options_exit_2(tmp_path, capsys):
     assert cli_main(["benchmark", "--config", str(tmp_path / "missing.yaml"), "--out", str(tmp_path)]) == 2
     assert cli_main(["benchmark", "--jobs", "0", "--out", str(tmp_path)]) == 2
     assert not (tmp_path / "o").exists()
-
-
-def test_compat_module_has_no_import_cycle():
-    import agents.benchmark as old
-
-    assert old.load_benchmark_config is load_bench_config
-    assert Path(old.__file__).read_text().count("import") < 10 and "ppo" not in Path(old.__file__).read_text()

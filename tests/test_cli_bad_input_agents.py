@@ -28,16 +28,16 @@ def _no_work(*args, **kwargs):
 @pytest.fixture
 def probe(tmp_path, monkeypatch):
     """Run in an empty folder with the long work disabled; returns a snapshot function of the folder."""
-    import agents.bench.cli
-    import agents.convert
-    import agents.es
-    import agents.train
+    import valve_gym.agents.bench.cli
+    import valve_gym.agents.convert
+    import valve_gym.agents.es
+    import valve_gym.agents.train
 
     monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(agents.bench.cli, "run_benchmark", _no_work)
-    monkeypatch.setattr(agents.train, "train", _no_work)
-    monkeypatch.setattr(agents.es, "train_learned", _no_work)
-    monkeypatch.setattr(agents.convert, "convert_sb3_zip", _no_work)
+    monkeypatch.setattr(valve_gym.agents.bench.cli, "run_benchmark", _no_work)
+    monkeypatch.setattr(valve_gym.agents.train, "train", _no_work)
+    monkeypatch.setattr(valve_gym.agents.es, "train_learned", _no_work)
+    monkeypatch.setattr(valve_gym.agents.convert, "convert_sb3_zip", _no_work)
 
     def snapshot():
         return sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*"))

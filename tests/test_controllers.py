@@ -1,4 +1,4 @@
-"""Controller blocks (agents.controllers): the DCS interface, the registry and each compensator's law."""
+"""Controller blocks (valve_gym.agents.controllers): the DCS interface, the registry and each compensator's law."""
 import json
 import sys
 import types
@@ -8,10 +8,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from agents import available_controllers, load_controller
-from agents.controllers import ConstantReinforcement, IntegralFreeze, Knocker, PIBlock, TwoMove
-from agents.controllers.registry import ControllerLoadError
-from agents.controllers.two_move import HOLD, NORMAL, ValveEstimate, valve_estimate
+from valve_gym.agents import available_controllers, load_controller
+from valve_gym.agents.controllers import ConstantReinforcement, IntegralFreeze, Knocker, PIBlock, TwoMove
+from valve_gym.agents.controllers.registry import ControllerLoadError
+from valve_gym.agents.controllers.two_move import HOLD, NORMAL, ValveEstimate, valve_estimate
 from valve_gym import core
 from valve_gym.params import ModelParams, SlipJump
 
@@ -164,14 +164,14 @@ def test_learned_is_loaded_lazily_and_failures_say_why(monkeypatch):
             raise FileNotFoundError("no weights in 'missing'")
         return PIBlock()
 
-    monkeypatch.setitem(sys.modules, "agents.learned", types.SimpleNamespace(load_learned=load_learned))
+    monkeypatch.setitem(sys.modules, "valve_gym.agents.learned", types.SimpleNamespace(load_learned=load_learned))
     assert isinstance(load_controller("learned", path="run1", S=0.02), PIBlock)
     assert seen == {"path": "run1", "S": 0.02}
     with pytest.raises(ControllerLoadError, match="learned compensator could not be loaded: "
                                                   "FileNotFoundError: no weights in 'missing'"):
         load_controller("learned", path="missing")
-    monkeypatch.setitem(sys.modules, "agents.learned", None)      # module not importable
-    with pytest.raises(ValueError, match="learned compensator could not be loaded: module agents.learned"):
+    monkeypatch.setitem(sys.modules, "valve_gym.agents.learned", None)      # module not importable
+    with pytest.raises(ValueError, match="learned compensator could not be loaded: module valve_gym.agents.learned"):
         load_controller("learned")
 
 
@@ -340,7 +340,7 @@ def test_per_loop_settings_errors():
 @settings(max_examples=60, deadline=None)
 @given(name=st.sampled_from(BLOCKS), data=st.data())
 def test_any_setting_in_range_is_accepted_and_any_outside_is_refused(name, data):
-    from agents.controllers.registry import _BLOCKS
+    from valve_gym.agents.controllers.registry import _BLOCKS
 
     table = {s.name: s for s in _BLOCKS[name].SETTINGS}
     key = data.draw(st.sampled_from(sorted(k for k in table if k not in ("tau_k", "h_k", "op_lo", "op_hi"))))

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from agents import load_controller
+from valve_gym.agents import load_controller
 
 
 def _first_order_loop(ctrl, sp: float, load: float, n_scans: int = 2000, K: float = 100.0, T: float = 30.0):

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from agents import KnockerController, PIController
-from agents.evaluate import Rollout, env_config_for, evaluate, make_eval_env, rollout
+from valve_gym.agents import KnockerController, PIController
+from valve_gym.agents.evaluate import Rollout, env_config_for, evaluate, make_eval_env, rollout
 
 VALVES = {"z_max": [0.005, 0.2, 0.8], "e_dead": [0.0, 0.01, 0.03]}
 SHORT = {"episode_seconds": 120.0}

@@ -4,7 +4,7 @@ Entry points: the recording loader (arbitrary CSV text, structured-but-wrong
 CSV tables, Parquet tables and corrupted Parquet bytes), the configuration
 loader (mappings and YAML files), the registered Gymnasium environments
 (``reset`` options and ``step`` actions) and the controller blocks
-(``agents.load_controller`` settings, then ``reset``/``step``).
+(``valve_gym.agents.load_controller`` settings, then ``reset``/``step``).
 
 "Clean" means: either a valid result (finite numbers, documented shapes and
 ranges), or an exception of the documented type (a ``ValueError`` subclass:
@@ -344,10 +344,10 @@ def test_fuzz_config_yaml_file(text):
 _SHIPPED_CONFIGS = {
     "env_default.yaml": ("valve_gym.config", "load_config"),
     "env_fixed.yaml": ("valve_gym.config", "load_config"),
-    "ppo_residual.yaml": ("agents.train", "load_train_config"),
-    "ppo_shipped.yaml": ("agents.train", "load_train_config"),
-    "learned.yaml": ("agents.es", "load_learned_train_config"),
-    "benchmark.yaml": ("agents.bench.config", "load_bench_config"),
+    "ppo_residual.yaml": ("valve_gym.agents.train", "load_train_config"),
+    "ppo_shipped.yaml": ("valve_gym.agents.train", "load_train_config"),
+    "learned.yaml": ("valve_gym.agents.es", "load_learned_train_config"),
+    "benchmark.yaml": ("valve_gym.agents.bench.config", "load_bench_config"),
 }
 _CONFIG_DIR = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "configs")
 
@@ -464,7 +464,7 @@ def test_fuzz_env_reset_step(env_id, seed, options, acts):
 
 def _controllers():
     try:
-        from agents import available_controllers, load_controller  # noqa: F401
+        from valve_gym.agents import available_controllers, load_controller  # noqa: F401
     except ImportError:
         return ()
     return tuple(n for n in available_controllers() if n != "learned")  # 'learned' loads a policy file
@@ -478,13 +478,13 @@ signals_in = st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.floats
                        st.lists(st.floats(0, 2), min_size=1, max_size=3).map(np.asarray))
 
 
-@pytest.mark.skipif(not _controllers(), reason="agents.load_controller is not available")
+@pytest.mark.skipif(not _controllers(), reason="valve_gym.agents.load_controller is not available")
 @FUZZ
 @given(name=st.one_of(st.sampled_from(_controllers() or ("pi",)), st.text(max_size=6)),
        settings_=st.dictionaries(setting_names, setting_values, max_size=4),
        sp=signals_in, pv=signals_in, op=st.floats(allow_nan=True, allow_infinity=True))
 def test_fuzz_controller_settings(name, settings_, sp, pv, op):
-    from agents import load_controller
+    from valve_gym.agents import load_controller
 
     try:
         ctrl = load_controller(name, **settings_)
@@ -555,8 +555,8 @@ def test_fuzz_diagnose_finite(scale, offset, dt, op_gain, plant, seed):
 @pytest.mark.parametrize("name,setting", [("pi", "scan_s"), ("pi", "op_lo"), ("knocker", "S"), ("two_move", "S")])
 def test_finding_controller_none_setting(name, setting):
     if not _controllers():
-        pytest.skip("agents.load_controller is not available")
-    from agents import load_controller
+        pytest.skip("valve_gym.agents.load_controller is not available")
+    from valve_gym.agents import load_controller
 
     with pytest.raises(ValueError, match=setting):
         load_controller(name, **{setting: None})

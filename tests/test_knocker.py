@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from agents import load_controller
-from agents.controllers import Knocker
-from agents.knocker import KNOCKER_DEFAULTS, KnockerController
-from agents.pi import PIController
+from valve_gym.agents import load_controller
+from valve_gym.agents.controllers import Knocker
+from valve_gym.agents.knocker import KNOCKER_DEFAULTS, KnockerController
+from valve_gym.agents.pi import PIController
 
 
 def _run(knocker, errors, u0=0.5):

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents.learned import DEFAULT_POLICY, LearnedBlock, MLPSpec, load_learned, mlp_forward, normalise, save_learned
+from valve_gym.agents.learned import DEFAULT_POLICY, LearnedBlock, MLPSpec, load_learned, mlp_forward, normalise, save_learned
 from valve_gym.envs.regulation import N_ACT, N_OBS, BlockSettings, RegulationConfig, pi_action
 from valve_gym.envs.regulation_env import ValveTankRegulationVectorEnv
 
@@ -21,7 +21,7 @@ def _random_block(tmp_path, seed=0, hidden=(8,)):
 
 
 def test_shipped_block_loads_without_torch():
-    code = ("import sys; from agents.learned import load_learned; b = load_learned(); b.reset(1.0, 1.0, 0.5); "
+    code = ("import sys; from valve_gym.agents.learned import load_learned; b = load_learned(); b.reset(1.0, 1.0, 0.5); "
             "u = b.step(1.0, 1.002); assert 0 <= u <= 1; assert 'torch' not in sys.modules, 'torch imported'")
     r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
@@ -125,7 +125,7 @@ def test_errors(tmp_path):
 def test_network_shapes():
     spec = MLPSpec((5, 4))
     theta = np.arange(spec.n_params, dtype=float) * 1e-3
-    from agents.learned import unflatten
+    from valve_gym.agents.learned import unflatten
 
     w = unflatten(spec, theta)
     assert w["W0"].shape == (N_OBS, 5) and w["W2"].shape == (4, N_ACT)
@@ -168,7 +168,7 @@ def test_stick_features_layout_and_roundtrip(tmp_path):
 
 
 def test_fitness_counts_limit_cycle_amplitude_on_sticky_valves_only():
-    from agents.es import ESHyper, RolloutScores, fitness
+    from valve_gym.agents.es import ESHyper, RolloutScores, fitness
 
     S = np.array([0.001, 0.03])                                # one healthy, one sticky loop
     ref_iae, ref_rev = np.array([1.0, 2.0]), np.array([10.0, 10.0])

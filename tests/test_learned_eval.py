@@ -1,10 +1,10 @@
-"""``python -m agents.learned_eval``: the noise option reaches the loops, bad values are refused."""
+"""``python -m valve_gym.agents.learned_eval``: the noise option reaches the loops, bad values are refused."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from agents.learned_eval import evaluate_learned, main
+from valve_gym.agents.learned_eval import evaluate_learned, main
 
 
 def test_noise_option_sets_the_loops_measurement_noise():
@@ -24,7 +24,7 @@ def test_bad_noise_is_refused_with_the_reason(bad, capsys):
 
 
 def test_by_model_table_counts_each_sticky_loop_once_under_its_friction_model():
-    from agents.learned_eval import _by_model
+    from valve_gym.agents.learned_eval import _by_model
 
     res = evaluate_learned(n=9, seed=11, compensators=False)
     scen = res["scenarios"]

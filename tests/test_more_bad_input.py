@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import valve_gym  # noqa: F401 - registers the environments
-from agents import load_controller
+from valve_gym.agents import load_controller
 from valve_gym.config import MAX_EPISODE_STEPS, ConfigError, EnvConfig
 from valve_gym.diagnosis import cli
 from valve_gym.diagnosis.recording import RecordingError
@@ -179,7 +179,7 @@ def test_an_episode_too_long_for_memory_is_a_config_error():
 
 # --------------------------------------------------------------------------- 4. benchmark --jobs
 def test_jobs_used_and_their_text():
-    from agents.bench.pipeline import jobs_text, jobs_used
+    from valve_gym.agents.bench.pipeline import jobs_text, jobs_used
 
     assert jobs_used(1000, 8) == 8 and jobs_used(2, 8) == 2 and jobs_used(3, 0) == 1
     assert jobs_text(8, 1000, 8) == "8 job(s) (1000 asked; only 8 tasks)"
@@ -196,7 +196,7 @@ scores: {n_boot: 100}
 
 
 def test_benchmark_reports_the_jobs_it_used(tmp_path, capsys):
-    from agents.bench.cli import main
+    from valve_gym.agents.bench.cli import main
 
     cfg = tmp_path / "tiny.yaml"
     cfg.write_text(TINY)
@@ -256,7 +256,7 @@ def test_a_yaml_key_given_twice_is_refused_and_merge_keys_still_work(tmp_path):
 
 
 def test_layer_sizes_are_bounded_and_section_messages_are_not_prefixed_twice():
-    from agents.es import ESHyper, load_learned_train_config
+    from valve_gym.agents.es import ESHyper, load_learned_train_config
 
     with pytest.raises(ConfigError, match=r"es.hidden must be a list of layer sizes from 1 to 4096"):
         ESHyper(hidden=(100_000_000, 8))

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents.safe_files import UnsafeFileError, describe_file, load_model_file, refuse_unsafe, save_model_file
+from valve_gym.agents.safe_files import UnsafeFileError, describe_file, load_model_file, refuse_unsafe, save_model_file
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -57,9 +57,9 @@ def _crafted_files(tmp_path, marker):
 
 
 def _loaders():
-    from agents.es import ESState
-    from agents.learned import load_learned
-    from agents.ppo import load_policy, read_policy_meta
+    from valve_gym.agents.es import ESState
+    from valve_gym.agents.learned import load_learned
+    from valve_gym.agents.ppo import load_policy, read_policy_meta
 
     return {"load_model_file": load_model_file, "load_learned": load_learned, "load_policy": load_policy,
             "read_policy_meta": read_policy_meta, "es_checkpoint": ESState.load}
@@ -89,7 +89,7 @@ def test_cli_refuses_pickles_without_running_them(tmp_path):
     cfg = ROOT / "configs" / "learned.yaml"
     for path in (files["policy.zip"], files["raw.pkl"], files["fake.safetensors"]):
         out = tmp_path / f"out_{path.stem}"
-        r = subprocess.run([sys.executable, "-m", "agents.train", "--config", str(cfg), "--out", str(out),
+        r = subprocess.run([sys.executable, "-m", "valve_gym.agents.train", "--config", str(cfg), "--out", str(out),
                             "--resume", str(path), "--no-progress"], capture_output=True, text=True, cwd=ROOT,
                            timeout=120)
         assert r.returncode in (1, 2), r.stderr
@@ -115,7 +115,7 @@ def test_roundtrip_and_corrupt_files(tmp_path):
 
 
 def test_shipped_policies_are_safe_files():
-    pol = ROOT / "agents" / "policies"
+    pol = ROOT / "valve_gym" / "agents" / "policies"
     assert not list(pol.glob("*.zip")) and not list(pol.glob("*.pkl"))
     stems = {p.stem for p in pol.glob("*.safetensors")}
     assert {"learned", "ppo"} <= stems

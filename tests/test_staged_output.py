@@ -106,9 +106,9 @@ def test_an_interrupted_diagnosis_report_leaves_the_previous_report(tmp_path, mo
 
 def test_an_interrupted_benchmark_writes_no_results(tmp_path, monkeypatch):
     """Ctrl-C while the figures are drawn: no results.md beside missing figures."""
-    import agents.bench.cli as bench_cli
-    import agents.bench.figures as figs
-    import agents.bench.report as rep
+    import valve_gym.agents.bench.cli as bench_cli
+    import valve_gym.agents.bench.figures as figs
+    import valve_gym.agents.bench.report as rep
     from valve_gym.cli import main as cli_main
 
     def report(res, out, command=""):

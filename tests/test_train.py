@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 import yaml
 
-from agents.ppo import ObsTransform, TransformVecEnv, load_policy, read_policy_meta
-from agents.train import load_train_config, make_vec_env
+from valve_gym.agents.ppo import ObsTransform, TransformVecEnv, load_policy, read_policy_meta
+from valve_gym.agents.train import load_train_config, make_vec_env
 from valve_gym.cli import main as cli_main
 from valve_gym.config import ConfigError
 
@@ -122,7 +122,7 @@ def test_ppo_smoke_training_checkpoint_and_resume(tmp_path, capsys):
 def test_model_without_tensorboard_folder_makes_no_log_folder(tmp_path, monkeypatch):
     import tempfile
 
-    from agents.train import build_training_env, make_model
+    from valve_gym.agents.train import build_training_env, make_model
 
     scratch = tmp_path / "tmp"
     scratch.mkdir()
@@ -139,7 +139,7 @@ def test_model_without_tensorboard_folder_makes_no_log_folder(tmp_path, monkeypa
 def test_ppo_checkpoint_restores_optimiser_and_rng(tmp_path):
     import torch
 
-    from agents.train import build_training_env, load_ppo_checkpoint, make_model, policy_meta, save_ppo_checkpoint
+    from valve_gym.agents.train import build_training_env, load_ppo_checkpoint, make_model, policy_meta, save_ppo_checkpoint
 
     cfg = load_train_config(TINY)
     env = build_training_env(cfg, 0)
@@ -162,7 +162,7 @@ def test_ppo_checkpoint_restores_optimiser_and_rng(tmp_path):
 
 
 def test_resume_rejects_other_transform(tmp_path):
-    from agents.train import build_training_env, make_model, policy_meta, save_ppo_checkpoint
+    from valve_gym.agents.train import build_training_env, make_model, policy_meta, save_ppo_checkpoint
 
     cfg = load_train_config(TINY)
     env = build_training_env(cfg, 0)
@@ -179,7 +179,7 @@ def test_resume_rejects_other_transform(tmp_path):
 
 def test_shipped_policy_matches_its_config():
     root = Path(__file__).resolve().parents[1]
-    meta = read_policy_meta(str(root / "agents" / "policies" / "ppo.json"))
+    meta = read_policy_meta(str(root / "valve_gym" / "agents" / "policies" / "ppo.json"))
     assert meta["command"].startswith("valve-gym train --config configs/")
     cfg_file = meta["command"].split("--config ")[1].split()[0]
     cfg = load_train_config(root / cfg_file)
@@ -188,7 +188,7 @@ def test_shipped_policy_matches_its_config():
 
         cfg = replace(cfg, seed=int(meta["command"].split("--seed ")[1].split()[0]))
     assert load_train_config(meta["train_config"]) == cfg
-    assert load_train_config(root / "agents" / "policies" / "ppo.yaml") == cfg
+    assert load_train_config(root / "valve_gym" / "agents" / "policies" / "ppo.yaml") == cfg
 
 
 # ----------------------------------------------------------------- the learned compensator (ES)
@@ -208,7 +208,7 @@ def _es_cfg(tmp_path, **over) -> Path:
 
 
 def test_es_resumed_run_equals_uninterrupted(tmp_path, capsys):
-    from agents.safe_files import load_model_file
+    from valve_gym.agents.safe_files import load_model_file
 
     cfg = _es_cfg(tmp_path)
     a, b = tmp_path / "a", tmp_path / "b"
@@ -223,7 +223,7 @@ def test_es_resumed_run_equals_uninterrupted(tmp_path, capsys):
     assert [r["train_fitness_center"] for r in ta.meta["curve"]] == [r["train_fitness_center"]
                                                                      for r in tb.meta["curve"]]
     # the trained block loads without torch and runs as a DCS block
-    from agents.learned import load_learned
+    from valve_gym.agents.learned import load_learned
 
     blk = load_learned(a)
     blk.reset(1.0, 1.0, 0.5)
@@ -268,7 +268,7 @@ def test_sigterm_writes_checkpoint_and_exits_cleanly(tmp_path):
     root = Path(__file__).resolve().parents[1]
     cfg = _es_cfg(tmp_path, es={"generations": 10_000})
     out = tmp_path / "sig"
-    p = subprocess.Popen([sys.executable, "-m", "agents.train", "--config", str(cfg), "--out", str(out)],
+    p = subprocess.Popen([sys.executable, "-m", "valve_gym.agents.train", "--config", str(cfg), "--out", str(out)],
                          cwd=root, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     ck = out / "checkpoints" / "latest.json"
     for _ in range(600):                                          # wait for the first generation
@@ -289,7 +289,7 @@ def test_sigterm_writes_checkpoint_and_exits_cleanly(tmp_path):
 
 
 def test_learned_config_errors(tmp_path):
-    from agents.es import load_learned_train_config
+    from valve_gym.agents.es import load_learned_train_config
 
     for data, key in (({"es": {"pairz": 3}}, "es.pairz"), ({"task": {"friction_models": ["nope"]}}, "nope"),
                       ({"task": {"block": {"g_min": 0.0}}}, "g_min"), ({"es": {"sigma": "1e-2"}}, "es.sigma")):
@@ -297,13 +297,13 @@ def test_learned_config_errors(tmp_path):
             load_learned_train_config({"algorithm": "es", **data})
     bad = tmp_path / "bad.yaml"
     bad.write_text("algorithm: es\nes: {pairz: 3}\n")
-    r = subprocess.run([sys.executable, "-m", "agents.train", "--config", str(bad)], capture_output=True, text=True,
+    r = subprocess.run([sys.executable, "-m", "valve_gym.agents.train", "--config", str(bad)], capture_output=True, text=True,
                        cwd=Path(__file__).resolve().parents[1], env={**os.environ})
     assert r.returncode == 2 and "es.pairz" in r.stderr and "Traceback" not in r.stderr
 
 
 def test_es_fitness_terms_and_reversal_count():
-    from agents.es import ESHyper, RolloutScores, _Reversals, centered_ranks, fitness
+    from valve_gym.agents.es import ESHyper, RolloutScores, _Reversals, centered_ranks, fitness
 
     r = _Reversals(2, 0.01)
     x = np.array([[0.0, 0.0], [0.05, 0.005], [0.02, -0.004], [0.06, 0.003], [0.01, 0.0]])

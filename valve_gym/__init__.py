@@ -6,8 +6,12 @@ Riihilahti / Yamé & El Bahir and optional physics blocks
 (:mod:`valve_gym.friction`: none, Riihilahti, Choudhury, Kano, Karnopp), the
 plant stepper the benchmark and the envs share (:mod:`valve_gym.plant`), loop
 metrics (:mod:`valve_gym.metrics`), YAML configuration
-(:mod:`valve_gym.config`) and Gymnasium environments (:mod:`valve_gym.envs`),
-registered on import (:data:`ENV_IDS`). Less used names live in their modules.
+(:mod:`valve_gym.config`), Gymnasium environments (:mod:`valve_gym.envs`,
+registered on import: :data:`ENV_IDS`), the controllers and the benchmark
+(:mod:`valve_gym.agents`) and the diagnosis tool (:mod:`valve_gym.diagnosis`).
+
+The import is light: it registers the environments with Gymnasium and loads
+every other module (and numba) on first use.
 
 >>> import gymnasium as gym
 >>> import valve_gym
@@ -18,21 +22,10 @@ registered on import (:data:`ENV_IDS`). Less used names live in their modules.
 """
 from __future__ import annotations
 
-import sys as _sys
+import importlib as _importlib
 
-from ._startup import quiet_interrupt_while_loading
-
-quiet_interrupt_while_loading(_sys.argv)   # the ``valve-gym`` command: Ctrl-C while this package loads
-
-from . import metrics  # noqa: E402
-from .config import ConfigError, EnvConfig, load_config  # noqa: E402
-from .core import initial_state, simulate, steady_input, step  # noqa: E402
-from .envs import ENV_IDS, ValveTankEnv, ValveTankVectorEnv, register_envs  # noqa: E402
-from .friction import FRICTION_MODELS, friction_spec, valve_model  # noqa: E402
-from .params import ModelParams, ParameterError, SlipJump, TankParams, ValveParams  # noqa: E402
-from .plant import Plant, PlantOutput  # noqa: E402
-
-__version__ = "0.1.0"
+from ._registration import ENV_IDS, register_envs
+from ._version import __version__
 
 __all__ = [
     # physics: parameters, the one batched core, friction models, the plant stepper
@@ -41,9 +34,38 @@ __all__ = [
     "FRICTION_MODELS", "friction_spec", "valve_model", "Plant", "PlantOutput",
     # configuration and environments
     "EnvConfig", "ConfigError", "load_config", "ValveTankEnv", "ValveTankVectorEnv", "ENV_IDS",
+    "register_envs",
     # modules
     "metrics",
     "__version__",
 ]
+
+#: name -> module that defines it, imported on first access (PEP 562)
+_LAZY = {
+    "ConfigError": "config", "EnvConfig": "config", "load_config": "config",
+    "initial_state": "core", "simulate": "core", "steady_input": "core", "step": "core",
+    "ValveTankEnv": "envs", "ValveTankVectorEnv": "envs",
+    "FRICTION_MODELS": "friction", "friction_spec": "friction", "valve_model": "friction",
+    "ModelParams": "params", "ParameterError": "params", "SlipJump": "params", "TankParams": "params",
+    "ValveParams": "params",
+    "Plant": "plant", "PlantOutput": "plant",
+}
+_SUBMODULES = {"agents", "config", "control", "core", "diagnosis", "effects", "envs", "figures", "fleet",
+               "friction", "lab", "metrics", "params", "plant", "signals"}
+
+
+def __getattr__(name: str):
+    if name in _LAZY:
+        value = getattr(_importlib.import_module(f".{_LAZY[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    if name in _SUBMODULES:
+        return _importlib.import_module(f".{name}", __name__)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__) | _SUBMODULES)
+
 
 register_envs()

@@ -14,12 +14,12 @@ import importlib
 import sys
 
 _COMMANDS = {
-    "benchmark": ("agents.bench.cli", "compensator benchmark: regulation and servo on sticky valves"),
-    "train": ("agents.train", "train the learned compensator (ES) or a PPO policy from a YAML config"),
+    "benchmark": ("valve_gym.agents.bench.cli", "compensator benchmark: regulation and servo on sticky valves"),
+    "train": ("valve_gym.agents.train", "train the learned compensator (ES) or a PPO policy from a YAML config"),
     "figures": ("valve_gym.figures", "write the teaching figures (PNG)"),
     "diagnose": ("valve_gym.diagnosis.cli", "diagnose a recording (or a folder of loops, on Ray): locate the "
                  "mismatch, name the missing physics, rank the valves"),
-    "convert-policy": ("agents.convert", "convert a TRUSTED old pickle-based SB3 zip to safetensors + JSON"),
+    "convert-policy": ("valve_gym.agents.convert", "convert a TRUSTED old pickle-based SB3 zip to safetensors + JSON"),
 }
 
 
@@ -32,9 +32,6 @@ def _usage() -> str:
 
 def main(argv=None) -> int:
     """Run ``valve-gym COMMAND [options]``; returns the exit status."""
-    from ._startup import restore_interrupt
-
-    restore_interrupt()               # the package is loaded: Ctrl-C is KeyboardInterrupt again (below)
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help"):
         print(_usage())

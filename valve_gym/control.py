@@ -1,7 +1,7 @@
 """The PI control law, batched: the one implementation of the PI in valve_gym.
 
 Used by the environment's residual mode, the controller blocks of
-``agents/controllers`` and the figures.
+``valve_gym/agents/controllers`` and the figures.
 
 Velocity (incremental) form, as run by distributed control systems::
 
@@ -12,7 +12,7 @@ cannot run past the output limits), and starting from the current output
 ``u0`` with ``e_{-1} = e_0`` makes the start bumpless.
 
 The same law in positional form with an explicit integral ``I`` (the form of
-the DCS function blocks in :mod:`agents.controllers`) is :func:`pi_scan` and
+the DCS function blocks in :mod:`valve_gym.agents.controllers`) is :func:`pi_scan` and
 :func:`pi_track`::
 
     I_k = I_{k-1} + Kc*Ts/Ti * e_k,     v_k = Kc*e_k + I_k,     u_k = sat(v_k + b_k)

@@ -5,7 +5,7 @@ valve_gym speaks two vocabularies, each used by one layer, and maps them here:
 * the **physics** (:mod:`valve_gym.core`, :mod:`valve_gym.params`,
   :mod:`valve_gym.friction`, the environments' ``info``) uses the paper's symbols:
   level ``L``, valve input ``u``, stem ``h``, friction target ``x``;
-* the **control system** (the DCS blocks of :mod:`agents.controllers`, the
+* the **control system** (the DCS blocks of :mod:`valve_gym.agents.controllers`, the
   benchmark, the recordings the diagnosis reads, :class:`valve_gym.plant.Plant`'s
   output) uses the plant's tag words: set point ``sp``, process variable ``pv``,
   controller output ``op``.

@@ -28,39 +28,7 @@ __all__ = ["ValveTankEnv", "ValveTankVectorEnv", "ValveTankRegulationEnv", "Valv
            "SB3VecEnv", "register_envs", "ENV_IDS",
            "draw_episodes", "make_config"]
 
-#: The registered environment ids.
-ENV_IDS = ("valve_gym/ValveTank-v0", "valve_gym/ValveTankFixed-v0", "valve_gym/ValveTankRegulation-v0")
-
-
-def register_envs() -> None:
-    """Register :data:`ENV_IDS` with Gymnasium (idempotent)."""
-    import gymnasium
-
-    from ..config import EnvConfig, preset
-
-    specs = {
-        "valve_gym/ValveTank-v0": ({}, EnvConfig().episode_steps),
-        "valve_gym/ValveTankFixed-v0": ({"preset": "fixed"}, preset("fixed").episode_steps),
-    }
-    for env_id, (kwargs, steps) in specs.items():
-        if env_id in gymnasium.registry:
-            continue
-        gymnasium.register(
-            id=env_id,
-            entry_point="valve_gym.envs.valve_tank:ValveTankEnv",
-            vector_entry_point="valve_gym.envs.vector:ValveTankVectorEnv",
-            max_episode_steps=steps,
-            kwargs=kwargs,
-        )
-    if "valve_gym/ValveTankRegulation-v0" not in gymnasium.registry:
-        from .regulation import RegulationConfig
-
-        gymnasium.register(
-            id="valve_gym/ValveTankRegulation-v0",
-            entry_point="valve_gym.envs.regulation_env:ValveTankRegulationEnv",
-            vector_entry_point="valve_gym.envs.regulation_env:ValveTankRegulationVectorEnv",
-            max_episode_steps=RegulationConfig().steps,
-        )
+from .._registration import ENV_IDS, register_envs
 
 
 def __getattr__(name):

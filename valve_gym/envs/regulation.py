@@ -5,7 +5,7 @@ Ornstein-Uhlenbeck load inflow and measurement noise, started at steady state: t
 which stiction shows as a limit cycle. This module holds, once, everything the single env
 (:class:`~valve_gym.envs.regulation_env.ValveTankRegulationEnv`), the native vector env
 (:class:`~valve_gym.envs.regulation_env.ValveTankRegulationVectorEnv`) and the learned DCS
-block (:mod:`agents.learned`) must agree on:
+block (:mod:`valve_gym.agents.learned`) must agree on:
 
 * :class:`RegulationConfig` and its validation (the task, loadable from YAML);
 * :func:`draw_scenarios` (the per-episode draw from each sub-env's own generator);

@@ -42,7 +42,7 @@ undecided   oscillates, otherwise                            bump-test the valve
 ==========  ===============================================  =========================================
 
 The compensator named is :data:`COMPENSATOR`, Hägglund's knocker set from the
-stiction estimate ``S`` (``agents.load_controller("knocker", S=...)``).  The
+stiction estimate ``S`` (``valve_gym.agents.load_controller("knocker", S=...)``).  The
 rule follows the regulation part of the compensator benchmark
 (``docs/benchmark.md``, sticky + severe valves, medians with 95 % CIs): the
 knocker removes most of stiction's cost (compensation ratio ``R`` 0.88 [0.79,

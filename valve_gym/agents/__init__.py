@@ -2,12 +2,12 @@
 
 Controllers are DCS function blocks, built by name::
 
-    from agents import load_controller, available_controllers
+    from valve_gym.agents import load_controller, available_controllers
     ctrl = load_controller("two_move", S=0.03)   # "pi", "knocker", "constant_reinforcement", ...
     ctrl.reset(sp, pv, op)                        # bumpless start
     op = ctrl.step(sp, pv)                        # one scan (ctrl.scan_s)
 
-(:mod:`agents.controllers`). RL code calls Stable-Baselines3's batched
+(:mod:`valve_gym.agents.controllers`). RL code calls Stable-Baselines3's batched
 ``predict(obs, state, episode_start, deterministic) -> (actions, state)``
 (:class:`Controller`); :class:`BlockPolicy` gives any block that call, so
 :func:`rollout` runs blocks and PPO policies alike. The benchmark
@@ -26,9 +26,9 @@ Controllers are DCS function blocks, built by name::
 ===============================  ================================================
 
 The learned compensator is ``load_controller("learned")``
-(:mod:`agents.learned`). Per-valve scores: :func:`agents.evaluate.evaluate`;
+(:mod:`valve_gym.agents.learned`). Per-valve scores: :func:`valve_gym.agents.evaluate.evaluate`;
 training (evolution strategies for the learned compensator, PPO for policies):
-:func:`agents.train.train` (``valve-gym train``).
+:func:`valve_gym.agents.train.train` (``valve-gym train``).
 
 The PPO, training and benchmark parts import stable-baselines3/torch on first
 use only.
@@ -41,12 +41,12 @@ from .pi import PIController, default_tuning
 __all__ = ["load_controller", "available_controllers", "BlockPolicy", "Controller", "PIController",
            "default_tuning", "KnockerController", "KNOCKER_DEFAULTS",
            "PPOController", "ObsTransform", "load_policy", "rollout", "Rollout",
-           "run_benchmark", "load_benchmark_config", "load_train_config"]
+           "run_benchmark", "load_train_config"]
 
 _LAZY = {
     "PPOController": "ppo", "ObsTransform": "ppo", "load_policy": "ppo",
     "rollout": "evaluate", "Rollout": "evaluate",
-    "run_benchmark": "benchmark", "load_benchmark_config": "benchmark",
+    "run_benchmark": "bench.pipeline",
     "load_train_config": "train",
 }
 

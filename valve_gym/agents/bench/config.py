@@ -168,7 +168,7 @@ class ServoConfig:
 
 @dataclass(frozen=True)
 class ControllersConfig:
-    """The controller line-up (every block through :func:`agents.load_controller`).
+    """The controller line-up (every block through :func:`valve_gym.agents.load_controller`).
 
     Parameters
     ----------

@@ -3,7 +3,7 @@
 One table maps each name to the block that implements it; the benchmark, the
 environment wrappers and the training evaluation build controllers only
 through :func:`load_controller`, so a controller added here is available to all
-of them. ``"learned"`` is loaded lazily from ``agents.learned`` (its
+of them. ``"learned"`` is loaded lazily from ``valve_gym.agents.learned`` (its
 ``load_learned(path=None, **settings)``), so this module never imports torch.
 """
 from __future__ import annotations
@@ -27,15 +27,15 @@ class ControllerLoadError(ValueError):
 
 def _load_learned(**settings):
     try:
-        mod = importlib.import_module("agents.learned")
+        mod = importlib.import_module("valve_gym.agents.learned")
     except ImportError as exc:
         raise ControllerLoadError(
-            "the learned compensator could not be loaded: module agents.learned is not available "
+            "the learned compensator could not be loaded: module valve_gym.agents.learned is not available "
             f"({exc}); install valve_gym with its agents package, or use another controller: "
             f"{', '.join(available_controllers())}") from exc
     loader = getattr(mod, "load_learned", None)
     if loader is None:
-        raise ControllerLoadError("the learned compensator could not be loaded: agents.learned has no "
+        raise ControllerLoadError("the learned compensator could not be loaded: valve_gym.agents.learned has no "
                                   "load_learned(path=None, **settings)")
     try:
         return loader(**settings)

@@ -2,7 +2,7 @@
 
 Every controller answers the same block interface (:class:`FunctionBlock`)::
 
-    from agents import load_controller
+    from valve_gym.agents import load_controller
     ctrl = load_controller("knocker", S=0.03)   # settings checked, defaults by the paper's rule
     ctrl.reset(sp, pv, op)                       # bumpless start (m, m, 0..1)
     op = ctrl.step(sp, pv)                       # one scan of ctrl.scan_s seconds
@@ -13,7 +13,7 @@ Every controller answers the same block interface (:class:`FunctionBlock`)::
 ``"constant_reinforcement"``   :class:`ConstantReinforcement` (Ivan & Lakshminarayanan 2009)
 ``"two_move"``                 :class:`TwoMove` (Srinivasan & Rengaswamy 2005, 2008)
 ``"integral_freeze"``          :class:`IntegralFreeze` (dead zone in the integral)
-``"learned"``                  ``agents.learned.load_learned`` (loaded on first use)
+``"learned"``                  ``valve_gym.agents.learned.load_learned`` (loaded on first use)
 =============================  ================================================
 """
 from .block import FunctionBlock, Setting

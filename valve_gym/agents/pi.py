@@ -1,12 +1,12 @@
 """PI controller for RL code: SB3's ``predict`` over the ``"pi"`` block.
 
-The control law is the PI function block :class:`agents.controllers.PIBlock`
+The control law is the PI function block :class:`valve_gym.agents.controllers.PIBlock`
 (positional PI, output limits, anti-windup by output tracking, bumpless
 start); :class:`PIController` only gives it the batched ``predict`` of
-:mod:`agents.base` through :class:`agents.base.BlockPolicy`. New code uses
+:mod:`valve_gym.agents.base` through :class:`valve_gym.agents.base.BlockPolicy`. New code uses
 ``load_controller("pi", ...)`` directly. The default tuning (SIMC for the
 default tank, ``Kc = 1.89 1/m``, ``Ti = 42.4 s``) is documented in
-:mod:`agents.controllers.tuning` and re-exported here.
+:mod:`valve_gym.agents.controllers.tuning` and re-exported here.
 """
 from __future__ import annotations
 
@@ -40,7 +40,7 @@ class PIController(BlockPolicy):
     -----
     ``u_k = sat(Kc e_k + I_k)``, ``I_k = I_{k-1} + Kc Ts/Ti e_k``, the
     integral tracking the limits; ``e = sp - y`` from the observation. The
-    state is the block's :class:`agents.controllers.pi.PIBlockState`
+    state is the block's :class:`valve_gym.agents.controllers.pi.PIBlockState`
     ``(integral, op)``; ``state=None`` (or ``episode_start``) starts from the
     observed last valve input, so the first output is that input plus one
     integral step (bumpless). Actions are ``2 u - 1`` (direct mode).

@@ -144,7 +144,7 @@ class LearnedBlock:
     def reset(self, sp, pv, op) -> None:
         """Bumpless start from the current output ``op`` (fraction of stroke); ``sp``, ``pv`` in m.
 
-        The signals are checked as every block's (:func:`~agents.controllers.block.check_inputs`).
+        The signals are checked as every block's (:func:`~valve_gym.agents.controllers.block.check_inputs`).
         """
         (sp_a, pv_a, op_a), n, scalar = check_inputs(self.name, sp=sp, pv=pv, op=op)
         if np.any((op_a < 0) | (op_a > 1)):
@@ -158,7 +158,7 @@ class LearnedBlock:
         """One scan: measurement ``pv`` [m] at set point ``sp`` [m]; returns the output (float or (n,)).
 
         ``sp`` and ``pv`` are checked as every block's
-        (:func:`~agents.controllers.block.check_step_inputs`): finite, and as many loops as
+        (:func:`~valve_gym.agents.controllers.block.check_step_inputs`): finite, and as many loops as
         :meth:`reset` was given (or scalars, shared by all loops).
         """
         law = self._law
@@ -231,7 +231,7 @@ def load_learned(path=None, **settings) -> LearnedBlock:
     ----------
     path : str or path, optional
         A ``.json``/``.safetensors`` learned-block file or a training output folder
-        (``best`` is used); default the shipped ``agents/policies/learned.json``.
+        (``best`` is used); default the shipped ``valve_gym/agents/policies/learned.json``.
     **settings
         Overrides of :class:`~valve_gym.envs.regulation.BlockSettings` (``Kc``, ``Ti``, ``scan_s``,
         ``op_lo``, ``op_hi``: numbers, one for all loops; the network was trained with the stored ones)

@@ -6,13 +6,13 @@
 Two kinds of config:
 
 * ``configs/learned.yaml`` (``algorithm: es``): the learned stiction compensator, trained by
-  evolution strategies on the regulation task (:mod:`agents.es`, :mod:`agents.learned`). Writes
-  ``best.{safetensors,json}`` (best on validation; load with :func:`agents.learned.load_learned`),
+  evolution strategies on the regulation task (:mod:`valve_gym.agents.es`, :mod:`valve_gym.agents.learned`). Writes
+  ``best.{safetensors,json}`` (best on validation; load with :func:`valve_gym.agents.learned.load_learned`),
   ``final.*``, ``curve.csv`` (learning curve), ``checkpoints/latest.*``, ``config.yaml``,
   ``summary.json``.
 * ``configs/ppo_*.yaml`` (:class:`TrainConfig`): a PPO policy (stable-baselines3) on
   ``valve_gym/ValveTank-v0``. Writes ``final.*`` and ``best.*`` (``.safetensors`` + ``.json``;
-  load with :func:`agents.ppo.load_policy`), ``checkpoints/ckpt_<steps>.*`` and
+  load with :func:`valve_gym.agents.ppo.load_policy`), ``checkpoints/ckpt_<steps>.*`` and
   ``checkpoints/latest.*`` (model, optimiser, reward normaliser, RNG states, step count),
   ``tb/``, ``config.yaml``, ``eval.csv``, ``summary.json``.
 
@@ -140,7 +140,7 @@ class PPOHyper:
 
 @dataclass(frozen=True)
 class ObsConfig:
-    """Observation wrappers (see :class:`agents.ppo.ObsTransform`)."""
+    """Observation wrappers (see :class:`valve_gym.agents.ppo.ObsTransform`)."""
 
     frame_stack: int = 1
     deltas: bool = False

@@ -34,7 +34,7 @@ op_lo     -       lower output limit                           0.0
 op_hi     -       upper output limit                           1.0
 ========  ======  ==========================================  ============
 
-The SIMC defaults are :func:`agents.controllers.tuning.default_tuning` for the
+The SIMC defaults are :func:`valve_gym.agents.controllers.tuning.default_tuning` for the
 default tank at ``scan_s``.
 
 References

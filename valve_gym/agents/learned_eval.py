@@ -1,8 +1,8 @@
 """Check a learned compensator against the targets of the regulation benchmark, on seeds of one's own.
 
-``python -m agents.learned_eval [--policy PATH] [--n 90] [--seed 424242] [--noise 0.002]``
+``python -m valve_gym.agents.learned_eval [--policy PATH] [--n 90] [--seed 424242] [--noise 0.002]``
 
-Runs the benchmark's regulation part (:mod:`agents.bench`: same scenario generator, same runner,
+Runs the benchmark's regulation part (:mod:`valve_gym.agents.bench`: same scenario generator, same runner,
 same scores) on ``n`` loops drawn with ``--seed`` (pick one that is not the benchmark's), for the
 frictionless PI, the SIMC PI, a PI with twice its gain (is the gain compensation or just a faster
 controller?), the classical compensators with the true stiction estimate, and the learned block;
@@ -30,14 +30,14 @@ def _groups(scen) -> dict:
 
 def evaluate_learned(path=None, n: int = 90, seed: int = 424242, compensators: bool = True,
                      noise_std: float | None = None) -> dict:
-    """Scores (``agents.bench.scores.LoopScores`` by label) and the scenarios; see the module docstring.
+    """Scores (``valve_gym.agents.bench.scores.LoopScores`` by label) and the scenarios; see the module docstring.
 
     ``noise_std`` (m) replaces the benchmark's measurement noise of the regulation loops.
     """
-    from agents.bench.config import load_bench_config
-    from agents.bench.runner import ControllerSpec, lineup, run_loops, run_spec
-    from agents.bench.scenarios import regulation_scenarios
-    from agents.bench.scores import score_runs
+    from valve_gym.agents.bench.config import load_bench_config
+    from valve_gym.agents.bench.runner import ControllerSpec, lineup, run_loops, run_spec
+    from valve_gym.agents.bench.scenarios import regulation_scenarios
+    from valve_gym.agents.bench.scores import score_runs
 
     from .learned import load_learned
 
@@ -59,7 +59,7 @@ def evaluate_learned(path=None, n: int = 90, seed: int = 424242, compensators: b
 
 
 def _table(res: dict) -> str:
-    from agents.bench.scores import compensation_ratio
+    from valve_gym.agents.bench.scores import compensation_ratio
 
     sc, scen = res["scores"], res["scenarios"]
     floor = res["config"].scores.r_floor
@@ -84,7 +84,7 @@ def _table(res: dict) -> str:
 
 def _by_model(res: dict) -> str:
     """Sticky + severe loops by friction model: median R and LC share of the learned block against the SIMC PI."""
-    from agents.bench.scores import compensation_ratio
+    from valve_gym.agents.bench.scores import compensation_ratio
 
     sc, scen = res["scores"], res["scenarios"]
     if "learned" not in sc:
@@ -105,7 +105,7 @@ def _by_model(res: dict) -> str:
 
 def main(argv=None) -> int:
     """Command line; exit 0 done, 1 failed, 2 bad usage."""
-    p = argparse.ArgumentParser(prog="python -m agents.learned_eval", description=(__doc__ or "").split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="python -m valve_gym.agents.learned_eval", description=(__doc__ or "").split("\n\n")[0])
     p.add_argument("--policy", default=None, help="learned block (.json or training folder); default the shipped")
     p.add_argument("--n", type=int, default=90, help="loops (default 90)")
     p.add_argument("--seed", type=int, default=424242, help="scenario seed (not the benchmark's)")

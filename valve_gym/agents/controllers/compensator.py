@@ -1,6 +1,6 @@
 """What the stiction compensators share: the wrapped PI, ``S`` and the noise-robust direction.
 
-A compensator is a :class:`~agents.controllers.pi.PIBlock` plus a law that adds to
+A compensator is a :class:`~valve_gym.agents.controllers.pi.PIBlock` plus a law that adds to
 its output (composition: the PI is an attribute, :attr:`Compensator.pi`). Its
 settings are the PI's (``Kc``, ``Ti``, ``detune``, ``scan_s``, ``op_lo``,
 ``op_hi``) plus the stiction estimate ``S`` (stick band plus dead band,

@@ -3,8 +3,8 @@
 The law (Hägglund 2002: pulses of amplitude ``a``, width ``tau_k``, every
 ``h_k``, in the direction of the change of the PI's integral part) and the
 rule for its parameters from the stiction estimate ``S`` are documented in
-:mod:`agents.controllers.knocker`; :class:`KnockerController` gives that
-block the batched ``predict`` of :mod:`agents.base`. New code uses
+:mod:`valve_gym.agents.controllers.knocker`; :class:`KnockerController` gives that
+block the batched ``predict`` of :mod:`valve_gym.agents.base`. New code uses
 ``load_controller("knocker", S=...)`` directly.
 """
 from __future__ import annotations

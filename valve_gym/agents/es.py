@@ -2,7 +2,7 @@
 
 ``valve-gym train --config configs/learned.yaml --out runs/learned --seed S``
 
-The policy is the network inside the learned block (:mod:`agents.learned`); it is trained by
+The policy is the network inside the learned block (:mod:`valve_gym.agents.learned`); it is trained by
 natural evolution strategies with antithetic sampling, centred-rank fitness shaping and Adam
 (Salimans et al. 2017), a policy-search reinforcement-learning method that optimises the
 episode's return directly, with deterministic policies, common random numbers for the whole
@@ -243,7 +243,7 @@ def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None, lc: b
     Parameters
     ----------
     policies : list
-        Each ``None`` (the plain PI) or a weights dict of :func:`agents.learned.mlp_forward`.
+        Each ``None`` (the plain PI) or a weights dict of :func:`valve_gym.agents.learned.mlp_forward`.
     task : RegulationConfig
     seeds : sequence of int
     obs_norm : (mean, std), optional

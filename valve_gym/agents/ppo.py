@@ -14,7 +14,7 @@ by ``state_dict`` name) + ``NAME.json`` (architecture, observation transform,
 environment action mode and settings, training command, versions);
 :func:`load_policy` evaluates the deterministic actor in numpy and never
 unpickles anything (SB3 ``.zip`` files are refused, see
-:mod:`agents.convert` for converting a trusted one).
+:mod:`valve_gym.agents.convert` for converting a trusted one).
 """
 from __future__ import annotations
 
@@ -321,7 +321,7 @@ def load_policy(path: str, name: str | None = None, device: str = "cpu") -> PPOC
 
     Raises
     ------
-    agents.safe_files.UnsafeFileError
+    valve_gym.agents.safe_files.UnsafeFileError
         For an SB3 ``.zip`` or any pickle: never unpickled (the message says how to convert a trusted one).
     """
     from .safe_files import load_model_file, refuse_unsafe
@@ -332,7 +332,7 @@ def load_policy(path: str, name: str | None = None, device: str = "cpu") -> PPOC
     meta = mf.meta
     if meta.get("format") != POLICY_FORMAT:
         raise ValueError(f"{path} is not a PPO policy file (format {meta.get('format')!r}, expected "
-                         f"{POLICY_FORMAT!r}); a learned compensator loads with agents.learned.load_learned")
+                         f"{POLICY_FORMAT!r}); a learned compensator loads with valve_gym.agents.learned.load_learned")
     arch = meta.get("architecture", {})
     model = NumpyActor(mf.tensors, arch.get("activation_fn", "tanh"))
     tf = ObsTransform.from_dict(meta.get("obs_transform"))

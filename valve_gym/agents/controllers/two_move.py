@@ -12,7 +12,7 @@ State machine (one loop; all loops run it side by side)
 ``NORMAL``
     PI output. The direction of the PI's integral part is followed with the
     noise-robust hysteresis of
-    :func:`agents.controllers.compensator.integral_direction`; at each
+    :func:`valve_gym.agents.controllers.compensator.integral_direction`; at each
     reversal the extreme PI output of the phase that ended is kept
     (``u_hi`` after a rise, ``u_lo`` after a fall). At the third or a later
     reversal (so a whole cycle lies between reversals, not the approach to the

@@ -112,7 +112,7 @@ def rollout(controller, env, seeds: int | Sequence[int] | None = 0,
     Parameters
     ----------
     controller : Controller
-        Anything with the batched ``predict`` of :class:`agents.base.Controller`.
+        Anything with the batched ``predict`` of :class:`valve_gym.agents.base.Controller`.
     env : ValveTankVectorEnv
         Built by :func:`make_eval_env` (autoreset disabled).
     seeds : int or sequence of int
@@ -217,7 +217,7 @@ def evaluate(controller, valves: Mapping[str, Sequence[float]] | None = None, n:
 
     Examples
     --------
-    >>> from agents import PIController
+    >>> from valve_gym.agents import PIController
     >>> df = evaluate(PIController(), {"z_max": [0.005, 0.3], "e_dead": [0.0, 0.02]}, seed=1)
     >>> list(df["valve"]), bool(df.loc[1, "iae"] > 0)
     ([0, 1], True)

@@ -15,7 +15,7 @@ part since the previous pulse, as in the paper: the raw output difference
 contains ``Kc`` times the change of the measurement noise and would flip the
 pulses at random; the integral part moves only with the sign of the error.
 No change, no pulse. The pulses never enter the PI's integral (it tracks only
-the output limits, :meth:`agents.controllers.pi.PIBlock.finish`).
+the output limits, :meth:`valve_gym.agents.controllers.pi.PIBlock.finish`).
 
 Parameters from the stiction estimate ``S`` (defaults)
 ------------------------------------------------------

@@ -1,7 +1,7 @@
 """Runs: every loop of a part under one controller, batched, one scan at a time.
 
-A controller is a DCS block from :func:`agents.load_controller` driving all
-``n`` loops of a :class:`~agents.bench.scenarios.Scenarios` at once (one
+A controller is a DCS block from :func:`valve_gym.agents.load_controller` driving all
+``n`` loops of a :class:`~valve_gym.agents.bench.scenarios.Scenarios` at once (one
 ``step`` call per scan over ``(n,)`` arrays). Valves come from
 :func:`valve_gym.friction.valve_model` and the plant from
 :class:`valve_gym.plant.Plant`, one batched plant per friction model.
@@ -45,7 +45,7 @@ class ControllerSpec:
     label : str
         Row name in the results (e.g. ``"knocker"``, ``"knocker S x0.5"``, ``"PI Kc x0.5"``).
     name : str
-        Name for :func:`agents.load_controller`.
+        Name for :func:`valve_gym.agents.load_controller`.
     family : str
         ``"frictionless"``, ``"pi"``, ``"detuned"``, ``"compensator"`` or ``"learned"``.
     settings : tuple of (str, float)
@@ -131,8 +131,8 @@ def make_plant(params, n: int, scan_s: float):
 
 
 def controller_loader() -> Callable:
-    """:func:`agents.load_controller`."""
-    from agents import load_controller
+    """:func:`valve_gym.agents.load_controller`."""
+    from valve_gym.agents import load_controller
 
     return load_controller
 
@@ -221,7 +221,7 @@ def run_loops(ctrl, scenarios: Scenarios, *, frictionless: bool = False, label: 
     Parameters
     ----------
     ctrl : block
-        A controller from :func:`agents.load_controller` (``reset(sp, pv, op)``, ``step(sp, pv)``).
+        A controller from :func:`valve_gym.agents.load_controller` (``reset(sp, pv, op)``, ``step(sp, pv)``).
     scenarios : Scenarios
     frictionless : bool, optional
         Use each loop's frictionless valve instead of its sticky one.

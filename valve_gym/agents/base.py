@@ -1,8 +1,8 @@
 """The SB3 ``predict`` interface for RL code, and its adapter over the DCS blocks.
 
-Controllers are DCS function blocks (:mod:`agents.controllers`,
+Controllers are DCS function blocks (:mod:`valve_gym.agents.controllers`,
 ``reset(sp, pv, op)`` / ``step(sp, pv)``); RL code (Stable-Baselines3's
-evaluation loops, :mod:`agents.evaluate`) calls ``predict`` instead.
+evaluation loops, :mod:`valve_gym.agents.evaluate`) calls ``predict`` instead.
 :class:`BlockPolicy` gives any block that call, so the same PI or compensator
 runs in both worlds.
 
@@ -18,7 +18,7 @@ valve of a vector environment, and returns ``actions`` of shape ``(n, 1)``
 controller from the observation (bumpless); rows where ``episode_start`` is
 true are restarted the same way. This is the contract of SB3's
 ``BasePolicy.predict`` and of its recurrent policies, so the one evaluation
-loop of :mod:`agents.evaluate` runs all controllers alike.
+loop of :mod:`valve_gym.agents.evaluate` runs all controllers alike.
 
 Observation layout (columns of ``obs``), as produced by
 :class:`valve_gym.envs.ValveTankEnv`:
@@ -135,7 +135,7 @@ def _batch_size(state) -> int:
 
 
 class BlockPolicy:
-    """SB3-style ``predict`` over a DCS block (:class:`agents.controllers.FunctionBlock`).
+    """SB3-style ``predict`` over a DCS block (:class:`valve_gym.agents.controllers.FunctionBlock`).
 
     Parameters
     ----------
@@ -154,7 +154,7 @@ class BlockPolicy:
 
     Examples
     --------
-    >>> from agents.controllers import load_controller
+    >>> from valve_gym.agents.controllers import load_controller
     >>> pol = BlockPolicy(load_controller("pi", Kc=1.0, Ti=10.0))
     >>> a, s = pol.predict(np.array([[0.9, 1.0, 0.1, 0.5], [1.0, 1.0, 0.0, 0.3]]))
     >>> np.round((a[:, 0] + 1) / 2, 3)   # 0.5 + 1/10*0.1, and unchanged

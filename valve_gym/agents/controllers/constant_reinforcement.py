@@ -28,7 +28,7 @@ measures both).
 
 Direction robust to noise: ``d`` is the direction of the PI's **integral
 part** with the hysteresis of
-:func:`agents.controllers.compensator.integral_direction` (``hyst`` default
+:func:`valve_gym.agents.controllers.compensator.integral_direction` (``hyst`` default
 ``3 Kc noise sqrt(Ts/Ti)``, 0.0017 for the default loop and 2 mm noise), so
 measurement noise does not flip the reinforcement every scan (the raw
 ``sign(Delta u)`` would: ``Delta u`` contains ``Kc`` times the noise's

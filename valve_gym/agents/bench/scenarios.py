@@ -105,7 +105,7 @@ def band_labels(config: BenchConfig, n: int | None = None) -> np.ndarray:
     Returns
     -------
     (n,) ndarray of str
-        Band names, grouped in the order of :data:`~agents.bench.config.BAND_NAMES`.
+        Band names, grouped in the order of :data:`~valve_gym.agents.bench.config.BAND_NAMES`.
     """
     counts = np.array([getattr(config.bands, b).n for b in BAND_NAMES], float)
     if n is None:
@@ -175,7 +175,7 @@ def regulation_scenarios(config: BenchConfig, n: int | None = None, seed: int | 
 
     Examples
     --------
-    >>> from agents.bench.config import BenchConfig
+    >>> from valve_gym.agents.bench.config import BenchConfig
     >>> sc = regulation_scenarios(BenchConfig(), n=6, seed=1)
     >>> sc.n, sc.n_steps, sorted(str(b) for b in set(sc.band))
     (6, 3600, ['healthy', 'severe', 'sticky'])

@@ -1,11 +1,11 @@
 """Convert a trusted old pickle-based policy (SB3 ``.zip``) to safetensors + JSON.
 
-``python -m agents.convert --trust-pickle IN.zip OUT``
+``python -m valve_gym.agents.convert --trust-pickle IN.zip OUT``
 
 Loading an SB3 ``.zip`` unpickles it, which runs any code the file carries: do this only for a file
 whose origin you trust (e.g. one you trained yourself with an older valve-gym). Every other
 command refuses such files. The output ``OUT.safetensors`` + ``OUT.json`` loads with
-:func:`agents.ppo.load_policy` without unpickling.
+:func:`valve_gym.agents.ppo.load_policy` without unpickling.
 """
 from __future__ import annotations
 
