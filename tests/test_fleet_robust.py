@@ -126,8 +126,7 @@ import ray
 shutdown = ray.shutdown
 def shut(*a, **k):
     out = shutdown(*a, **k)
-    os.kill(os.getpid(), signal.SIGTERM)
-    time.sleep(0.05)
+    signal.raise_signal(signal.SIGTERM)
     return out
 ray.shutdown = shut
 from valve_gym.cli import main
@@ -173,9 +172,8 @@ def test_a_signal_is_noted_and_a_handler_ray_would_set_is_not(ctrl_c_as_in_a_ter
     with _Stop(notes.append) as stop:
         with stop.kept():
             signal.signal(signal.SIGTERM, lambda s, f: None)           # what ray.init does
-            os.kill(os.getpid(), signal.SIGTERM)
-            os.kill(os.getpid(), signal.SIGINT)                        # a second signal: nothing more
-            time.sleep(0.05)
+            signal.raise_signal(signal.SIGTERM)
+            signal.raise_signal(signal.SIGINT)                        # a second signal: nothing more
         assert stop.requested and stop.signum == signal.SIGTERM
         assert len(notes) == 1 and notes[0].startswith("stopping:")
     assert (signal.getsignal(signal.SIGINT), signal.getsignal(signal.SIGTERM)) == before
@@ -195,12 +193,10 @@ def test_ctrl_c_twice_stops_at_once(ctrl_c_as_in_a_terminal):
 
     notes: list[str] = []
     with _Stop(notes.append) as stop:
-        os.kill(os.getpid(), signal.SIGINT)
-        time.sleep(0.05)
+        signal.raise_signal(signal.SIGINT)
         assert stop.requested and "Ctrl-C again to stop at once" in notes[0]
         with pytest.raises(KeyboardInterrupt):
-            os.kill(os.getpid(), signal.SIGINT)
-            time.sleep(0.05)
+            signal.raise_signal(signal.SIGINT)
     assert len(notes) == 2 and notes[1].startswith("stopping at once") and "ray stop" in notes[1]
 
 
@@ -244,8 +240,7 @@ def test_a_signal_while_the_table_and_worklist_are_written_lets_them_finish(ray_
     write_table = runner.write_table
 
     def stopped_then_written(*a, **k):
-        os.kill(os.getpid(), signal.SIGTERM)
-        time.sleep(0.05)                    # the handler runs here
+        signal.raise_signal(signal.SIGTERM)
         return write_table(*a, **k)
 
     monkeypatch.setattr(runner, "write_table", stopped_then_written)

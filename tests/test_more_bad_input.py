@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import io
 import os
-import time
 
 import gymnasium as gym
 import numpy as np
@@ -58,10 +57,9 @@ def test_cli_refuses_out_that_is_the_input_folder_before_any_work(recs, tmp_path
     link = tmp_path / "link"
     link.symlink_to(recs, target_is_directory=True)
     for out in (recs, f"{recs}/.", link):                 # the same folder, however spelled
-        t0 = time.perf_counter()
         code = cli.main([str(recs), "--op-range", "0,100", "--out", str(out), "--quiet"])
         err = capsys.readouterr().err
-        assert code == 2 and "Traceback" not in err and time.perf_counter() - t0 < 5
+        assert code == 2 and "Traceback" not in err
         assert f"--out {str(out)!r} is the input folder itself" in err
         assert "would be written among the recordings; give another folder, e.g." in err
         assert "fleet2-fleet" in err
@@ -157,7 +155,6 @@ def test_learned_step_with_another_number_of_loops_says_so_as_the_other_blocks()
 
 # --------------------------------------------------------------------------- 3. episode length bound
 def test_an_episode_too_long_for_memory_is_a_config_error():
-    t0 = time.perf_counter()
     with pytest.raises(ConfigError) as e:
         gym.make("valve_gym/ValveTank-v0", config={"episode_seconds": 1e12})
     msg = str(e.value)
@@ -167,7 +164,6 @@ def test_an_episode_too_long_for_memory_is_a_config_error():
     with pytest.raises(ConfigError, match=r"^episode_s = 1e\+12 s is 1e\+12 steps of block.scan_s = 1 s; at most "
                                           r"1,000,000 steps"):
         gym.make("valve_gym/ValveTankRegulation-v0", config={"episode_s": 1e12})
-    assert time.perf_counter() - t0 < 5
     # the bound counts steps: a longer control period allows a longer episode; the documented ones pass
     EnvConfig(episode_seconds=float(MAX_EPISODE_STEPS))
     EnvConfig(control_period=2.0, episode_seconds=2.0 * MAX_EPISODE_STEPS)
@@ -201,9 +197,7 @@ def test_benchmark_reports_the_jobs_it_used(tmp_path, capsys):
     cfg = tmp_path / "tiny.yaml"
     cfg.write_text(TINY)
     out = tmp_path / "res"
-    t0 = time.perf_counter()
     assert main(["--config", str(cfg), "--out", str(out), "--jobs", "1000", "--no-figures", "--no-progress"]) == 0
-    assert time.perf_counter() - t0 < 10
     said = capsys.readouterr().out
     # two controllers (PI frictionless, PI (SIMC)) x two parts = 4 tasks: 4 processes, not 1000
     assert "with 4 job(s) (1000 asked; only 4 tasks); wrote" in said and "1000 job(s)" not in said

@@ -35,8 +35,8 @@ Range = tuple[float, float]
 #: Band names, in table order.
 BAND_NAMES = ("healthy", "sticky", "severe")
 
-#: The shipped configuration (equal to the defaults of :class:`BenchConfig`).
-DEFAULT_CONFIG_PATH = Path(__file__).resolve().parents[2] / "configs" / "benchmark.yaml"
+#: The configuration file of a source checkout (equal to the defaults of :class:`BenchConfig`).
+DEFAULT_CONFIG_PATH = Path(__file__).resolve().parents[3] / "configs" / "benchmark.yaml"
 
 
 def _check_range(path: str, r: Range, lo: float, hi: float) -> None:
