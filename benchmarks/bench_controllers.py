@@ -21,8 +21,8 @@ import time
 
 import numpy as np
 
-from valve_gym.agents import load_controller
 from valve_gym import core
+from valve_gym.agents import load_controller
 from valve_gym.params import ModelParams, SlipJump
 
 NAMES = ("pi", "knocker", "constant_reinforcement", "two_move", "integral_freeze")

@@ -1,5 +1,4 @@
 """``valve-gym benchmark --quick``: every file written, every controller and band scored; bad input rejected."""
-from pathlib import Path
 
 import numpy as np
 import pandas as pd

@@ -139,7 +139,13 @@ def test_model_without_tensorboard_folder_makes_no_log_folder(tmp_path, monkeypa
 def test_ppo_checkpoint_restores_optimiser_and_rng(tmp_path):
     import torch
 
-    from valve_gym.agents.train import build_training_env, load_ppo_checkpoint, make_model, policy_meta, save_ppo_checkpoint
+    from valve_gym.agents.train import (
+        build_training_env,
+        load_ppo_checkpoint,
+        make_model,
+        policy_meta,
+        save_ppo_checkpoint,
+    )
 
     cfg = load_train_config(TINY)
     env = build_training_env(cfg, 0)
@@ -297,7 +303,8 @@ def test_learned_config_errors(tmp_path):
             load_learned_train_config({"algorithm": "es", **data})
     bad = tmp_path / "bad.yaml"
     bad.write_text("algorithm: es\nes: {pairz: 3}\n")
-    r = subprocess.run([sys.executable, "-m", "valve_gym.agents.train", "--config", str(bad)], capture_output=True, text=True,
+    r = subprocess.run([sys.executable, "-m", "valve_gym.agents.train", "--config", str(bad)], capture_output=True,
+                       text=True,
                        cwd=Path(__file__).resolve().parents[1], env={**os.environ})
     assert r.returncode == 2 and "es.pairz" in r.stderr and "Traceback" not in r.stderr
 
