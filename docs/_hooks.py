@@ -6,6 +6,10 @@ there (and ``mkdocs build --strict`` fails on it). This hook turns each into
 the link text followed by the file's repository path in code, e.g.
 ``text (`valve_gym/data/README.md` in the repository)``. Links inside
 ``docs/`` are left to MkDocs, which checks them.
+
+It also drops the Sphinx roles (``:func:``, ``:class:``, ...) that the API
+reference would otherwise print in front of each name, and the ``~`` that
+shortens a name in Sphinx.
 """
 from __future__ import annotations
 
@@ -13,6 +17,9 @@ import posixpath
 import re
 
 _LINK = re.compile(r"(?<!!)\[([^\]]*)\]\(([^)\s]+)\)")
+#: a Sphinx cross-reference role left in front of the code it marks (the docstrings are numpydoc, written
+#: for Sphinx too): ``:func:`~valve_gym.metrics.travel``` renders as ``:func:<code>~valve_gym...</code>``
+_ROLE = re.compile(r":(?:py:)?(?:func|mod|class|meth|data|attr|exc|obj|const|term|ref):(<code[^>]*>)~?")
 _FENCE = re.compile(r"^(```|~~~)")
 
 
@@ -44,3 +51,8 @@ def on_page_markdown(markdown: str, page, config, files):
             line = _LINK.sub(repl, line)
         out.append(line)
     return "\n".join(out)
+
+
+def on_page_content(html: str, page, config, files):
+    """Drop Sphinx roles printed in front of inline code (the API reference)."""
+    return _ROLE.sub(r"\1", html)

@@ -7,7 +7,8 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")), ROOT / "valve_gym" / "agents" / "policies" / "README.md"]
+PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md")),
+         ROOT / "valve_gym" / "agents" / "policies" / "README.md"]
 LINK = re.compile(r"\]\(([^)\s]+)\)")
 
 

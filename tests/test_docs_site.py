@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import importlib.util
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -80,3 +81,11 @@ def test_links_out_of_docs_become_repository_paths():
     assert "[fleet](fleet.md#ray)" in out and "![fig](figures/a.png)" in out
     assert "`valve_gym/x.py`" in out and "(../valve_gym/x.py)" not in out
     assert "[web](https://example.org)" in out and "[in code](../keep.md)" in out
+
+
+def test_sphinx_roles_are_dropped_from_the_api_pages(site):
+    html = (site / "api" / "core" / "index.html").read_text(encoding="utf-8")
+    assert "simulate" in html and re.search(r":(func|class|mod|meth|data):<code", html) is None
+    hooks = _hooks()
+    assert hooks.on_page_content(":func:<code>~valve_gym.metrics.travel</code> a:b", None, None, None) == \
+        "<code>valve_gym.metrics.travel</code> a:b"
