@@ -185,6 +185,8 @@ class ValveTankEnv(gym.Env):
         every seed.
     render_mode : {None, 'rgb_array'}
 
+    Notes
+    -----
     ``reset(seed=..., options={'z_max': 0.2, 'e_dead': ..., 'tau': ..., 'v_max': ...})``
     pins valve parameters for that episode (any subset; the other draws are
     unchanged). ``info`` has, at reset and after each step (floats):
