@@ -1,2 +1,2 @@
 """The version of valve_gym, in one place (pyproject.toml reads it)."""
-__version__ = "0.2.0.dev0"
+__version__ = "0.2.0"
