@@ -46,6 +46,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ._io import folder_problem
 from .control import PIParams, pi_init, pi_step
 from .core import array_to_state, initial_state, pack, run_packed, state_to_array
 from .params import ModelParams, ValveParams
@@ -723,11 +724,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not 20 <= args.dpi <= 600:
         ap.error(f"--dpi must be between 20 and 600, got {args.dpi}")
     out = args.out
-    try:
-        os.makedirs(out, exist_ok=True)
-    except OSError as exc:
-        print(f"valve-gym figures: cannot create the output folder {out!r}: {exc}", file=sys.stderr)
-        return 1
+    why = folder_problem(out) if out.strip() else "empty; give an output folder"
+    if not why:
+        try:
+            os.makedirs(out, exist_ok=True)
+        except OSError as exc:
+            why = f"cannot create the output folder ({exc.strerror or exc})"
+    if why:
+        print(f"valve-gym figures: --out {out}: {why}", file=sys.stderr)
+        return 2
 
     jobs = [
         ("valve input vs stem position (slow sine)", "valve_io.png", valve_io_data, plot_valve_io),

@@ -316,16 +316,18 @@ def concealed_suite(n_per_effect: int = 6, n_none: int = 12, seed: int = 0, n: i
 def write_csv(rec: Recording, path, percent: bool = True) -> None:
     """Write a recording as CSV (``t_s, OP, PV, SP``; OP in percent if ``percent``)."""
     import csv
-    import os
-    tmp = f"{path}.tmp{os.getpid()}"
-    with open(tmp, "w", newline="") as f:
-        w = csv.writer(f)
-        cols = ["t_s", "OP", "PV"] + (["SP"] if rec.sp is not None else [])
-        w.writerow(cols)
-        op = rec.op * (100.0 if percent else 1.0)
-        for k in range(len(rec)):
-            row = [f"{rec.t[k]:.6g}", f"{op[k]:.8g}", f"{rec.pv[k]:.8g}"]
-            if rec.sp is not None:
-                row.append(f"{rec.sp[k]:.8g}")
-            w.writerow(row)
-    os.replace(tmp, path)
+    import io
+
+    from .._io import write_atomic
+    f = io.StringIO(newline="")
+    w = csv.writer(f)
+    cols = ["t_s", "OP", "PV"] + (["SP"] if rec.sp is not None else [])
+    w.writerow(cols)
+    op = rec.op * (100.0 if percent else 1.0)
+    for k in range(len(rec)):
+        row = [f"{rec.t[k]:.6g}", f"{op[k]:.8g}", f"{rec.pv[k]:.8g}"]
+        if rec.sp is not None:
+            row.append(f"{rec.sp[k]:.8g}")
+        w.writerow(row)
+    text = f.getvalue()
+    write_atomic(path, lambda fh: fh.write(text.encode("utf-8")))
