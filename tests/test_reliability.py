@@ -175,7 +175,7 @@ def test_configured_pv_range_catches_historian_codes_per_loop():
     c = load_controller("pi", pv_range=(0.0, 2.0))
     c.reset([1.0, 1.0], [1.0, 1.0], [0.5, 0.5])
     with pytest.warns(RuntimeWarning, match=r"loop\(s\) \[0\]"):
-        u = c.step(1.0, [9999.0, 0.9])
+        u = np.asarray(c.step(1.0, [9999.0, 0.9]))
     assert u[0] == 0.5 and u[1] > 0.5 and c.held.tolist() == [True, False]
     with pytest.raises(ValueError, match="pv_range"):
         load_controller("pi", pv_range=(2.0, 0.0))
