@@ -11,7 +11,7 @@ plain numpy arrays, so the numbers can be checked without plotting:
 * :func:`closed_loop_pi` -- the tank level loop under the batched PI law of
   :mod:`valve_gym.control`;
 * :func:`limit_cycle_data` -- that loop for low, medium and high friction, and
-  the limit cycle measured on each by :func:`valve_gym.metrics.limit_cycle`.
+  the limit cycle measured on each by :func:`valve_gym.oscillation.detect_oscillation`.
 
 The ``plot_*`` functions draw one figure each (matplotlib is imported only
 there, with the non-interactive Agg backend) and :func:`main` writes them all.
@@ -432,11 +432,12 @@ class LimitCycleCase(NamedTuple):
     present : bool
         A regular oscillation was found in the level error (last part of the run).
     amplitude : float, m
-        Half peak-to-peak of the level oscillation (0 when not present).
+        Half peak-to-peak of the level oscillation, median over windows one period long
+        (0 when not present).
     period : float, s
         Oscillation period (``inf`` when not present).
     n_cycles : int
-        Whole cycles measured.
+        Whole periods in the measured part of the record (0 when not present).
     Kc : float, 1/m
         Controller gain used.
     Ti : float, s
@@ -463,8 +464,8 @@ def limit_cycle_data(levels=FRICTION_LEVELS, Kc: float = 1.0, Ti: float = 30.0,
     1 m with the stem at its steady opening; the set point ``sp`` is applied at
     t = 0 (a set-point step, which is what sets the sticky loop cycling: with
     ``sp = 1`` the loop would stay at rest). The oscillation is measured with
-    :func:`valve_gym.metrics.limit_cycle` on the error ``sp - pv`` after the
-    first ``settle`` seconds.
+    :func:`valve_gym.oscillation.detect_oscillation` (benchmark rule) on the
+    error ``sp - pv`` after the first ``settle`` seconds.
 
     Parameters
     ----------
@@ -487,7 +488,7 @@ def limit_cycle_data(levels=FRICTION_LEVELS, Kc: float = 1.0, Ti: float = 30.0,
     -------
     list of LimitCycleCase
     """
-    from .metrics import limit_cycle
+    from .oscillation import detect_oscillation
 
     valve = ValveParams(tau=HEALTHY.tau, v_max=HEALTHY.v_max,
                         z_max=np.array([lv[1] for lv in levels], float),
@@ -498,10 +499,11 @@ def limit_cycle_data(levels=FRICTION_LEVELS, Kc: float = 1.0, Ti: float = 30.0,
     out = []
     for j, (name, zm, ed) in enumerate(levels):
         one = ClosedLoopResult(*(a if a.ndim == 1 else a[:, j:j + 1] for a in run))
-        lc = limit_cycle(one.sp[k0:, 0] - one.pv[k0:, 0], control_period)
+        lc = detect_oscillation(one.sp[k0:, 0] - one.pv[k0:, 0], control_period, "benchmark")
         out.append(LimitCycleCase(name=name, valve=replace(HEALTHY, z_max=zm, e_dead=ed), run=one,
                                   present=bool(lc.present), amplitude=float(lc.amplitude),
-                                  period=float(lc.period), n_cycles=int(lc.n_cycles),
+                                  period=float(lc.period_s) if lc.present else float("inf"),
+                                  n_cycles=int(lc.n_cycles) if lc.present else 0,
                                   Kc=float(Kc), Ti=float(Ti)))
     return out
 

@@ -258,7 +258,7 @@ def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None, lc: b
     obs_norm : (mean, std), optional
         Observation normaliser of the networks.
     lc : bool
-        Run the limit-cycle detector of the benchmark (:func:`valve_gym.metrics.acf_oscillation`)
+        Run the limit-cycle detector of the benchmark (:func:`valve_gym.oscillation.detect_oscillation`, benchmark rule)
         on each loop's measured error.
     """
     from valve_gym.envs.regulation_env import ValveTankRegulationVectorEnv
@@ -305,9 +305,9 @@ def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None, lc: b
     lc_present = np.zeros(P * B)
     lc_amp = np.zeros(P * B)
     if err is not None:
-        from valve_gym.metrics import acf_oscillation
+        from valve_gym.oscillation import detect_oscillation
 
-        res = [acf_oscillation(err[:, i], task.block.scan_s) for i in range(P * B)]
+        res = [detect_oscillation(err[:, i], task.block.scan_s, "benchmark") for i in range(P * B)]
         lc_present = np.array([float(r.present) for r in res])
         lc_amp = np.array([float(r.amplitude) if r.present else 0.0 for r in res])
     return RolloutScores(iae=iae.reshape(P, B), travel=trav.reshape(P, B), reversals=rev.count.reshape(P, B),

@@ -282,12 +282,8 @@ def _load_disturbance(rng, n: int, dt: float, load_disturbance: float, k_out: fl
     """Slowly varying unmeasured inflow (n,) [m^3/s] (first order, 100 s), or None."""
     d = None
     if load_disturbance > 0:
-        w = rng.normal(size=n)
-        a = np.exp(-dt / 100.0)
-        x = np.zeros(n)
-        for k in range(1, n):
-            x[k] = a * x[k - 1] + np.sqrt(1 - a * a) * w[k]
-        d = load_disturbance * k_out * x
+        from ..signals import ou_sequence
+        d = load_disturbance * k_out * ou_sequence(rng.normal(size=n), np.exp(-dt / 100.0))
     return d
 
 
