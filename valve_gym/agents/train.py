@@ -759,13 +759,15 @@ def _final_eval(cfg: TrainConfig, out: Path, model) -> dict:
     """Final and best policy against PI on validation and held-out valves (``eval.csv``)."""
     import pandas as pd
 
-    from .pi import PIController
+    from .base import BlockPolicy
+    from .controllers import load_controller
     from .ppo import load_policy
 
     sets: dict = {"validation": validation_valves(cfg)}
     if cfg.eval.heldout_n > 0:
         sets["heldout"] = heldout_valves(cfg)
-    ctrls = {"pi": PIController(Ts=cfg.env.control_period), "final": _controller(cfg, model, "final"),
+    ctrls = {"pi": BlockPolicy(load_controller("pi", scan_s=cfg.env.control_period)),
+             "final": _controller(cfg, model, "final"),
              "best": load_policy(str(out / "best.json"), name="best")}
     frames, res = [], {}
     for sname, (valves, seeds) in sets.items():
