@@ -122,8 +122,8 @@ def band_labels(config: BenchConfig, n: int | None = None) -> np.ndarray:
 
 def _ou(rng: np.random.Generator, load: OULoad, T: int, scan_s: float) -> np.ndarray:
     """Ornstein-Uhlenbeck sequence of ``T`` samples starting at 0 (see :class:`OULoad`)."""
-    w = rng.standard_normal(T)
-    return ou_sequence(np.concatenate([[0.0], w[:-1]]), math.exp(-scan_s / load.tau), load.sigma)
+    w = rng.standard_normal(T) * load.sigma          # d[k+1] = a d[k] + sigma sqrt(1 - a^2) w[k]
+    return ou_sequence(np.concatenate([[0.0], w[:-1]]), math.exp(-scan_s / load.tau))
 
 
 def _valve(rng: np.random.Generator, config: BenchConfig, band: str) -> tuple:
