@@ -6,7 +6,7 @@ from valve_gym.agents import load_controller
 from valve_gym.agents.bench.config import BenchConfig, load_bench_config
 from valve_gym.agents.bench.runner import ControllerBank, ControllerSpec, lineup, make_controller, run_loops, run_spec
 from valve_gym.agents.bench.scenarios import regulation_scenarios, servo_scenarios
-from valve_gym.metrics import acf_oscillation
+from valve_gym.oscillation import detect_oscillation
 
 CFG = load_bench_config({"regulation": {"duration_s": 400.0}})
 
@@ -64,4 +64,4 @@ def test_detector_silent_on_healthy_pi_loops(part):
     sc = (regulation_scenarios if part == "regulation" else servo_scenarios)(cfg, n=6, seed=11)
     runs = run_spec(ControllerSpec("PI frictionless", "pi", "frictionless", frictionless=True), sc)
     e = runs.sp - runs.pv
-    assert not any(acf_oscillation(e[:, i], 1.0).present for i in range(sc.n))
+    assert not any(detect_oscillation(e[:, i], 1.0).present for i in range(sc.n))

@@ -16,7 +16,6 @@ from valve_gym.fleet import (
     LoopResult,
     discover_loops,
     load_loop,
-    oscillation_index,
     recommend,
     resample_loop,
     run_fleet,
@@ -24,6 +23,7 @@ from valve_gym.fleet import (
 )
 from valve_gym.fleet.actions import evidence_weight, score
 from valve_gym.fleet.simulate import simulate_loop
+from valve_gym.oscillation import detect_oscillation
 
 SETTINGS = FleetSettings(op_range=(0.0, 100.0), effort="fast", candidates=())
 
@@ -90,14 +90,14 @@ def test_wide_export_split_and_load(tmp_path, fmt):
         load_loop(srcs[0])                                   # OP in percent without a range
 
 
-def test_oscillation_index():
+def test_screen_rule_of_the_oscillation_detector():
     t = np.arange(1500.0)
     rng = np.random.default_rng(1)
-    sine = oscillation_index(0.1 * np.sin(2 * np.pi * t / 80) + 0.02 * rng.normal(size=t.size))
-    assert sine.oscillating and abs(sine.period_s - 80) < 3 and abs(sine.amplitude - 0.1) < 0.01
-    noise = oscillation_index(rng.normal(size=t.size))
-    walk = oscillation_index(np.cumsum(rng.normal(size=t.size)))
-    assert not noise.oscillating and not walk.oscillating and noise.amplitude == 0.0
+    sine = detect_oscillation(0.1 * np.sin(2 * np.pi * t / 80) + 0.02 * rng.normal(size=t.size), 1.0, "screen")
+    assert sine.present and abs(sine.period_s - 80) < 3 and abs(sine.amplitude - 0.1) < 0.01
+    noise = detect_oscillation(rng.normal(size=t.size), 1.0, "screen")
+    walk = detect_oscillation(np.cumsum(rng.normal(size=t.size)), 1.0, "screen")
+    assert not noise.present and not walk.present and noise.amplitude == 0.0
 
 
 def test_actions_table():

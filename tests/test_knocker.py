@@ -2,10 +2,16 @@
 import numpy as np
 import pytest
 
-from valve_gym.agents import load_controller
-from valve_gym.agents.controllers import Knocker
-from valve_gym.agents.knocker import KNOCKER_DEFAULTS, KnockerController
-from valve_gym.agents.pi import PIController
+from valve_gym.agents import BlockPolicy, load_controller
+
+
+def _knocker(**kw):
+    """The knocker block with SB3's ``predict`` (what RL code runs)."""
+    return BlockPolicy(load_controller("knocker", **kw))
+
+
+def _pi(**kw):
+    return BlockPolicy(load_controller("pi", **kw))
 
 
 def _run(knocker, errors, u0=0.5):
@@ -34,7 +40,7 @@ def _run(knocker, errors, u0=0.5):
 @pytest.mark.parametrize("tau_k,h_k", [(1.0, 3.0), (2.0, 5.0), (1.0, 2.0)])
 def test_pulse_timing_and_amplitude(tau_k, h_k):
     a = 0.04
-    k = KnockerController(PIController(Kc=1.0, Ti=10.0), a=a, tau_k=tau_k, h_k=h_k)
+    k = _knocker(Kc=1.0, Ti=10.0, a=a, tau_k=tau_k, h_k=h_k)
     T = 30
     # constant positive error: the integral part rises steadily -> positive pulses
     out, pi = _run(k, [np.array([0.01, -0.01])] * T)
@@ -92,14 +98,14 @@ def test_sign_does_not_follow_white_noise_on_the_pv():
 
 
 def test_no_pulse_without_change():
-    k = KnockerController(PIController(Kc=1.0, Ti=10.0), a=0.05, tau_k=1.0, h_k=2.0)
+    k = _knocker(Kc=1.0, Ti=10.0, a=0.05, tau_k=1.0, h_k=2.0)
     out, pi = _run(k, [np.zeros(3)] * 10, u0=0.4)
     assert np.allclose(out, 0.4) and np.allclose(pi, 0.4)
 
 
 def test_zero_amplitude_equals_pi():
-    pi = PIController(Kc=1.5, Ti=30.0)
-    k = KnockerController(PIController(Kc=1.5, Ti=30.0), a=0.0)
+    pi = _pi(Kc=1.5, Ti=30.0)
+    k = _knocker(Kc=1.5, Ti=30.0, a=0.0)
     rng = np.random.default_rng(0)
     obs = np.column_stack([np.ones(4), np.ones(4), rng.normal(0, 0.05, 4), rng.uniform(0, 1, 4)])
     s1 = s2 = None
@@ -111,7 +117,7 @@ def test_zero_amplitude_equals_pi():
 
 
 def test_output_clipped_and_pulse_not_integrated():
-    k = KnockerController(PIController(Kc=1.0, Ti=10.0), a=0.2, tau_k=1.0, h_k=2.0)
+    k = _knocker(Kc=1.0, Ti=10.0, a=0.2, tau_k=1.0, h_k=2.0)
     out, _ = _run(k, [np.array([0.05, -0.05])] * 10, u0=0.95)
     assert out.max() <= 1.0 and out.min() >= 0.0
     # a pulse never enters the integral: the integral after 10 scans is what the error alone gives
@@ -123,7 +129,7 @@ def test_output_clipped_and_pulse_not_integrated():
 
 
 def test_episode_start_restarts_pulse_train():
-    k = KnockerController(PIController(Kc=1.0, Ti=10.0), a=0.05, tau_k=1.0, h_k=3.0)
+    k = _knocker(Kc=1.0, Ti=10.0, a=0.05, tau_k=1.0, h_k=3.0)
     obs = np.array([[1.0, 1.0, 0.01, 0.5], [1.0, 1.0, 0.01, 0.5]])
     _, s = k.predict(obs)
     _, s = k.predict(obs, s)
@@ -133,11 +139,9 @@ def test_episode_start_restarts_pulse_train():
 
 
 def test_defaults_are_the_rule_at_the_default_stiction_estimate():
-    k = KnockerController()
     block = load_controller("knocker")
     assert block.settings["S"] == 0.02
-    assert (k.a, k.tau_k, k.h_k) == (KNOCKER_DEFAULTS["a"], KNOCKER_DEFAULTS["tau_k"], KNOCKER_DEFAULTS["h_k"])
-    assert KNOCKER_DEFAULTS == {"a": 0.01, "tau_k": 1.0, "h_k": 3.0}      # a = S/2, one scan, three scans
+    assert {k: block.settings[k] for k in ("a", "tau_k", "h_k")} == {"a": 0.01, "tau_k": 1.0, "h_k": 3.0}
     assert load_controller("knocker", S=0.05, scan_s=0.5).settings["a"] == 0.025
     assert load_controller("knocker", scan_s=0.5).settings["h_k"] == 1.5
 
@@ -151,13 +155,4 @@ def test_defaults_are_the_rule_at_the_default_stiction_estimate():
 ])
 def test_bad_parameters(kw, msg):
     with pytest.raises(ValueError, match=msg):
-        KnockerController(**kw)
-
-
-def test_wraps_not_copies():
-    pi = PIController(Kc=2.0, Ti=20.0)
-    k = KnockerController(pi)
-    assert isinstance(k.block, Knocker)
-    assert k.pi is pi and k.block.pi.Kc == 2.0 and k.block.pi.Ti == 20.0
-    with pytest.raises(TypeError, match="wraps a PIController"):
-        KnockerController(pi=object())  # type: ignore[arg-type]
+        load_controller("knocker", **kw)

@@ -123,8 +123,9 @@ def test_errors(tmp_path):
     with pytest.raises(ValueError, match=r"step\(\) called before reset\(\); call reset\(sp, pv, op\) first"):
         LearnedBlock(blk.weights, blk.obs_mean, blk.obs_std).step(1.0, 1.0)     # as every block says it
     blk.reset(1.0, 1.0, 0.5)
-    with pytest.raises(ValueError, match="finite"):
-        blk.step(1.0, float("nan"))
+    with pytest.warns(RuntimeWarning, match="output held"):
+        assert blk.step(1.0, float("nan")) == 0.5          # a bad PV holds the output (DCS bad-PV hold)
+    assert blk.held.tolist() == [True] and blk.bad_pv_scans.tolist() == [1]
     with pytest.raises(ValueError, match="op"):
         blk.reset(1.0, 1.0, 1.5)
     with pytest.raises(ValueError, match="g_min"):

@@ -19,7 +19,7 @@ def test_oscillation_period_and_regularity():
     t = np.arange(2000.0)
     rng = np.random.default_rng(0)
     o = oscillation(np.sin(2 * np.pi * t / 50) + 0.1 * rng.normal(size=t.size))
-    assert o.present and abs(o.period - 50) < 2 and o.regularity > 1
+    assert o.present and abs(o.period_samples - 50) < 2 and o.regularity > 1
     assert not oscillation(rng.normal(size=2000)).present
     assert not oscillation(np.ones(100)).present
 

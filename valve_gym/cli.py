@@ -30,6 +30,26 @@ def _usage() -> str:
     return "\n".join(lines)
 
 
+def _out_problem(cmd: str, rest: list) -> str:
+    """One line on why the ``--out`` folder of ``rest`` cannot be used, or ``''`` (checked before any work).
+
+    Every command's ``--out`` names a folder (created when absent); a path through a file, a FIFO
+    or a device, a folder without write permission or a place where nothing can be created
+    (``/proc``) is refused here with exit status 2, before the command starts.
+    """
+    if "-h" in rest or "--help" in rest:
+        return ""
+    from ._io import folder_problem
+
+    for i, a in enumerate(rest):
+        out = rest[i + 1] if a == "--out" and i + 1 < len(rest) else a[6:] if a.startswith("--out=") else None
+        if out is not None and out.strip():
+            why = folder_problem(out)
+            if why:
+                return f"valve-gym {cmd}: --out {out}: {why}"
+    return ""
+
+
 def main(argv=None) -> int:
     """Run ``valve-gym COMMAND [options]``; returns the exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -39,6 +59,10 @@ def main(argv=None) -> int:
     cmd, rest = argv[0], argv[1:]
     if cmd not in _COMMANDS:
         print(f"valve-gym: unknown command {cmd!r}\n\n{_usage()}", file=sys.stderr)
+        return 2
+    why = _out_problem(cmd, rest)
+    if why:
+        print(why, file=sys.stderr)
         return 2
     try:
         mod = importlib.import_module(_COMMANDS[cmd][0])

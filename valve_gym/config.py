@@ -49,7 +49,7 @@ from .params import PROCESSES, ModelParams, ParameterError, ValveParams
 __all__ = [
     "ConfigError", "ValveRandomisation", "SetpointSchedule", "LoadSchedule", "PISettings",
     "RewardWeights", "EnvConfig", "PRESETS", "preset", "load_config", "config_to_dict",
-    "save_config", "MAX_EPISODE_STEPS", "check_episode_steps",
+    "save_config", "MAX_EPISODE_STEPS", "check_episode_steps", "MAX_NUM_ENVS", "check_count",
 ]
 
 Range = tuple[float, float]
@@ -112,6 +112,37 @@ def check_episode_steps(path: str, seconds: float, period: float, period_name: s
             f"each episode's noise and schedules are drawn when it starts as arrays of one value per step, "
             f"which would need about {8 * steps / 2 ** 30:.3g} GiB each per environment; use a shorter "
             f"{path} (run several episodes for a longer record) or a longer {period_name}")
+
+
+#: Most environments in one vector env (``gym.make_vec(num_envs=...)``, a training config's
+#: ``n_envs``).  Every sub-environment holds its plant state, noise and schedule arrays of one value
+#: per step (see :data:`MAX_EPISODE_STEPS`); 10^5 of them at the default 3600 scans are a few GiB,
+#: where 10^8 grew past 22 GB before the system killed the process without a message.
+MAX_NUM_ENVS = 100_000
+
+
+def check_count(path: str, value, limit: int, what: str) -> int:
+    """``value`` as an int when it is an integer from 1 to ``limit``; else a one-line :class:`ConfigError`.
+
+    Checked before anything is allocated, so that a count such as ``1e9`` environments fails at
+    once with the limit in the message instead of exhausting the memory.
+
+    Parameters
+    ----------
+    path : str, the key or argument name (``ppo.n_envs``, ``num_envs``)
+    value : the count given
+    limit : int, the largest count allowed
+    what : str, what one unit of the count costs (said in the message)
+    """
+    ok = isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
+    if isinstance(value, (float, np.floating)) and math.isfinite(value) and float(value).is_integer():
+        ok, value = True, int(value)
+    if not ok or value < 1:
+        raise ConfigError(f"{path} must be a positive integer, got {value!r}")
+    if value > limit:
+        raise ConfigError(f"{path} = {int(value):,} is above the limit of {limit:,} ({what}); use at most "
+                          f"{limit:,}")
+    return int(value)
 
 
 @dataclass(frozen=True)
@@ -712,5 +743,7 @@ def save_config(cfg, path) -> None:
     """Write ``cfg`` as YAML to ``path`` (e.g. next to the results of a run)."""
     import yaml
 
-    with open(path, "w", encoding="utf-8") as fh:
-        yaml.safe_dump(config_to_dict(cfg), fh, sort_keys=False)
+    from ._io import write_atomic
+
+    text = yaml.safe_dump(config_to_dict(cfg), sort_keys=False)
+    write_atomic(path, lambda f: f.write(text.encode("utf-8")))

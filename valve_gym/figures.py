@@ -11,7 +11,7 @@ plain numpy arrays, so the numbers can be checked without plotting:
 * :func:`closed_loop_pi` -- the tank level loop under the batched PI law of
   :mod:`valve_gym.control`;
 * :func:`limit_cycle_data` -- that loop for low, medium and high friction, and
-  the limit cycle measured on each by :func:`valve_gym.metrics.limit_cycle`.
+  the limit cycle measured on each by :func:`valve_gym.oscillation.detect_oscillation`.
 
 The ``plot_*`` functions draw one figure each (matplotlib is imported only
 there, with the non-interactive Agg backend) and :func:`main` writes them all.
@@ -46,9 +46,12 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .control import PIParams, pi_init, pi_step
+from ._io import folder_problem
+from .control import PIParams
 from .core import array_to_state, initial_state, pack, run_packed, state_to_array
+from .loop import run_closed_loop
 from .params import ModelParams, ValveParams
+from .plant import Plant, PlantOutput
 
 __all__ = [
     "HEALTHY", "STICKY", "FRICTION_LEVELS",
@@ -313,10 +316,10 @@ def closed_loop_pi(params: ModelParams, sp, Kc, Ti, control_period: float = 1.0,
                    seed: int | None = None, state=None) -> ClosedLoopResult:
     """Level loop: the PI law of :mod:`valve_gym.control` driving the model.
 
-    Every ``control_period`` seconds the controller reads the level (plus white
-    measurement noise of std ``noise_std``), computes its output with
-    :func:`valve_gym.control.pi_step` and the core integrates
-    ``control_period / params.dt`` Euler steps with that output held.
+    :func:`valve_gym.loop.run_closed_loop` on a :class:`~valve_gym.plant.Plant`: every
+    ``control_period`` seconds the controller reads the level (plus white measurement noise of
+    std ``noise_std``), computes its output with :func:`valve_gym.control.pi_step` and the plant
+    integrates ``control_period / params.dt`` Euler steps with that output held.
 
     Parameters
     ----------
@@ -361,7 +364,7 @@ def closed_loop_pi(params: ModelParams, sp, Kc, Ti, control_period: float = 1.0,
     >>> abs(float(r.pv[-1, 0]) - 1.2) < 0.01  # the level has reached the set point
     True
     """
-    n_sub = _n_sub(control_period, params.dt)
+    _n_sub(control_period, params.dt)          # a whole number of Euler steps, or a clear error
     T = int(round(seconds / control_period))
     if T < 1:
         raise ValueError(
@@ -373,9 +376,8 @@ def closed_loop_pi(params: ModelParams, sp, Kc, Ti, control_period: float = 1.0,
         if np.ndim(v) == 1:
             n = max(n, np.shape(v)[0])
     pk = pack(params, n)
-    st = initial_state(params, n, buf_len=pk.buf_len) if state is None else state
-    if st.n != n:
-        raise ValueError(f"state has batch size {st.n}, expected {n}")
+    if state is not None and state.n != n:
+        raise ValueError(f"state has batch size {state.n}, expected {n}")
     spa = np.asarray(sp, dtype=float)
     if spa.ndim == 0:
         spa = np.full((T, n), float(spa))
@@ -390,32 +392,19 @@ def closed_loop_pi(params: ModelParams, sp, Kc, Ti, control_period: float = 1.0,
         raise ValueError("sp contains NaN or inf values")
     pi = PIParams(Kc=np.broadcast_to(np.asarray(Kc, float), (n,)).copy(),
                   Ti=np.broadcast_to(np.asarray(Ti, float), (n,)).copy(), Ts=float(control_period))
-    rng = np.random.default_rng(seed)
-    S = state_to_array(st)
-    buf = np.array(st.delay_buf, dtype=float, copy=True)
-    if buf.shape != (n, pk.buf_len):
-        raise ValueError("state.delay_buf does not match the model's dead time")
-    view = array_to_state(S, buf)
-    D = np.zeros((1, 1))
-    Y, H, LV = (np.empty((1, n)) for _ in range(3))
-    pv = np.empty((T, n))
-    op = np.empty((T, n))
-    stem = np.empty((T, n))
-    level = np.empty((T, n))
-    level_now = view.level2 if params.process_kind == "cascade" else view.level
-    pvk = view.y + (noise_std * rng.standard_normal(n) if noise_std > 0 else 0.0)
-    ctl = pi_init(np.clip(view.h, 0.0, 1.0), spa[0] - pvk)
-    for k in range(T):
-        if k > 0:
-            pvk = view.y + (noise_std * rng.standard_normal(n) if noise_std > 0 else 0.0)
-        pv[k] = pvk
-        stem[k] = H[0] if k > 0 else np.clip(view.h, 0.0, 1.0)
-        level[k] = level_now
-        ctl, u = pi_step(ctl, spa[k] - pvk, pi)
-        op[k] = u
-        run_packed(pk, S, buf, np.ascontiguousarray(u.reshape(1, n)), D, n_sub, Y, H, LV)
+    plant = Plant(params, n, scan_s=float(control_period))
+    start = plant.reset()
+    if state is not None:
+        buf = np.asarray(state.delay_buf, dtype=float)
+        if buf.shape != (n, pk.buf_len):
+            raise ValueError("state.delay_buf does not match the model's dead time")
+        plant.set_state(state)
+        st = plant.state
+        start = PlantOutput(pv=(st.level2 if params.process_kind == "cascade" else st.level).copy(),
+                            stem=np.clip(st.h, 0.0, 1.0), op=st.u_prev.copy(), y=st.y.copy())
+    run = run_closed_loop(plant, start, spa, pi, noise_std, np.random.default_rng(seed))
     t = np.arange(T) * control_period
-    return ClosedLoopResult(t=t, sp=spa, pv=pv, op=op, stem=stem, level=level)
+    return ClosedLoopResult(t=t, sp=spa, pv=run.pv[:T], op=run.op, stem=run.stem[:T], level=run.level[:T])
 
 
 class LimitCycleCase(NamedTuple):
@@ -431,11 +420,12 @@ class LimitCycleCase(NamedTuple):
     present : bool
         A regular oscillation was found in the level error (last part of the run).
     amplitude : float, m
-        Half peak-to-peak of the level oscillation (0 when not present).
+        Half peak-to-peak of the level oscillation, median over windows one period long
+        (0 when not present).
     period : float, s
         Oscillation period (``inf`` when not present).
     n_cycles : int
-        Whole cycles measured.
+        Whole periods in the measured part of the record (0 when not present).
     Kc : float, 1/m
         Controller gain used.
     Ti : float, s
@@ -462,8 +452,8 @@ def limit_cycle_data(levels=FRICTION_LEVELS, Kc: float = 1.0, Ti: float = 30.0,
     1 m with the stem at its steady opening; the set point ``sp`` is applied at
     t = 0 (a set-point step, which is what sets the sticky loop cycling: with
     ``sp = 1`` the loop would stay at rest). The oscillation is measured with
-    :func:`valve_gym.metrics.limit_cycle` on the error ``sp - pv`` after the
-    first ``settle`` seconds.
+    :func:`valve_gym.oscillation.detect_oscillation` (benchmark rule) on the
+    error ``sp - pv`` after the first ``settle`` seconds.
 
     Parameters
     ----------
@@ -486,7 +476,7 @@ def limit_cycle_data(levels=FRICTION_LEVELS, Kc: float = 1.0, Ti: float = 30.0,
     -------
     list of LimitCycleCase
     """
-    from .metrics import limit_cycle
+    from .oscillation import detect_oscillation
 
     valve = ValveParams(tau=HEALTHY.tau, v_max=HEALTHY.v_max,
                         z_max=np.array([lv[1] for lv in levels], float),
@@ -497,10 +487,11 @@ def limit_cycle_data(levels=FRICTION_LEVELS, Kc: float = 1.0, Ti: float = 30.0,
     out = []
     for j, (name, zm, ed) in enumerate(levels):
         one = ClosedLoopResult(*(a if a.ndim == 1 else a[:, j:j + 1] for a in run))
-        lc = limit_cycle(one.sp[k0:, 0] - one.pv[k0:, 0], control_period)
+        lc = detect_oscillation(one.sp[k0:, 0] - one.pv[k0:, 0], control_period, "benchmark")
         out.append(LimitCycleCase(name=name, valve=replace(HEALTHY, z_max=zm, e_dead=ed), run=one,
                                   present=bool(lc.present), amplitude=float(lc.amplitude),
-                                  period=float(lc.period), n_cycles=int(lc.n_cycles),
+                                  period=float(lc.period_s) if lc.present else float("inf"),
+                                  n_cycles=int(lc.n_cycles) if lc.present else 0,
                                   Kc=float(Kc), Ti=float(Ti)))
     return out
 
@@ -723,11 +714,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not 20 <= args.dpi <= 600:
         ap.error(f"--dpi must be between 20 and 600, got {args.dpi}")
     out = args.out
-    try:
-        os.makedirs(out, exist_ok=True)
-    except OSError as exc:
-        print(f"valve-gym figures: cannot create the output folder {out!r}: {exc}", file=sys.stderr)
-        return 1
+    why = folder_problem(out) if out.strip() else "empty; give an output folder"
+    if not why:
+        try:
+            os.makedirs(out, exist_ok=True)
+        except OSError as exc:
+            why = f"cannot create the output folder ({exc.strerror or exc})"
+    if why:
+        print(f"valve-gym figures: --out {out}: {why}", file=sys.stderr)
+        return 2
 
     jobs = [
         ("valve input vs stem position (slow sine)", "valve_io.png", valve_io_data, plot_valve_io),

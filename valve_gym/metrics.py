@@ -1,4 +1,4 @@
-"""Oscillation, performance and wear metrics for scoring a control loop.
+"""Performance and wear metrics for scoring a control loop, and the loop's scores at once.
 
 Pure numpy, no plotting. Every function takes uniformly sampled 1-D signals
 (one sample per controller period ``dt`` in seconds) and returns plain Python
@@ -8,19 +8,19 @@ Conventions
 -----------
 * Control error ``e = sp - pv`` in process units (``[e]``).
 * Integrals use the rectangle rule ``sum(f(e[k])) * dt`` over all samples.
-* "No oscillation" is reported as ``present=False``, amplitude ``0.0`` and
-  period ``inf`` (a never-repeating signal), never as NaN.
+* The limit cycle is the benchmark rule of the one oscillation detector,
+  :func:`valve_gym.oscillation.detect_oscillation`; in :func:`loop_metrics`
+  "no limit cycle" is amplitude ``0.0`` and period ``inf``, never NaN.
 * Bad input (not 1-D, too short, NaN/inf, ``dt <= 0``, mismatched lengths)
   raises :class:`ValueError` naming the argument and the fix.
 
 Example
 -------
 >>> import numpy as np
->>> from valve_gym.metrics import limit_cycle
+>>> from valve_gym.metrics import iae
 >>> t = np.arange(0.0, 200.0, 0.1)
->>> lc = limit_cycle(np.sin(2 * np.pi * t / 20.0), dt=0.1)
->>> lc.present, round(lc.amplitude, 2), round(lc.period, 2)
-(True, 1.0, 20.0)
+>>> round(iae(np.sin(2 * np.pi * t / 20.0), dt=0.1), 2)   # 4 A / omega per period, 10 periods
+127.31
 """
 from __future__ import annotations
 
@@ -29,15 +29,13 @@ from typing import NamedTuple, Union
 
 import numpy as np
 
-from .signals import acf_zero_crossings
+from .oscillation import detect_oscillation
 
 __all__ = [
     "iae", "ise", "error_std",
-    "LimitCycle", "limit_cycle",
     "crest_factor", "waveform_shape", "CREST_FACTORS",
     "HagglundResult", "hagglund_oscillation",
     "travel", "reversals", "reversals_per_hour", "reversal_counts",
-    "AcfOscillation", "acf_oscillation", "DECAY_RATIO_MIN",
     "loop_metrics", "LOOP_METRIC_KEYS",
 ]
 
@@ -48,13 +46,6 @@ CREST_FACTORS = {"square": 1.0, "sine": math.sqrt(2.0), "triangle": math.sqrt(3.
 
 # A signal whose peak-to-peak is below this fraction of its magnitude is "flat".
 _FLAT_RTOL = 1e-12
-
-# Thornhill et al. (2003): the oscillation is regular when r > 1.
-_REGULARITY_MIN = 1.0
-# Amplitude smoothing: moving average over period/_SMOOTH_DIV samples, applied
-# when the noise std exceeds _NOISE_FRAC of the robust range.
-_SMOOTH_DIV = 20.0
-_NOISE_FRAC = 0.002
 
 
 # --------------------------------------------------------------------------- #
@@ -262,21 +253,6 @@ def error_std(e: ArrayLike) -> float:
 # --------------------------------------------------------------------------- #
 # Zero crossings
 # --------------------------------------------------------------------------- #
-def _detrend(x: np.ndarray, method: str) -> np.ndarray:
-    if method == "linear":
-        n = x.size
-        t = np.arange(n, dtype=float) - 0.5 * (n - 1)
-        y = x - x.mean()
-        slope = float(np.dot(t, y) / np.dot(t, t))
-        return y - slope * t
-    if method == "mean":
-        return x - x.mean()
-    if method == "none":
-        return x.copy()
-    raise ValueError(
-        f"`detrend` must be 'linear', 'mean' or 'none', got {method!r}")
-
-
 def _crossings(x: np.ndarray, h: float):
     """Zero crossings of ``x`` with a Schmitt-trigger band ``[-h, +h]``.
 
@@ -303,242 +279,6 @@ def _crossings(x: np.ndarray, h: float):
     x0, x1 = x[j], x[j + 1]
     pos = j + x0 / (x0 - x1)
     return pos, j
-
-
-def _moving_average(x: np.ndarray, w: int) -> np.ndarray:
-    """Moving average of width ``w`` (centred to within half a sample), edges padded with the end values."""
-    if w <= 1:
-        return x
-    left = (w - 1) // 2
-    xp = np.concatenate([np.full(left, x[0]), x, np.full(w - 1 - left, x[-1])])
-    c = np.concatenate([[0.0], np.cumsum(xp)])
-    return (c[w:] - c[:-w]) / w
-
-
-def _band(y: np.ndarray, eta: float) -> float:
-    """Half width of the crossing band: see the Notes of :func:`limit_cycle`."""
-    p1, p99 = np.percentile(y, [1.0, 99.0])
-    R = float(p99 - p1)
-    if R <= 0.0:
-        R = float(np.ptp(y))
-    return min(max(eta * R, 3.0 * _noise_sigma(y)), 0.25 * R)
-
-
-def _noise_sigma(y: np.ndarray) -> float:
-    """Robust std of white noise on a smooth signal, from second differences.
-
-    ``var(y[k+1] - 2 y[k] + y[k-1]) = 6 sigma**2`` for white noise, while the
-    second differences of a well-sampled oscillation are small except at its
-    corners, which the median ignores.
-    """
-    if y.size < 3:
-        return 0.0
-    d2 = np.diff(y, 2)
-    return 1.4826 * float(np.median(np.abs(d2 - np.median(d2)))) / math.sqrt(6.0)
-
-
-def _cycle_mean_trend(x: np.ndarray, pos: np.ndarray) -> np.ndarray:
-    """Straight line through the means of ``x`` over the whole cycles ``[c_i, c_{i+2}]``."""
-    S = np.concatenate([[0.0], np.cumsum(x)])
-    lo = np.ceil(pos[:-2]).astype(int)
-    hi = np.floor(pos[2:]).astype(int) + 1
-    means = (S[hi] - S[lo]) / (hi - lo)
-    mid = 0.5 * (pos[:-2] + pos[2:])
-    if means.size == 1 or np.ptp(mid) == 0.0:
-        return np.full(x.size, float(means.mean()))
-    slope, icept = np.polyfit(mid, means, 1)
-    return icept + slope * np.arange(x.size, dtype=float)
-
-
-# --------------------------------------------------------------------------- #
-# Limit cycle
-# --------------------------------------------------------------------------- #
-class LimitCycle(NamedTuple):
-    """Result of :func:`limit_cycle`.
-
-    Attributes
-    ----------
-    present : bool
-        A regular oscillation of at least ``min_cycles`` whole cycles was found.
-    amplitude : float, [e]
-        Half peak-to-peak, averaged over whole cycles; ``0.0`` when not present.
-    period : float, s
-        Mean period; ``inf`` when not present.
-    n_cycles : int
-        Whole cycles between the first and last confirmed zero crossing (reported
-        even when ``present`` is False, as a diagnostic).
-    regularity : float
-        ``mean(T) / (3 std(T))`` of the cycle periods ``T``; ``0.0`` with fewer
-        than one whole cycle, ``inf`` when all periods are identical.
-    """
-
-    present: bool
-    amplitude: float
-    period: float
-    n_cycles: int
-    regularity: float
-
-
-def limit_cycle(e: ArrayLike, dt: float, min_cycles: int = 2, *,
-                detrend: str = "linear", hysteresis: float = 0.1,
-                regularity_min: float = _REGULARITY_MIN) -> LimitCycle:
-    r"""Detect a limit cycle from the zero crossings of the detrended error.
-
-    Parameters
-    ----------
-    e : (N,) array_like, [e]
-        Control error ``sp - pv`` (or any signal), uniformly sampled, N >= 2.
-    dt : float, s
-        Sample time (> 0).
-    min_cycles : int, optional
-        Whole cycles needed to report an oscillation (>= 1, default 2).
-    detrend : {'linear', 'mean', 'none'}, optional
-        Removed before looking for crossings. Default ``'linear'``: a straight
-        line (which also removes the mean), so that a slow drift of the load
-        or set point does not shift the crossings; see Notes. ``'mean'``
-        removes the mean only, ``'none'`` uses ``e`` as it is.
-    hysteresis : float, optional
-        Half width ``h`` of the crossing dead band as a fraction of the robust
-        range ``R`` (1st to 99th percentile) of the detrended signal, default
-        0.1. See Notes for the noise floor.
-    regularity_min : float, optional
-        Threshold on the regularity ``r`` (default 1, Thornhill et al.).
-
-    Returns
-    -------
-    LimitCycle
-        ``(present, amplitude, period, n_cycles, regularity)``. When no
-        oscillation is present, ``amplitude == 0.0`` and ``period == inf``.
-
-    Raises
-    ------
-    ValueError
-        On bad ``e`` or ``dt`` (see module docstring), ``min_cycles < 1``,
-        ``hysteresis < 0`` or an unknown ``detrend``.
-
-    Notes
-    -----
-    *Crossings.* With ``y`` the detrended signal a crossing is confirmed only
-    when ``y`` passes from below ``-h`` to above ``+h`` or back (a Schmitt
-    trigger), with
-
-    .. math:: h = \min\bigl(\max(\eta R,\; 3\hat\sigma_n),\; R/4\bigr),
-              \qquad \hat\sigma_n = \frac{1.4826\,\mathrm{MAD}(\Delta^2 y)}{\sqrt 6}
-
-    ``eta`` = ``hysteresis`` and ``sigma_n`` a robust estimate of white sensor
-    noise from the second differences (which are near zero for a
-    well-sampled oscillation except at its corners). Sensor noise therefore needs a
-    three-sigma excursion against the trend to create a false crossing; the
-    cap ``R/4`` keeps a genuine oscillation crossing the band. The crossing
-    time is the linearly interpolated zero crossing of ``y`` just before the
-    confirmation, so the band does not delay it.
-
-    *Period and regularity.* With crossing times ``c_0 < ... < c_m`` (``m``
-    half cycles, ``n_cycles = m // 2``) the period is
-    ``2 (c_m - c_0) / m`` and the cycle periods are ``T_i = c_{i+2} - c_i``.
-    Following Thornhill et al. (2003), who apply it to the zero crossings of
-    the autocorrelation function, the regularity is
-
-    .. math:: r = \frac{\overline{T}}{3\,\sigma_T}
-
-    (population std). An oscillation is present when
-    ``n_cycles >= min_cycles`` and ``r > regularity_min``; white or
-    low-pass-filtered noise gives ``r`` of about 0.5 (below 0.75 in 400
-    trials).
-
-    *Detrending.* With ``detrend='linear'`` a least-squares line is removed
-    first to find the crossings; then, because a least-squares line through
-    a pure oscillation is not zero (its ends reach about ``0.95 A /
-    n_cycles``) and would bias the period, the trend is re-estimated as the
-    line through the means of ``e`` over each whole cycle (exact for a
-    linear drift, ~0 for a pure oscillation) and the crossings are found
-    again.
-
-    *Amplitude.* For every whole cycle ``[c_i, c_{i+2}]`` half of
-    ``max - min`` of ``y`` (re-detrended, see ``detrend``), averaged over the
-    cycles. To keep noise peaks out of the estimate, when ``sigma_n > 0.002 R``
-    ``y`` is first smoothed by a centred moving average of
-    ``floor(period / (20 dt))`` samples. That attenuates a sine by less than
-    0.5 % (``1 - sinc(1/20)``), leaves a square wave's plateaus unchanged and
-    lowers a triangle's corners by up to 5 %; clean signals are not smoothed
-    and their amplitude is exact to within the sampling of the peaks. Noise
-    still biases the peak-to-peak upwards: for a sine with 100 samples per
-    period and white noise of std 0.05 A the estimate is about 1 % high
-    (3.5 % at 0.1 A).
-
-    References
-    ----------
-    .. [1] N.F. Thornhill, B. Huang, H. Zhang, "Detection of multiple
-       oscillations in control loops", Journal of Process Control 13(1),
-       91-100, 2003.
-    .. [2] N.F. Thornhill, T. Hägglund, "Detection and diagnosis of oscillation
-       in control loops", Control Engineering Practice 5(10), 1343-1354, 1997.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> rng = np.random.default_rng(0)
-    >>> t = np.arange(0.0, 300.0, 0.1)
-    >>> e = 2.0 * np.sin(2 * np.pi * t / 30.0) + 0.05 * rng.standard_normal(t.size)
-    >>> lc = limit_cycle(e, dt=0.1)
-    >>> lc.present, round(lc.amplitude, 1), round(lc.period, 1), lc.n_cycles
-    (True, 2.0, 30.0, 9)
-    >>> limit_cycle(np.ones(100), dt=0.1)
-    LimitCycle(present=False, amplitude=0.0, period=inf, n_cycles=0, regularity=0.0)
-    """
-    x = _as_signal(e, "e")
-    dt = _check_dt(dt)
-    try:
-        ok = (not isinstance(min_cycles, (bool, np.bool_))
-              and int(min_cycles) == min_cycles and min_cycles >= 1)
-    except (TypeError, ValueError, OverflowError):
-        ok = False
-    if not ok:
-        raise ValueError(f"`min_cycles` must be an integer >= 1, got {min_cycles!r}")
-    min_cycles = int(min_cycles)
-    eta = _nonnegative(hysteresis, "hysteresis")
-    r_min = _as_scalar(regularity_min, "regularity_min")
-
-    none = LimitCycle(False, 0.0, math.inf, 0, 0.0)
-    y = _detrend(x, detrend)
-    if _is_flat(x) or _is_flat(y, float(np.max(np.abs(x)))):
-        return none
-    h = _band(y, eta)
-
-    pos, _ = _crossings(y, h)
-    if detrend == "linear" and pos.size >= 3:
-        # Second pass: the trend through the means of whole cycles is exact for
-        # a linear drift and ~0 for a pure oscillation (a least-squares line
-        # through an oscillation is not, and would bias the period).
-        y = x - _cycle_mean_trend(x, pos)
-        if _is_flat(y, float(np.max(np.abs(x)))):
-            return none
-        h = _band(y, eta)
-        pos, _ = _crossings(y, h)
-    m = pos.size - 1
-    n_cycles = max(m, 0) // 2
-    if n_cycles < 1:
-        return none
-    T = (pos[2:] - pos[:-2]) * dt
-    sd = float(np.std(T))
-    mean_T = float(np.mean(T))
-    regularity = math.inf if sd == 0.0 else mean_T / (3.0 * sd)
-    present = n_cycles >= min_cycles and regularity > r_min
-    if not present:
-        return LimitCycle(False, 0.0, math.inf, n_cycles, float(regularity))
-
-    period = 2.0 * float(pos[-1] - pos[0]) * dt / m
-    # Smooth only when there is noise to remove: the moving average flattens
-    # the corners of a triangle (by w/period), so it is skipped on clean data.
-    p1, p99 = np.percentile(y, [1.0, 99.0])
-    noisy = _noise_sigma(y) > _NOISE_FRAC * float(p99 - p1)
-    w = max(1, int(period / dt / _SMOOTH_DIV)) if noisy else 1
-    ys = _moving_average(y, w)
-    amps = np.empty(m - 1)
-    for i in range(m - 1):
-        seg = ys[int(math.ceil(pos[i])):int(math.floor(pos[i + 2])) + 1]
-        amps[i] = 0.5 * (seg.max() - seg.min())
-    return LimitCycle(True, float(np.mean(amps)), period, n_cycles, float(regularity))
 
 
 # --------------------------------------------------------------------------- #
@@ -607,7 +347,7 @@ def waveform_shape(e: ArrayLike, *, tol: float | None = None) -> str:
     ----------
     e : (N,) array_like
         Signal, N >= 2, best a whole number of cycles of an oscillation (check
-        with :func:`limit_cycle` first: noise is classified too, usually as
+        with :func:`valve_gym.oscillation.detect_oscillation` first: noise is classified too, usually as
         'triangle').
     tol : float, optional
         If given, return ``'none'`` when the crest factor is farther than
@@ -727,7 +467,8 @@ def hagglund_oscillation(e: ArrayLike, dt: float, a: float | None = None,
     omega_u : float, rad/s, optional
         Ultimate frequency of the loop (> 0), e.g. from a relay auto-tuning
         experiment. If None it is estimated as ``2 pi / period`` of the limit
-        cycle found by :func:`limit_cycle` in ``e``: a loop in a limit cycle
+        cycle found in ``e`` by :func:`valve_gym.oscillation.detect_oscillation`
+        (benchmark rule): a loop in a limit cycle
         oscillates close to its ultimate (phase-crossover) frequency, and then
         ``IAE_i > IAE_lim`` reduces to "oscillation amplitude > a" for a
         sine. If no limit cycle is found a ValueError asks for ``omega_u``.
@@ -786,13 +527,13 @@ def hagglund_oscillation(e: ArrayLike, dt: float, a: float | None = None,
         raise ValueError(f"`n_lim` must be a number >= 0, got {n_lim!r}")
     n_lim = _nonnegative(n_lim, "n_lim")
     if omega_u is None:
-        lc = limit_cycle(x, dt)
+        lc = detect_oscillation(x, dt, "benchmark")
         if not lc.present:
             raise ValueError(
                 "`omega_u` was not given and no limit cycle was found in `e` to "
                 "estimate it from; pass omega_u in rad/s (e.g. the ultimate "
                 "frequency from a relay test, 2*pi/T_u)")
-        omega_u = 2.0 * math.pi / lc.period
+        omega_u = 2.0 * math.pi / lc.period_s
     else:
         omega_u = _positive(omega_u, "omega_u", "rad/s")
     t_sup = 50.0 * 2.0 * math.pi / omega_u if t_sup is None else _positive(t_sup, "t_sup", "s")
@@ -976,217 +717,6 @@ def reversals_per_hour(x: ArrayLike, dt: float, deadband: float = 0.0) -> float:
     return float(_reversals(x, deadband) * 3600.0 / ((x.size - 1) * dt))
 
 
-# --------------------------------------------------------------------------- #
-# Limit cycle from the autocorrelation function (Thornhill 2003, Miao & Seborg 1999)
-# --------------------------------------------------------------------------- #
-#: Miao & Seborg (1999): a loop is excessively oscillatory when the ACF decay ratio exceeds 0.5.
-DECAY_RATIO_MIN = 0.5
-
-
-class AcfOscillation(NamedTuple):
-    """Result of :func:`acf_oscillation`.
-
-    Attributes
-    ----------
-    present : bool
-        A regular, weakly damped oscillation: see the Notes of :func:`acf_oscillation`.
-    amplitude : float, [e]
-        Median half peak-to-peak of ``e`` over windows one period long; ``0.0`` when not present.
-    period : float, s
-        Mean period ``2 mean(dz)`` from the ACF zero crossings ``z``; ``inf`` when not present.
-    regularity : float
-        Thornhill's ``r = mean(T_p) / (3 std(T_p))`` (``inf`` when all equal; ``0.0`` with too few crossings).
-    decay_ratio : float
-        Miao & Seborg's ACF decay ratio (``0.0`` with too few crossings).
-    n_crossings : int
-        ACF zero crossings used (at most ``n_intervals + 1``).
-    """
-
-    present: bool
-    amplitude: float
-    period: float
-    regularity: float
-    decay_ratio: float
-    n_crossings: int
-
-
-def _acf(x: np.ndarray, max_lag: int) -> np.ndarray:
-    """Biased autocorrelation ``r[k] = sum x_t x_{t+k} / sum x_t^2``, ``k = 0..max_lag``."""
-    n = x.size
-    nfft = 1 << int(math.ceil(math.log2(2 * n)))
-    f = np.fft.rfft(x, nfft)
-    c = np.fft.irfft(f * np.conj(f), nfft)[:max_lag + 1]
-    return c / c[0]
-
-
-def _decay_ratio(r: np.ndarray, z: np.ndarray) -> float:
-    """Miao & Seborg's decay ratio ``a / b`` of the ACF lobes between the crossings ``z[0..3]``.
-
-    ``m1``, ``p1``, ``m2`` are the first minimum, the following maximum and the next
-    minimum; ``a`` is the height of ``p1`` above the line ``m1 - m2`` and ``b`` the depth
-    of ``m1`` below the line from lag 1 to ``p1`` (lag 1, not lag 0, so that white
-    measurement noise, which only adds to ``r[0]``, does not change the ratio).
-    """
-    zi = np.ceil(z[:4]).astype(int)
-    m1 = zi[0] + int(np.argmin(r[zi[0]:zi[1] + 1]))
-    p1 = zi[1] + int(np.argmax(r[zi[1]:zi[2] + 1]))
-    m2 = zi[2] + int(np.argmin(r[zi[2]:zi[3] + 1]))
-    if not (1 < m1 < p1 < m2):
-        return 0.0
-    a = r[p1] - (r[m1] + (r[m2] - r[m1]) * (p1 - m1) / (m2 - m1))
-    b = (r[1] + (r[p1] - r[1]) * (m1 - 1) / (p1 - 1)) - r[m1]
-    return float(a / b) if b > 0.0 and a > 0.0 else 0.0
-
-
-def _lobes_significant(r: np.ndarray, z: np.ndarray, n: int) -> bool:
-    """Both first lobes of the ACF (the negative one and the positive one) exceed twice their standard error.
-
-    Bartlett's formula ``var r_k = (1 + 2 sum_{j<k} r_j^2) / N`` (Box & Jenkins), with the ACF itself as the
-    model: a lobe that sampling noise of a non-oscillating signal could make is not evidence of a cycle.
-    """
-    zi = np.ceil(z[:3]).astype(int)
-    k_min = zi[0] + int(np.argmin(r[zi[0]:zi[1] + 1]))
-    k_max = zi[1] + int(np.argmax(r[zi[1]:zi[2] + 1]))
-    cum = np.concatenate([[0.0], np.cumsum(r[1:] ** 2)])
-    se = np.sqrt((1.0 + 2.0 * cum[np.array([k_min, k_max]) - 1]) / n)
-    return bool(-r[k_min] > 2.0 * se[0] and r[k_max] > 2.0 * se[1])
-
-
-def _window_amplitude(y: np.ndarray, period_samples: float) -> float:
-    """Median over windows one period long of half the range of ``y`` smoothed over period/10."""
-    p = max(2, int(round(period_samples)))
-    p1, p99 = np.percentile(y, [1.0, 99.0])
-    noisy = _noise_sigma(y) > _NOISE_FRAC * float(p99 - p1)
-    ys = _moving_average(y, max(1, int(period_samples / 10.0))) if noisy else y
-    n_win = ys.size // p
-    if n_win == 0:
-        return 0.5 * float(np.ptp(ys))
-    w = ys[:n_win * p].reshape(n_win, p)
-    return float(np.median(0.5 * (w.max(axis=1) - w.min(axis=1))))
-
-
-def acf_oscillation(e: ArrayLike, dt: float, *, max_lag_frac: float = 0.5, min_intervals: int = 5,
-                    n_intervals: int = 10, regularity_min: float = _REGULARITY_MIN,
-                    decay_min: float = DECAY_RATIO_MIN) -> AcfOscillation:
-    r"""Limit-cycle detector on the autocorrelation function of the error.
-
-    The benchmark's detector: silent on measurement noise, on load
-    disturbances rejected by a well-damped loop and on a set-point step;
-    fires on a sustained oscillation buried in noise.
-
-    Parameters
-    ----------
-    e : (N,) array_like, [e]
-        Control error ``sp - pv``, uniformly sampled, N >= 16.
-    dt : float, s
-        Sample time (> 0).
-    max_lag_frac : float, optional
-        The ACF is searched up to lag ``max_lag_frac * N`` (0 < . <= 1, default 0.5).
-    min_intervals : int, optional
-        Intervals between ACF zero crossings needed (>= 3, default 5: at least
-        2.5 periods in the ACF, so 5 or more periods in the record).
-    n_intervals : int, optional
-        At most this many intervals are used (default 10, after Thornhill et al.).
-    regularity_min : float, optional
-        Threshold on Thornhill's regularity ``r`` (default 1).
-    decay_min : float, optional
-        Threshold on Miao & Seborg's decay ratio (default 0.5).
-
-    Returns
-    -------
-    AcfOscillation
-        ``(present, amplitude, period, regularity, decay_ratio, n_crossings)``;
-        ``amplitude = 0.0`` and ``period = inf`` when not present.
-
-    Raises
-    ------
-    ValueError
-        On bad ``e`` or ``dt`` (see the module docstring) or bad options.
-
-    Notes
-    -----
-    ``e`` is detrended (least-squares line) and its biased ACF ``r[k]`` computed.
-    With ``z_0 < z_1 < ...`` its zero crossings (linear interpolation) and
-    ``T_{p,i} = 2 (z_{i+1} - z_i)`` (Thornhill, Huang & Zhang 2003)
-
-    .. math:: r_T = \frac{\overline{T_p}}{3\,\sigma_{T_p}}, \qquad
-              T = \overline{T_p}\,dt .
-
-    Miao & Seborg's decay ratio ``R = a/b`` compares the first positive ACF
-    lobe after lag 0 (height ``a`` above the line joining the two adjacent
-    minima) with the first negative lobe (depth ``b`` below the line from the
-    start to the positive lobe); here the line starts at lag 1 instead of 0,
-    which makes ``R`` independent of white measurement noise (noise adds to
-    ``r[0]`` only). A sustained oscillation has ``R`` near 1, a damped loop
-    ``exp(-pi zeta / sqrt(1 - zeta^2))``-like values; ``R > 0.5`` is their
-    "excessively oscillatory" rule.
-
-    A limit cycle is **present** when at least ``min_intervals`` intervals are
-    found within the searched lags, ``r_T > regularity_min`` (a regular
-    period), ``R > decay_min`` (it does not die out) and the first negative
-    and positive lobes each exceed twice their standard error by Bartlett's
-    formula ``var r_k = (1 + 2 sum_{j<k} r_j^2)/N`` (they stand out of the
-    ACF's sampling noise; Box & Jenkins). White noise fails the regularity
-    test, a damped disturbance response and a set-point step fail the decay
-    or the significance test.
-
-    The **amplitude** is the median over consecutive windows one period long of
-    half the range of the detrended error, smoothed by a centred moving
-    average over a tenth of the period when it is noisy. For a sine the
-    smoothing costs 1.6 % (``1 - sinc(0.1)``); residual noise biases it upwards
-    by about 1.5 times the smoothed noise std.
-
-    References
-    ----------
-    .. [1] N.F. Thornhill, B. Huang, H. Zhang, "Detection of multiple
-       oscillations in control loops", Journal of Process Control 13(1),
-       91-100, 2003.
-    .. [2] R. Miao, D.E. Seborg, "Automatic detection of excessively
-       oscillatory feedback control loops", Proc. IEEE Int. Conf. on Control
-       Applications, Hawaii, 359-364, 1999.
-    .. [3] G.E.P. Box, G.M. Jenkins, G.C. Reinsel, "Time Series Analysis:
-       Forecasting and Control", 4th ed., Wiley, 2008, sec. 2.1.6 (Bartlett's
-       standard error of the sample autocorrelation).
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> rng = np.random.default_rng(1)
-    >>> t = np.arange(3600.0)
-    >>> e = 0.005 * np.sin(2 * np.pi * t / 120.0) + 0.002 * rng.standard_normal(t.size)
-    >>> osc = acf_oscillation(e, dt=1.0)
-    >>> osc.present, round(osc.period), round(1000 * osc.amplitude, 1)   # 5 mm, biased up by the noise
-    (True, 120, 5.4)
-    >>> acf_oscillation(0.002 * rng.standard_normal(3600), dt=1.0).present
-    False
-    """
-    x = _as_signal(e, "e", min_len=16)
-    dt = _check_dt(dt)
-    frac = _positive(max_lag_frac, "max_lag_frac")
-    if frac > 1.0:
-        raise ValueError(f"`max_lag_frac` must be in (0, 1], got {max_lag_frac!r}")
-    for name, v, lo in (("min_intervals", min_intervals, 3), ("n_intervals", n_intervals, min_intervals)):
-        if isinstance(v, (bool, np.bool_)) or int(v) != v or v < lo:
-            raise ValueError(f"`{name}` must be an integer >= {lo}, got {v!r}")
-    none = AcfOscillation(False, 0.0, math.inf, 0.0, 0.0, 0)
-    y = _detrend(x, "linear")
-    if _is_flat(x) or _is_flat(y, float(np.max(np.abs(x)))):
-        return none
-    r = _acf(y, max(4, int(frac * (x.size - 1))))
-    z = acf_zero_crossings(r, int(n_intervals) + 1)
-    if z.size < int(min_intervals) + 1:
-        return none._replace(n_crossings=int(z.size))
-    tp = 2.0 * np.diff(z)
-    sd = float(np.std(tp))
-    reg = math.inf if sd == 0.0 else float(np.mean(tp)) / (3.0 * sd)
-    dr = _decay_ratio(r, z)
-    present = reg > regularity_min and dr > decay_min and _lobes_significant(r, z, x.size)
-    if not present:
-        return AcfOscillation(False, 0.0, math.inf, reg, dr, int(z.size))
-    period_samples = float(np.mean(tp))
-    return AcfOscillation(True, _window_amplitude(y, period_samples), period_samples * dt, reg, dr, int(z.size))
-
-
 def reversal_counts(x: ArrayLike, deadband: float = 0.0) -> np.ndarray:
     """:func:`reversals` of each column of a ``(T, n)`` array at once.
 
@@ -1300,8 +830,8 @@ def loop_metrics(t_or_dt, sp, pv, op, mv=None, span: float = 1.0, *,
     span : float, [pv], optional
         Measurement span (> 0); Hägglund's ``a`` is 1 % of it.
     omega_u : float, rad/s, optional
-        Ultimate frequency for :func:`hagglund_oscillation`; default estimated
-        from the limit cycle of ``e``.
+        Ultimate frequency for :func:`hagglund_oscillation`; default
+        ``2 pi / period`` of the limit cycle of ``e``.
     deadband : float, [op], optional
         Dead band of :func:`reversals` for ``op`` and ``mv`` (default 0).
 
@@ -1314,9 +844,11 @@ def loop_metrics(t_or_dt, sp, pv, op, mv=None, span: float = 1.0, *,
             :func:`iae`, :func:`ise`, :func:`error_std` of ``e``.
         ``lc_present`` (0.0 or 1.0), ``lc_amplitude`` [pv], ``lc_period`` [s],
         ``lc_n_cycles``, ``lc_regularity``
-            :func:`limit_cycle` of ``e`` (``lc_amplitude = 0.0`` and
-            ``lc_period = inf`` without a limit cycle; ``lc_regularity`` may
-            be ``inf`` for a perfectly periodic signal).
+            the limit cycle of ``e`` by the benchmark rule of
+            :func:`valve_gym.oscillation.detect_oscillation` (``lc_amplitude = 0.0``
+            and ``lc_period = inf`` without a limit cycle; ``lc_n_cycles`` the
+            record length over the period, ``lc_regularity`` Thornhill's ``r``,
+            both 0.0 when no period could be read).
         ``crest_factor``
             :func:`crest_factor` of ``e`` (0.0 if ``e`` is flat).
         ``hagglund_detections``, ``hagglund_alarms``
@@ -1347,8 +879,8 @@ def loop_metrics(t_or_dt, sp, pv, op, mv=None, span: float = 1.0, *,
     >>> pv = 50.0 + 2.0 * np.sin(2 * np.pi * t / 60.0)
     >>> op = 40.0 + 5.0 * np.cos(2 * np.pi * t / 60.0)
     >>> m = loop_metrics(t, 50.0, pv, op, span=100.0)
-    >>> m["lc_present"], round(m["lc_amplitude"], 2), round(m["lc_period"], 1)
-    (1.0, 2.0, 60.0)
+    >>> m["lc_present"], round(m["lc_amplitude"], 2), round(m["lc_period"], 1)   # 2 m, within 1 %
+    (1.0, 1.99, 60.0)
     >>> round(m["op_reversals_per_hour"])    # 19 extremes in 599.5 s
     114
     """
@@ -1370,9 +902,9 @@ def loop_metrics(t_or_dt, sp, pv, op, mv=None, span: float = 1.0, *,
         omega_u = _positive(omega_u, "omega_u", "rad/s")
 
     e = sp - pv
-    lc = limit_cycle(e, dt)
+    lc = detect_oscillation(e, dt, "benchmark")
     if omega_u is None and lc.present:
-        omega_u = 2.0 * math.pi / lc.period
+        omega_u = 2.0 * math.pi / lc.period_s
     if omega_u is not None:
         hg = hagglund_oscillation(e, dt, span=span, omega_u=omega_u)
         n_det, n_alarms = hg.n_detections, hg.n_alarms
@@ -1384,9 +916,9 @@ def loop_metrics(t_or_dt, sp, pv, op, mv=None, span: float = 1.0, *,
         "error_std": error_std(e),
         "lc_present": float(lc.present),
         "lc_amplitude": float(lc.amplitude),
-        "lc_period": float(lc.period),
+        "lc_period": float(lc.period_s) if lc.present else math.inf,
         "lc_n_cycles": float(lc.n_cycles),
-        "lc_regularity": float(lc.regularity),
+        "lc_regularity": float(lc.regularity) if math.isfinite(lc.regularity) else 0.0,
         "crest_factor": crest_factor(e),
         "hagglund_detections": float(n_det),
         "hagglund_alarms": float(n_alarms),

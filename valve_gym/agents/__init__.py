@@ -17,8 +17,7 @@ Controllers are DCS function blocks, built by name::
 :func:`load_controller`          a controller block by name (settings checked)
 :func:`available_controllers`    the names load_controller accepts
 :class:`BlockPolicy`             SB3 ``predict`` over any controller block
-:class:`PIController`            the plant's PI (SIMC tuning, anti-windup, bumpless)
-:class:`KnockerController`       PI + Hägglund's knocker pulses
+:func:`default_tuning`           the plant's PI tuning (SIMC for the default tank)
 :class:`PPOController`           a trained SB3 policy with its observation transform
 :func:`load_policy`              a PPO policy (safetensors + JSON; never a pickle)
 :func:`rollout`                  one batched episode of any controller on many valves
@@ -35,11 +34,9 @@ use only.
 """
 from .base import BlockPolicy, Controller
 from .controllers import available_controllers, load_controller
-from .knocker import KNOCKER_DEFAULTS, KnockerController
-from .pi import PIController, default_tuning
+from .controllers.tuning import default_tuning
 
-__all__ = ["load_controller", "available_controllers", "BlockPolicy", "Controller", "PIController",
-           "default_tuning", "KnockerController", "KNOCKER_DEFAULTS",
+__all__ = ["load_controller", "available_controllers", "BlockPolicy", "Controller", "default_tuning",
            "PPOController", "ObsTransform", "load_policy", "rollout", "Rollout",
            "run_benchmark", "load_train_config"]
 

@@ -45,12 +45,20 @@ from typing import NamedTuple
 
 import numpy as np
 
-from valve_gym.config import ConfigError, config_to_dict, load_config
+from valve_gym.config import ConfigError, check_count, config_to_dict, load_config
 from valve_gym.envs.regulation import N_ACT, RegulationConfig, obs_names, pi_action
 
 from .learned import MAX_LAYER, MLPSpec, mlp_forward, normalise, save_learned, unflatten
 from .lifecycle import STOP, stop_on_signals
 from .safe_files import load_model_file, save_model_file
+
+#: Upper limits of the ES counts, checked when the config is read (before anything is allocated):
+#: the perturbations of a generation are one ``(pairs, n_params)`` array, every pair and scenario
+#: one closed-loop run per generation.
+MAX_ES_COUNTS = {"generations": 1_000_000, "pairs": 4096, "scenarios": 4096}
+_ES_COST = {"generations": "each runs every pair on every scenario",
+            "pairs": "each pair is two closed-loop runs per scenario and generation, its perturbation held in memory",
+            "scenarios": "each is two closed-loop runs per pair and generation"}
 
 __all__ = ["ESHyper", "ESEvalConfig", "LearnedTrainConfig", "load_learned_train_config", "train_learned",
            "rollout_scores", "RolloutScores", "Interrupted"]
@@ -113,6 +121,7 @@ class ESHyper:
             v = getattr(self, nm)
             if not (isinstance(v, int) and v >= 1):
                 raise ConfigError(f"es.{nm} must be an integer >= 1, got {v!r}")
+            check_count(f"es.{nm}", v, MAX_ES_COUNTS[nm], _ES_COST[nm])
         for nm in ("sigma", "learning_rate", "episode_s"):
             if not getattr(self, nm) > 0:
                 raise ConfigError(f"es.{nm} must be > 0, got {getattr(self, nm)!r}")
@@ -249,7 +258,7 @@ def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None, lc: b
     obs_norm : (mean, std), optional
         Observation normaliser of the networks.
     lc : bool
-        Run the limit-cycle detector of the benchmark (:func:`valve_gym.metrics.acf_oscillation`)
+        Run the limit-cycle detector of the benchmark (:func:`valve_gym.oscillation.detect_oscillation`, benchmark rule)
         on each loop's measured error.
     """
     from valve_gym.envs.regulation_env import ValveTankRegulationVectorEnv
@@ -296,9 +305,9 @@ def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None, lc: b
     lc_present = np.zeros(P * B)
     lc_amp = np.zeros(P * B)
     if err is not None:
-        from valve_gym.metrics import acf_oscillation
+        from valve_gym.oscillation import detect_oscillation
 
-        res = [acf_oscillation(err[:, i], task.block.scan_s) for i in range(P * B)]
+        res = [detect_oscillation(err[:, i], task.block.scan_s, "benchmark") for i in range(P * B)]
         lc_present = np.array([float(r.present) for r in res])
         lc_amp = np.array([float(r.amplitude) if r.present else 0.0 for r in res])
     return RolloutScores(iae=iae.reshape(P, B), travel=trav.reshape(P, B), reversals=rev.count.reshape(P, B),

@@ -217,8 +217,8 @@ def evaluate(controller, valves: Mapping[str, Sequence[float]] | None = None, n:
 
     Examples
     --------
-    >>> from valve_gym.agents import PIController
-    >>> df = evaluate(PIController(), {"z_max": [0.005, 0.3], "e_dead": [0.0, 0.02]}, seed=1)
+    >>> from valve_gym.agents import BlockPolicy, load_controller
+    >>> df = evaluate(BlockPolicy(load_controller("pi")), {"z_max": [0.005, 0.3], "e_dead": [0.0, 0.02]}, seed=1)
     >>> list(df["valve"]), bool(df.loc[1, "iae"] > 0)
     ([0, 1], True)
     """

@@ -22,7 +22,7 @@ import numpy as np
 
 from valve_gym.envs.regulation import N_ACT, N_OBS, BlockLaw, BlockSettings, obs_names
 
-from .controllers.block import check_inputs, check_op_limits, check_step_inputs, not_reset_error
+from .controllers.block import PV_RANGE, PVGuard, check_inputs, check_op_limits, check_step_inputs, not_reset_error
 from .safe_files import load_model_file, save_model_file
 
 __all__ = ["MLPSpec", "LearnedBlock", "load_learned", "save_learned", "mlp_forward", "mlp_shapes", "normalise",
@@ -125,7 +125,9 @@ class LearnedBlock:
     """
 
     def __init__(self, weights: dict, obs_mean: np.ndarray, obs_std: np.ndarray,
-                 settings: BlockSettings = BlockSettings(), name: str = "learned", meta: dict | None = None):
+                 settings: BlockSettings = BlockSettings(), name: str = "learned", meta: dict | None = None,
+                 pv_range=PV_RANGE):
+        self.guard = PVGuard(name, pv_range)
         self.weights = weights
         self.obs_mean = np.asarray(obs_mean, float)
         self.obs_std = np.asarray(obs_std, float)
@@ -153,21 +155,43 @@ class LearnedBlock:
         self._scalar = scalar
         self._law = BlockLaw(self.block_settings, n)
         self._law.reset(sp_a, pv_a, op_a)
+        self.guard.start(op_a)
+
+    @property
+    def held(self) -> np.ndarray:
+        """(n,) bool: loops whose output the last scan held on a bad measurement (see ``PVGuard``)."""
+        return self.guard.held
+
+    @property
+    def bad_pv_scans(self) -> np.ndarray:
+        """(n,) int: scans held on a bad measurement since :meth:`reset`, per loop."""
+        return self.guard.bad_pv_scans
 
     def step(self, sp, pv):
         """One scan: measurement ``pv`` [m] at set point ``sp`` [m]; returns the output (float or (n,)).
 
         ``sp`` and ``pv`` are checked as every block's
-        (:func:`~valve_gym.agents.controllers.block.check_step_inputs`): finite, and as many loops as
-        :meth:`reset` was given (or scalars, shared by all loops).
+        (:func:`~valve_gym.agents.controllers.block.check_step_inputs`): as many loops as
+        :meth:`reset` was given (or scalars, shared by all loops); a loop with a bad measurement
+        (NaN, inf, outside ``pv_range``) holds its output and memory on this scan (``PVGuard``).
         """
         law = self._law
         if law is None:
             raise not_reset_error(self.name)
-        sp_a, pv_a, _ = check_step_inputs(self.name, law.n, sp, pv)
+        sp_a, pv_a, _ = check_step_inputs(self.name, law.n, sp, pv, allow_bad=True)
+        sp_a, pv_a, bad = self.guard.screen(sp_a, pv_a)
+        kept = {k: v.copy() for k, v in vars(law).items()
+                if isinstance(v, np.ndarray) and v.shape[:1] == (law.n,)} if bad.any() else {}
+        first = law._first
         obs = law.observe(sp_a, pv_a)
         a = mlp_forward(self.weights, normalise(obs, self.obs_mean, self.obs_std))
         u = law.act(a)
+        for k, v in kept.items():          # the held loops' memory stays as it was (see PVGuard)
+            cur = getattr(law, k)
+            setattr(law, k, np.where(bad.reshape((-1,) + (1,) * (v.ndim - 1)), v, cur))
+        if bad.all():
+            law._first = first
+        u = self.guard.finish(u, bad)
         return float(u[0]) if self._scalar else u
 
     def __repr__(self) -> str:
@@ -234,8 +258,9 @@ def load_learned(path=None, **settings) -> LearnedBlock:
         (``best`` is used); default the shipped ``valve_gym/agents/policies/learned.json``.
     **settings
         Overrides of :class:`~valve_gym.envs.regulation.BlockSettings` (``Kc``, ``Ti``, ``scan_s``,
-        ``op_lo``, ``op_hi``: numbers, one for all loops; the network was trained with the stored ones)
-        and ``name``.
+        ``op_lo``, ``op_hi``: numbers, one for all loops; the network was trained with the stored ones),
+        ``name`` and ``pv_range`` (the plausible PV range [m]; see
+        :class:`~valve_gym.agents.controllers.block.PVGuard`).
 
     Returns
     -------
@@ -259,6 +284,7 @@ def load_learned(path=None, **settings) -> LearnedBlock:
     if meta.get("format") != FORMAT:
         raise ValueError(f"{p} is not a learned-block file (format {meta.get('format')!r}, expected {FORMAT!r})")
     name = settings.pop("name", "learned")
+    pv_range = settings.pop("pv_range", PV_RANGE)
     allowed = ("Kc", "Ti", "scan_s", "op_lo", "op_hi")
     bad = [k for k in settings if k not in allowed]
     if bad:
@@ -271,13 +297,31 @@ def load_learned(path=None, **settings) -> LearnedBlock:
     _warn_untrained(bs, meta["block"], p)
     n_obs = len(obs_names(bs))
     spec = MLPSpec(meta["hidden"], n_obs)
-    w = {}
-    for nm, shape in mlp_shapes(spec):
-        a = mf.tensors.get(nm)
-        if a is None or a.shape != shape:
-            raise ValueError(f"{p}: weight {nm} missing or of the wrong shape (expected {shape})")
-        w[nm] = a.astype(np.float64)
-    mean, std = mf.tensors.get("obs_mean"), mf.tensors.get("obs_std")
-    if mean is None or std is None or mean.shape != (n_obs,) or std.shape != (n_obs,) or np.any(std <= 0):
-        raise ValueError(f"{p}: observation normaliser (obs_mean, obs_std of shape ({n_obs},), std > 0) missing")
-    return LearnedBlock(w, mean, std, bs, name=name, meta={**meta, "policy_path": str(p)})
+    w = {nm: _checked_tensor(p, nm, mf.tensors.get(nm), shape) for nm, shape in mlp_shapes(spec)}
+    mean = _checked_tensor(p, "obs_mean", mf.tensors.get("obs_mean"), (n_obs,))
+    std = _checked_tensor(p, "obs_std", mf.tensors.get("obs_std"), (n_obs,))
+    if np.any(std <= 0):
+        raise ValueError(f"{p}: obs_std must be > 0 in every entry (it divides the observation), got min "
+                         f"{float(std.min()):g}; the file is corrupt: retrain or restore it")
+    return LearnedBlock(w, mean, std, bs, name=name, meta={**meta, "policy_path": str(p)}, pv_range=pv_range)
+
+
+def _checked_tensor(p, name: str, a, shape: tuple) -> np.ndarray:
+    """Tensor ``name`` of the file ``p`` as float64 after checking it: present, float dtype, ``shape``, finite.
+
+    A bool or integer tensor, a wrong shape or a NaN/inf entry would make the block act with NaN or
+    as another controller; each raises a one-line ``ValueError`` naming the tensor instead.
+    """
+    if a is None:
+        raise ValueError(f"{p}: tensor {name} missing (expected shape {shape}); the file is not a complete "
+                         f"learned block")
+    if not np.issubdtype(a.dtype, np.floating):
+        raise ValueError(f"{p}: tensor {name} has dtype {a.dtype}, expected a float dtype; the file is corrupt")
+    if a.shape != shape:
+        raise ValueError(f"{p}: tensor {name} has shape {a.shape}, expected {shape}; the file does not match "
+                         f"its JSON's network")
+    a = a.astype(np.float64)
+    if not np.isfinite(a).all():
+        raise ValueError(f"{p}: tensor {name} holds {int((~np.isfinite(a)).sum())} NaN or inf value(s); the file "
+                         f"is corrupt: retrain or restore it")
+    return a

@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from valve_gym.config import ConfigError, EnvConfig, config_to_dict, load_config, read_yaml
+from valve_gym.config import MAX_NUM_ENVS, ConfigError, EnvConfig, check_count, config_to_dict, load_config, read_yaml
 
 from .learned import MAX_LAYER
 from .ppo import ObsTransform
@@ -121,6 +121,7 @@ class PPOHyper:
         for name in ("n_envs", "n_steps", "batch_size", "n_epochs"):
             if getattr(self, name) < 1:
                 raise ConfigError(f"{name} must be >= 1, got {getattr(self, name)!r}")
+        check_count("ppo.n_envs", self.n_envs, MAX_NUM_ENVS, "each environment holds its own plant and episode arrays")
         if not 0 < self.gamma <= 1:
             raise ConfigError(f"gamma must be in (0, 1], got {self.gamma!r}")
         if not 0 <= self.gae_lambda <= 1:
@@ -758,13 +759,15 @@ def _final_eval(cfg: TrainConfig, out: Path, model) -> dict:
     """Final and best policy against PI on validation and held-out valves (``eval.csv``)."""
     import pandas as pd
 
-    from .pi import PIController
+    from .base import BlockPolicy
+    from .controllers import load_controller
     from .ppo import load_policy
 
     sets: dict = {"validation": validation_valves(cfg)}
     if cfg.eval.heldout_n > 0:
         sets["heldout"] = heldout_valves(cfg)
-    ctrls = {"pi": PIController(Ts=cfg.env.control_period), "final": _controller(cfg, model, "final"),
+    ctrls = {"pi": BlockPolicy(load_controller("pi", scan_s=cfg.env.control_period)),
+             "final": _controller(cfg, model, "final"),
              "best": load_policy(str(out / "best.json"), name="best")}
     frames, res = [], {}
     for sname, (valves, seeds) in sets.items():

@@ -31,6 +31,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..params import ModelParams
+from ..signals import acf as autocorrelation
 from .model import DataScales, ModelStructure
 from .recording import Recording
 
@@ -81,10 +82,8 @@ def effective_n(residual, max_lag: int | None = None) -> float:
     m = float(np.abs(r).max())
     if not 1e-100 < m < 1e100:          # tiny or huge units: the squares would under- or overflow
         r = r / m
-    L = max_lag or min(n // 3, 500)
-    f = np.fft.rfft(r, 2 * n)
-    acf = np.fft.irfft(f * np.conj(f))[: L + 1]
-    acf = acf / acf[0]
+    L = min(max_lag or min(n // 3, 500), n - 1)
+    acf = autocorrelation(r, L)
     s = 0.0
     for k in range(1, L + 1):
         if acf[k] <= 0:

@@ -29,8 +29,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..control import PIParams, pi_init, pi_step
-from ..core import initial_state, pack, run_packed
+from ..control import PIParams
 from ..params import (
     DeadTime,
     Leak,
@@ -77,7 +76,7 @@ class SyntheticCase:
 
 def simulate_closed_loop(params: ModelParams, sp, pi: PIParams, noise_std: float, rng,
                          n_sub: int, level0: float, d=None):
-    """PI loop around the core, one controller sample at a time.
+    """PI loop on the plant, one controller sample at a time (:func:`valve_gym.loop.run_closed_loop`).
 
     Parameters
     ----------
@@ -92,38 +91,19 @@ def simulate_closed_loop(params: ModelParams, sp, pi: PIParams, noise_std: float
 
     Returns
     -------
-    op : (T,) controller output 0..1, pv : (T,) measured level [m],
-    level : (T,) true level [m], stem : (T,) stem position 0..1
+    op : (T,) controller output 0..1 over sample ``k``; pv : (T,) measured level [m],
+    level : (T,) true level [m], stem : (T,) stem position 0..1, each at the end of sample ``k``
     """
+    from ..loop import run_closed_loop
+    from ..plant import Plant
+
     sp = np.asarray(sp, float)
-    T = len(sp)
-    pk = pack(params, 1)
-    st = initial_state(params, 1, level=level0, buf_len=pk.buf_len)
-    S = np.ascontiguousarray(np.stack([np.asarray(a, float) for a in st[:12]]))
-    buf = np.array(st.delay_buf, dtype=np.float64, copy=True)
-    Y = np.empty((1, 1))
-    H = np.empty((1, 1))
-    LV = np.empty((1, 1))
-    U = np.empty((1, 1))
-    Dk = np.zeros((1, 1))
-    d = np.zeros(T) if d is None else np.asarray(d, float)
-    op = np.empty(T)
-    pv = np.empty(T)
-    lev = np.empty(T)
-    stem = np.empty(T)
-    y_meas = float(st.y[0]) + noise_std * rng.normal()
-    pis = pi_init(float(st.h[0]), sp[0] - y_meas)
-    for k in range(T):
-        pis, u = pi_step(pis, sp[k] - y_meas, pi)
-        U[0, 0] = u[0]
-        Dk[0, 0] = d[k]
-        run_packed(pk, S, buf, U, Dk, n_sub, Y, H, LV)
-        y_meas = Y[0, 0] + noise_std * rng.normal()
-        op[k] = u[0]
-        pv[k] = y_meas
-        lev[k] = LV[0, 0]
-        stem[k] = H[0, 0]
-    return op, pv, lev, stem
+    plant = Plant(params, 1, scan_s=pi.Ts)
+    if plant.n_sub != n_sub:
+        raise ValueError(f"n_sub = {n_sub} Euler steps per sample, but pi.Ts / params.dt = {plant.n_sub}")
+    start = plant.reset(level=level0)
+    run = run_closed_loop(plant, start, sp[:, None], pi, noise_std, rng, None if d is None else np.asarray(d, float))
+    return run.op[:, 0], run.pv[1:, 0], run.level[1:, 0], run.stem[1:, 0]
 
 
 def _sp_profile(rng, T, dt, lo, hi, hold=(150.0, 400.0)):
@@ -282,12 +262,8 @@ def _load_disturbance(rng, n: int, dt: float, load_disturbance: float, k_out: fl
     """Slowly varying unmeasured inflow (n,) [m^3/s] (first order, 100 s), or None."""
     d = None
     if load_disturbance > 0:
-        w = rng.normal(size=n)
-        a = np.exp(-dt / 100.0)
-        x = np.zeros(n)
-        for k in range(1, n):
-            x[k] = a * x[k - 1] + np.sqrt(1 - a * a) * w[k]
-        d = load_disturbance * k_out * x
+        from ..signals import ou_sequence
+        d = load_disturbance * k_out * ou_sequence(rng.normal(size=n), np.exp(-dt / 100.0))
     return d
 
 
@@ -316,16 +292,18 @@ def concealed_suite(n_per_effect: int = 6, n_none: int = 12, seed: int = 0, n: i
 def write_csv(rec: Recording, path, percent: bool = True) -> None:
     """Write a recording as CSV (``t_s, OP, PV, SP``; OP in percent if ``percent``)."""
     import csv
-    import os
-    tmp = f"{path}.tmp{os.getpid()}"
-    with open(tmp, "w", newline="") as f:
-        w = csv.writer(f)
-        cols = ["t_s", "OP", "PV"] + (["SP"] if rec.sp is not None else [])
-        w.writerow(cols)
-        op = rec.op * (100.0 if percent else 1.0)
-        for k in range(len(rec)):
-            row = [f"{rec.t[k]:.6g}", f"{op[k]:.8g}", f"{rec.pv[k]:.8g}"]
-            if rec.sp is not None:
-                row.append(f"{rec.sp[k]:.8g}")
-            w.writerow(row)
-    os.replace(tmp, path)
+    import io
+
+    from .._io import write_atomic
+    f = io.StringIO(newline="")
+    w = csv.writer(f)
+    cols = ["t_s", "OP", "PV"] + (["SP"] if rec.sp is not None else [])
+    w.writerow(cols)
+    op = rec.op * (100.0 if percent else 1.0)
+    for k in range(len(rec)):
+        row = [f"{rec.t[k]:.6g}", f"{op[k]:.8g}", f"{rec.pv[k]:.8g}"]
+        if rec.sp is not None:
+            row.append(f"{rec.sp[k]:.8g}")
+        w.writerow(row)
+    text = f.getvalue()
+    write_atomic(path, lambda fh: fh.write(text.encode("utf-8")))

@@ -41,6 +41,7 @@ import numpy as np
 from .. import core
 from ..config import ConfigError, check_episode_steps
 from ..params import ModelParams, SlipJump, ValveParams
+from ..signals import ou_sequence
 
 __all__ = ["RegulationConfig", "BlockSettings", "RegulationDraw", "draw_scenarios", "friction_params",
            "LoopPlants", "BlockLaw", "pi_action", "step_reward", "parse_options", "available_friction_models",
@@ -290,12 +291,7 @@ def draw_scenarios(rngs: Sequence[np.random.Generator], cfg: RegulationConfig) -
     lt0, lt1 = cfg.load_tau
     ltau = lt0 * np.exp(U[:, 7] * math.log(lt1 / lt0))
     noise = Z[:, 0] * nstd[:, None]
-    a = np.exp(-cfg.block.scan_s / ltau)
-    w = Z[:, 1] * (lstd * np.sqrt(1.0 - a * a))[:, None]
-    load = np.empty((n, H + 1))
-    load[:, 0] = 0.0
-    for k in range(1, H + 1):
-        load[:, k] = a * load[:, k - 1] + w[:, k]
+    load = ou_sequence(Z[:, 1], np.exp(-cfg.block.scan_s / ltau), lstd)
     return RegulationDraw(model=model, S=S, J=J, sp=sp, noise=noise, load=load)
 
 

@@ -15,7 +15,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ..config import load_config
+from ..config import MAX_NUM_ENVS, check_count, load_config
 from .regulation import (
     N_ACT,
     BlockLaw,
@@ -217,7 +217,7 @@ class ValveTankRegulationVectorEnv(VectorEnv):
         if max_episode_steps is not None and int(max_episode_steps) != self.config.steps:
             raise ValueError(f"max_episode_steps = {max_episode_steps} differs from the task's episode "
                              f"({self.config.steps} scans); set the config's episode_s instead")
-        self.num_envs = int(num_envs)
+        self.num_envs = check_count("num_envs", num_envs, MAX_NUM_ENVS, "each loop holds its own plant and arrays")
         self.single_observation_space, self.single_action_space = _spaces(self.config)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)

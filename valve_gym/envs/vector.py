@@ -27,7 +27,7 @@ from gymnasium.vector.utils import batch_space
 
 from .. import core  # noqa: F401  (the physics core the plant calls; kept as this module's attribute)
 from .._numba import HAVE_NUMBA, njit
-from ..config import EnvConfig
+from ..config import MAX_NUM_ENVS, EnvConfig, check_count
 from ..control import pi_init, pi_step
 from ..params import ValveParams
 from ..plant import Plant
@@ -229,7 +229,7 @@ class ValveTankVectorEnv(VectorEnv):
         """Check the arguments of ``__init__``: number of envs, config, autoreset mode, episode length."""
         if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
-        N = int(num_envs)
+        N = check_count("num_envs", num_envs, MAX_NUM_ENVS, "each environment holds its own plant and episode arrays")
         cfg = make_config(config, preset)
         if isinstance(autoreset_mode, str):
             if autoreset_mode not in _MODES:

@@ -18,8 +18,8 @@ discover_loops, load_loop, LoopSource, resample_loop
     find the loops of a folder or a wide export; read one.
 analyse_loop
     one loop's work (what a Ray task runs).
-screen_recording, oscillation_index
-    the fast screening stage.
+screen_recording
+    the fast screening stage (the oscillation detector's "screen" rule, Horch's test).
 write_worklist, RULES
     the ranked worklist and its action table.
 """
@@ -27,11 +27,11 @@ from .actions import RULES, evidence_weight, recommend, score
 from .analyse import analyse_loop, stiction_numbers
 from .result import TABLE_COLUMNS, FleetSettings, LoopResult, loop_key
 from .runner import FleetRun, run_fleet
-from .screen import oscillation_index, screen_recording
+from .screen import screen_recording
 from .sources import LoopSource, discover_loops, load_loop, resample_loop
 from .worklist import write_worklist
 
 __all__ = ["run_fleet", "FleetRun", "FleetSettings", "LoopResult", "TABLE_COLUMNS", "loop_key",
            "discover_loops", "load_loop", "LoopSource", "resample_loop", "analyse_loop", "stiction_numbers",
-           "screen_recording", "oscillation_index", "write_worklist", "RULES", "evidence_weight", "recommend",
+           "screen_recording", "write_worklist", "RULES", "evidence_weight", "recommend",
            "score"]

@@ -110,7 +110,7 @@ def _full(rec, settings: FleetSettings, loop: str):
 def _evidence(sc: Screen, sn: StictionNumbers | None, w_src: str) -> str:
     o = sc.oscillation
     parts = [o.reason]
-    if o.oscillating:
+    if o.present:
         parts.append(f"OP swing {100 * sc.amplitude_op:.1f} % of stroke")
     if sc.horch.verdict not in ("not applicable",) and not math.isnan(sc.horch.phase_index):
         parts.append(f"Horch: {sc.horch.verdict} (index {sc.horch.phase_index:.2f})")
@@ -132,7 +132,7 @@ def _ok_result(src: LoopSource, key: str, loaded, sc: Screen, res, seconds: floa
     p = sn.p if sn else math.nan
     w, w_src = evidence_weight(p, verdict, sc.horch.phase_index)
     S = sn.S if sn else math.nan
-    _, action = recommend("ok", "", o.oscillating, verdict, w, S, sc.amplitude_op)
+    _, action = recommend("ok", "", o.present, verdict, w, S, sc.amplitude_op)
     effects, rb, rf = "", math.nan, math.nan
     if res is not None:
         effects = ";".join(res.effects) or "none"
@@ -140,9 +140,9 @@ def _ok_result(src: LoopSource, key: str, loaded, sc: Screen, res, seconds: floa
     return LoopResult(
         loop=src.name, status="ok", message=_evidence(sc, sn, w_src), stiction=verdict, S=S,
         J=sn.J if sn else math.nan, effects=effects, rmse_base=rb, rmse_final=rf, oscillation=o.amplitude,
-        seconds=seconds, cpu_seconds=cpu, p_stiction=p, weight=w, score=score(w, sc.amplitude_op, o.oscillating),
+        seconds=seconds, cpu_seconds=cpu, p_stiction=p, weight=w, score=score(w, sc.amplitude_op, o.present),
         action=action,
-        stage="full" if res is not None else "screen", oscillating=o.oscillating, regularity=o.regularity,
+        stage="full" if res is not None else "screen", oscillating=o.present, regularity=o.regularity,
         period_s=o.period_s, amplitude_op=sc.amplitude_op, horch=sc.horch.verdict,
         horch_index=sc.horch.phase_index, n=len(rec), dt=float(rec.dt), gaps=len(loaded.gaps),
         notes=loaded.notes, source=src.path, tag=src.tag, key=key)
@@ -178,7 +178,7 @@ def analyse_loop(src: LoopSource, settings: FleetSettings, key: str = "") -> Loo
         rec = loaded.recording
         sc = screen_recording(rec, resolve_plant(settings.plant, rec.name, rec.columns.get("pv"))[0])
         res = None
-        if settings.full or sc.oscillation.oscillating or position_sticks(rec):
+        if settings.full or sc.oscillation.present or position_sticks(rec):
             res = _full(loaded.recording, settings, src.name)
         return _ok_result(src, key, loaded, sc, res, time.perf_counter() - t0, time.process_time() - c0)
     except (RecordingError, ValueError) as e:

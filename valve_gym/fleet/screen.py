@@ -5,19 +5,14 @@ times and costs seconds per loop.  Most loops of a plant do not oscillate; the
 screening stage finds the ones that do in milliseconds, with two model-free
 tests, and only those go on to the full diagnosis:
 
-* **oscillation index** (Thornhill, Huang & Zhang 2003 [1]_): the zero
-  crossings of the autocorrelation function (ACF) of the control error
-  ``e = SP - PV`` (the PV when there is no set point), linearly detrended.
-  With ``z_k`` the lags of the crossings, the periods ``T_i = z_{i+2} - z_i``
-  and their regularity
-
-  .. math:: r = \frac{\bar T}{3\,\sigma_T}
-
-  a loop oscillates when ``r > 1`` (the crossings are regular), the period is
-  at least 4 samples, and the ACF at one period is at least 0.3 (the
-  oscillation carries a real share of the error's variance).  The amplitude is
-  that of the sinusoid with the same autocovariance at one period,
-  ``A = sqrt(2 c(T))``; white measurement noise does not enter ``c(T)``.
+* **oscillation** of the control error ``e = SP - PV`` (the PV when there is no
+  set point): the ``"screen"`` rule of the one oscillation detector,
+  :func:`valve_gym.oscillation.detect_oscillation` (Thornhill, Huang & Zhang 2003
+  [1]_): the ACF's zero crossings are regular (``r > 1``), the period is at least
+  4 samples and the ACF at one period is at least 0.3 (the oscillation carries a
+  real share of the error's variance).  The amplitude is that of the sinusoid
+  with the same autocovariance at one period, ``A = sqrt(2 c(T))``; white
+  measurement noise does not enter ``c(T)``.
 * **cross-correlation stiction test** (Horch 1999), from
   :func:`valve_gym.diagnosis.horch_ccf`: the phase index ``0..1`` (odd
   cross-correlation of OP and PV, near 1, behind a sticking valve; even, near 0,
@@ -35,8 +30,9 @@ Examples
 >>> import numpy as np
 >>> t = np.arange(2000.0)
 >>> e = 0.05 * np.sin(2 * np.pi * t / 100) + 0.01 * np.random.default_rng(0).normal(size=t.size)
->>> osc = oscillation_index(e, dt=1.0)
->>> osc.oscillating, round(osc.period_s), round(osc.amplitude, 2)
+>>> from valve_gym.oscillation import detect_oscillation
+>>> osc = detect_oscillation(e, dt=1.0, rule="screen")
+>>> osc.present, round(osc.period_s), round(osc.amplitude, 2)
 (True, 100, 0.05)
 """
 from __future__ import annotations
@@ -44,40 +40,11 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
-import numpy as np
-
 from ..diagnosis.recording import Recording
-from ..signals import acf_zero_crossings, detrend
+from ..oscillation import Oscillation, detect_oscillation
+from ..signals import acf, detrend
 
-__all__ = ["Oscillation", "HorchEvidence", "Screen", "oscillation_index", "screen_recording",
-           "R_MIN", "ACF_MIN"]
-
-#: Regularity above which the ACF's zero crossings count as a regular oscillation (Thornhill 2003).
-R_MIN = 1.0
-#: Smallest ACF at one period for an oscillation worth reporting.
-ACF_MIN = 0.3
-_MAX_CROSSINGS = 12
-
-
-class Oscillation(NamedTuple):
-    """Result of the oscillation index.
-
-    Attributes
-    ----------
-    oscillating : bool
-    regularity : float, ``r`` (NaN when the ACF crosses zero fewer than 5 times)
-    period_s : float, mean period [s] (NaN when not found)
-    amplitude : float, amplitude of the oscillation of the signal, its units (0 when not oscillating)
-    acf_at_period : float, ACF at one period (-1..1; NaN when not found)
-    reason : str, one line
-    """
-
-    oscillating: bool
-    regularity: float
-    period_s: float
-    amplitude: float
-    acf_at_period: float
-    reason: str
+__all__ = ["HorchEvidence", "Screen", "screen_recording"]
 
 
 class HorchEvidence(NamedTuple):
@@ -100,7 +67,7 @@ class Screen(NamedTuple):
 
     Attributes
     ----------
-    oscillation : Oscillation, of the control error (PV units)
+    oscillation : valve_gym.oscillation.Oscillation, of the control error (PV units), ``"screen"`` rule
     amplitude_op : float, amplitude of the controller output at the same period [fraction of stroke]
     horch : HorchEvidence
     """
@@ -108,55 +75,6 @@ class Screen(NamedTuple):
     oscillation: Oscillation
     amplitude_op: float
     horch: HorchEvidence
-
-
-def _autocov(x: np.ndarray) -> np.ndarray:
-    """Biased autocovariance of ``x`` (mean removed) at lags 0..n-1."""
-    n = len(x)
-    x = x - x.mean()
-    f = np.fft.rfft(x, 2 * n)
-    return np.fft.irfft(f * np.conj(f), 2 * n)[:n] / n
-
-
-def oscillation_index(e, dt: float = 1.0) -> Oscillation:
-    """Thornhill's regularity of the ACF zero crossings of one signal.
-
-    Parameters
-    ----------
-    e : (T,) array, the control error (or PV), any units, T >= 20
-    dt : float, sample time [s]
-
-    Returns
-    -------
-    Oscillation
-    """
-    x = detrend(e)
-    nan = float("nan")
-    c = _autocov(x)
-    if len(x) < 20 or c[0] <= 0:
-        return Oscillation(False, nan, nan, 0.0, nan, "too short or constant")
-    acf = c[: 2 * len(x) // 3] / c[0]
-    z = acf_zero_crossings(acf, _MAX_CROSSINGS)
-    if len(z) < 5:
-        return Oscillation(False, nan, nan, 0.0, nan, "the ACF crosses zero fewer than 5 times: no regular "
-                                                      "oscillation within two thirds of the record")
-    periods = z[2:] - z[:-2]
-    tm = float(periods.mean())
-    sd = float(periods.std())
-    r = tm / (3 * sd) if sd > 0 else math.inf
-    lag = int(round(tm))
-    a_p = float(acf[lag]) if lag < len(acf) else nan
-    amp = math.sqrt(2 * max(float(c[lag]), 0.0)) if lag < len(c) else 0.0
-    osc = bool(r > R_MIN and tm >= 4 and a_p >= ACF_MIN)
-    if osc:
-        why = f"regular oscillation: period {tm * dt:.4g} s, r = {r:.2f}, ACF at one period {a_p:.2f}"
-    elif r <= R_MIN:
-        why = f"irregular ACF zero crossings (r = {r:.2f} <= {R_MIN})"
-    elif tm < 4:
-        why = "zero crossings every few samples: noise, not an oscillation"
-    else:
-        why = f"weak: ACF at one period {a_p:.2f} < {ACF_MIN}"
-    return Oscillation(osc, float(min(r, 99.0)), tm * dt, amp if osc else 0.0, a_p, why)
 
 
 def screen_recording(rec: Recording, plant: str = "tank") -> Screen:
@@ -175,12 +93,12 @@ def screen_recording(rec: Recording, plant: str = "tank") -> Screen:
 
     dt = float(rec.dt or 1.0)
     e = rec.pv if rec.sp is None else rec.sp - rec.pv
-    osc = oscillation_index(e, dt)
+    osc = detect_oscillation(e, dt, "screen")
     amp_op = 0.0
-    if osc.oscillating:
-        c = _autocov(detrend(rec.op))
-        lag = int(round(osc.period_s / dt))
-        amp_op = math.sqrt(2 * max(float(c[lag]), 0.0)) if lag < len(c) else 0.0
+    lag = int(round(osc.period_s / dt)) if osc.present else len(rec.op)
+    if lag < len(rec.op):
+        c = acf(detrend(rec.op), lag, normalise=False)
+        amp_op = math.sqrt(2 * max(float(c[lag]), 0.0))
     h = horch_ccf(rec.op, rec.pv, dt, plant)
     pi = h.get("phase_index")
     horch = HorchEvidence(str(h.get("verdict")), float("nan") if pi is None else float(pi),

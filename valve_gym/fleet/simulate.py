@@ -34,6 +34,7 @@ import numpy as np
 from ..control import PIParams
 from ..diagnosis.recording import Recording
 from ..params import ModelParams, OscillatingDisturbance, SlipJump, TankParams, ValveParams
+from ..signals import ou_sequence
 
 __all__ = ["KINDS", "DEFAULT_MIX", "SimulatedLoop", "simulate_loop", "fleet_kinds", "write_fleet"]
 
@@ -102,12 +103,7 @@ def simulate_loop(kind: str, seed: int, n: int = 900, dt: float = 1.0, noise: fl
     lam = tau_p * rng.uniform(0.3, 0.6)
     pi = PIParams(Kc=float(tau_p / (gain * lam)), Ti=float(tau_p * rng.uniform(0.3, 0.6)), Ts=dt)
     sp = np.full(n, rng.uniform(0.7, 1.3))
-    a = np.exp(-dt / 200.0)
-    w = rng.normal(size=n)
-    x = np.zeros(n)
-    for k in range(1, n):
-        x[k] = a * x[k - 1] + np.sqrt(1 - a * a) * w[k]
-    d = 0.01 * k_out * x
+    d = 0.01 * k_out * ou_sequence(rng.normal(size=n), np.exp(-dt / 200.0))
     op, pv, _, _ = simulate_closed_loop(p, sp, pi, noise, rng, n_sub, level0=float(sp[0]), d=d)
     nm = name or f"{kind}_{seed}"
     rec = Recording(t=np.arange(n) * dt, op=np.clip(op, 0, 1), pv=pv, sp=sp, dt=dt, name=nm,

@@ -24,7 +24,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from valve_gym.config import ConfigError, config_to_dict, load_config
+from valve_gym.config import MAX_EPISODE_STEPS, ConfigError, check_count, config_to_dict, load_config
 
 __all__ = ["Band", "Bands", "OULoad", "RegulationConfig", "ServoConfig", "ControllersConfig", "ScoresConfig",
            "QuickConfig", "BenchConfig", "load_bench_config", "bench_config_to_dict", "DEFAULT_CONFIG_PATH",
@@ -49,6 +49,12 @@ def _check_pos(path: str, v: float, strict: bool = True) -> None:
         raise ConfigError(f"{path} must be {'>' if strict else '>='} 0, got {v!r}")
 
 
+#: Most valves of one band (per part): the benchmark simulates every one, twice (10^5 loops are days of CPU).
+MAX_BAND_N = 100_000
+#: Fewest controller scans in a record, a servo interval or a quick record (the oscillation detector needs 16).
+MIN_SCANS = 32
+
+
 @dataclass(frozen=True)
 class Band:
     """One stiction band of the valve population.
@@ -70,6 +76,8 @@ class Band:
     def __post_init__(self):
         if self.n < 0:
             raise ConfigError(f"n must be >= 0, got {self.n}")
+        if self.n:
+            check_count("n", self.n, MAX_BAND_N, "valves per band and part; each is a simulated loop of its own")
         _check_range("S", self.S, 0.0, 0.5)
         if self.log_uniform and self.S[0] <= 0.0:
             raise ConfigError(f"S is drawn log-uniformly and needs low > 0, got {list(self.S)!r}")
@@ -285,6 +293,19 @@ class BenchConfig:
 
     def __post_init__(self):
         _check_pos("scan_s", self.scan_s)
+        for path, span in (("regulation.duration_s", self.regulation.duration_s),
+                           ("servo.duration_s", self.servo.duration_s),
+                           ("servo.interval_s", self.servo.interval_s),
+                           ("quick.duration_s", self.quick.duration_s)):
+            n = span / self.scan_s
+            if n < MIN_SCANS:
+                raise ConfigError(f"scan_s = {self.scan_s:g} s leaves {path} = {span:g} s only {n:.3g} scans; "
+                                  f"give at least {MIN_SCANS} scans (scan_s <= {span / MIN_SCANS:g} s) or a "
+                                  f"longer {path}")
+            if n > MAX_EPISODE_STEPS:
+                raise ConfigError(f"{path} = {span:g} s is {n:.3g} scans of scan_s = {self.scan_s:g} s; at most "
+                                  f"{MAX_EPISODE_STEPS:,} per record (each is held in memory); use a longer "
+                                  f"scan_s or a shorter {path}")
         if not self.models or "none" in self.models:
             raise ConfigError(f"models must name at least one friction model (not 'none'), got {list(self.models)!r}")
         if sum(getattr(self.bands, b).n for b in BAND_NAMES) == 0:

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...signals import ou_sequence
 from .config import BAND_NAMES, BenchConfig, OULoad
 
 __all__ = ["Scenarios", "regulation_scenarios", "servo_scenarios", "benchmark_scenarios", "PARTS",
@@ -121,11 +122,8 @@ def band_labels(config: BenchConfig, n: int | None = None) -> np.ndarray:
 
 def _ou(rng: np.random.Generator, load: OULoad, T: int, scan_s: float) -> np.ndarray:
     """Ornstein-Uhlenbeck sequence of ``T`` samples starting at 0 (see :class:`OULoad`)."""
-    a = math.exp(-scan_s / load.tau)
-    w = rng.standard_normal(T) * load.sigma * math.sqrt(1.0 - a * a)
-    from scipy.signal import lfilter
-
-    return np.asarray(lfilter([0.0, 1.0], [1.0, -a], w), dtype=float)
+    w = rng.standard_normal(T) * load.sigma          # d[k+1] = a d[k] + sigma sqrt(1 - a^2) w[k]
+    return ou_sequence(np.concatenate([[0.0], w[:-1]]), math.exp(-scan_s / load.tau))
 
 
 def _valve(rng: np.random.Generator, config: BenchConfig, band: str) -> tuple:

@@ -1,7 +1,7 @@
 """Scores: per-loop metrics of each run, the compensation ratio, medians with bootstrap CIs.
 
 Per loop and controller (:class:`LoopScores`): limit cycle present /
-amplitude / period (:func:`valve_gym.metrics.acf_oscillation` on the measured
+amplitude / period (:func:`valve_gym.oscillation.detect_oscillation`, benchmark rule, on the measured
 error), IAE per hour, mean offset, stem travel and reversals per hour. Against
 the same loop under the SIMC PI and under the SIMC PI on a frictionless valve
 (same noise and load): the compensation ratio :func:`compensation_ratio`.
@@ -15,7 +15,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from valve_gym.metrics import acf_oscillation, reversal_counts
+from valve_gym.metrics import reversal_counts
+from valve_gym.oscillation import detect_oscillation
 
 from .config import BAND_NAMES, BenchConfig
 from .runner import Runs
@@ -79,14 +80,14 @@ def score_runs(runs: Runs, config: BenchConfig) -> LoopScores:
     """Score every loop of ``runs`` (metrics on the measured error ``sp - pv``, the stem as the valve)."""
     e = runs.sp - runs.pv
     hours = e.shape[0] * runs.scan_s / 3600.0
-    lc = [acf_oscillation(e[:, i], runs.scan_s) for i in range(e.shape[1])]
+    lc = [detect_oscillation(e[:, i], runs.scan_s, "benchmark") for i in range(e.shape[1])]
     travel = np.abs(np.diff(runs.stem, axis=0)).sum(axis=0)
     rev = reversal_counts(runs.stem, config.scores.reversal_deadband)
     return LoopScores(
         label=runs.label, part=runs.part,
         lc_present=np.array([x.present for x in lc]),
         lc_amplitude=np.array([x.amplitude for x in lc]),
-        lc_period=np.array([x.period for x in lc]),
+        lc_period=np.array([x.period_s if x.present else np.inf for x in lc]),
         iae_per_h=np.abs(e).sum(axis=0) * runs.scan_s / hours,
         offset=e.mean(axis=0),
         travel_per_h=travel / hours,

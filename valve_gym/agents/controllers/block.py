@@ -32,7 +32,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 __all__ = ["Setting", "FunctionBlock", "resolve_settings", "check_inputs", "check_step_inputs", "merge_rows",
-           "whole_scans", "json_settings", "fmt"]
+           "whole_scans", "json_settings", "fmt", "PVGuard", "PV_RANGE"]
 
 ArrayOrFloat = float | np.ndarray
 
@@ -151,7 +151,81 @@ def whole_scans(block: str, name: str, value: float, scan_s: float) -> int:
     return ki
 
 
-def _as_array(block: str, name: str, x) -> np.ndarray:
+#: Default plausible range of the set point and the measurement [PV units]: a value outside it (a
+#: historian's bad-value code such as -3.4e38, an overflow) is a bad measurement, as is NaN or inf.
+PV_RANGE = (-1.0e6, 1.0e6)
+
+
+def _pv_range(block: str, value) -> tuple[float, float]:
+    """``value`` as a checked ``(lo, hi)`` pair of finite floats with ``lo < hi``."""
+    try:
+        lo, hi = (float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{block}: pv_range must be a pair (lo, hi) of numbers in the PV's units, got "
+                         f"{value!r}") from None
+    if not (math.isfinite(lo) and math.isfinite(hi) and lo < hi):
+        raise ValueError(f"{block}: pv_range must be finite with lo < hi, got {value!r}")
+    return lo, hi
+
+
+class PVGuard:
+    """The bad-measurement hold of a DCS block: a scan with a bad SP or PV keeps the last output.
+
+    A measurement is bad when it is NaN or inf or outside ``pv_range`` (the plausible range of the
+    loop's PV, default :data:`PV_RANGE`; give the transmitter's range, e.g. ``(0, 2)`` m, to catch
+    codes such as 9999 too).  On such a scan the block does what a DCS PID block does with a
+    ``BAD`` PV status: it holds its output and its memory (no integration on a value that is not a
+    measurement), and it says so: :attr:`held` marks the loops held on the last scan,
+    :attr:`bad_pv_scans` counts them per loop, and a ``RuntimeWarning`` is issued once per block.
+
+    Parameters
+    ----------
+    block : str, the block's name (for messages)
+    pv_range : (2,) float, [PV units]
+    """
+
+    def __init__(self, block: str, pv_range=PV_RANGE):
+        self.block = block
+        self.pv_range = _pv_range(block, pv_range)
+        self.held = np.zeros(0, dtype=bool)
+        self.bad_pv_scans = np.zeros(0, dtype=np.int64)
+        self.last_op = np.zeros(0)
+        self._warned = False
+
+    def start(self, op: np.ndarray) -> None:
+        """At ``reset``: the output now applied ``op`` (n,); counters cleared."""
+        self.last_op = np.asarray(op, float).copy()
+        self.held = np.zeros(op.shape, dtype=bool)
+        self.bad_pv_scans = np.zeros(op.shape, dtype=np.int64)
+
+    def screen(self, sp: np.ndarray, pv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(sp, pv, bad)``: the bad loops' signals replaced by harmless values, ``bad`` (n,) bool."""
+        lo, hi = self.pv_range
+        with np.errstate(invalid="ignore"):
+            bad = ~(np.isfinite(sp) & np.isfinite(pv) & (pv >= lo) & (pv <= hi) & (sp >= lo) & (sp <= hi))
+        if bad.any():
+            sp = np.where(bad, 0.0, sp)
+            pv = np.where(bad, 0.0, pv)
+            if not self._warned:
+                import warnings
+
+                self._warned = True
+                warnings.warn(f"{self.block}: bad measurement (NaN, inf or outside pv_range = {self.pv_range}) "
+                              f"at loop(s) {np.flatnonzero(bad)[:10].tolist()}; output held at its last value "
+                              f"while it lasts (see .held, .bad_pv_scans)", RuntimeWarning, stacklevel=4)
+        return sp, pv, bad
+
+    def finish(self, op: np.ndarray, bad: np.ndarray) -> np.ndarray:
+        """The output of this scan: ``op`` where the measurement was good, the last output where not."""
+        if bad.any():
+            op = np.where(bad, self.last_op, op)
+        self.held = bad
+        self.bad_pv_scans = self.bad_pv_scans + bad
+        self.last_op = np.asarray(op, float).copy()
+        return op
+
+
+def _as_array(block: str, name: str, x, allow_bad: bool = False) -> np.ndarray:
     try:
         a = np.asarray(x, dtype=np.float64)
     except (TypeError, ValueError):
@@ -161,14 +235,14 @@ def _as_array(block: str, name: str, x) -> np.ndarray:
         raise ValueError(f"{block}: {name} must be a scalar or an (n,) array (one value per loop), "
                          f"got shape {a.shape}; flatten it or pass one loop per entry")
     bad = ~np.isfinite(a)
-    if bad.any():
+    if bad.any() and not allow_bad:
         where = "" if a.ndim == 0 else f" at loop(s) {np.flatnonzero(bad)[:10].tolist()}"
         raise ValueError(f"{block}: {name} contains NaN or inf{where}; pass finite values "
                          f"(hold the last good measurement while a signal is bad)")
     return a
 
 
-def check_inputs(block: str, **signals) -> tuple[tuple[np.ndarray, ...], int, bool]:
+def check_inputs(block: str, allow_bad: bool = False, **signals) -> tuple[tuple[np.ndarray, ...], int, bool]:
     """Signals as ``(n,)`` float arrays with one common ``n``.
 
     Returns
@@ -189,7 +263,7 @@ def check_inputs(block: str, **signals) -> tuple[tuple[np.ndarray, ...], int, bo
     >>> sp, n, scalar
     (array([1., 1.]), 2, False)
     """
-    arrs = {k: _as_array(block, k, v) for k, v in signals.items()}
+    arrs = {k: _as_array(block, k, v, allow_bad) for k, v in signals.items()}
     sizes = {k: a.shape[0] for k, a in arrs.items() if a.ndim == 1}
     if len(set(sizes.values())) > 1:
         raise ValueError(f"{block}: the loops' signals have different lengths {sizes}; pass (n,) arrays "
@@ -201,7 +275,8 @@ def check_inputs(block: str, **signals) -> tuple[tuple[np.ndarray, ...], int, bo
     return out, n, not sizes
 
 
-def check_step_inputs(block: str, n_loops: int, sp, pv) -> tuple[np.ndarray, np.ndarray, bool]:
+def check_step_inputs(block: str, n_loops: int, sp, pv, allow_bad: bool = False
+                      ) -> tuple[np.ndarray, np.ndarray, bool]:
     """``step()``'s set point and measurement as ``(n_loops,)`` arrays, for a block reset with ``n_loops`` loops.
 
     Returns
@@ -213,6 +288,7 @@ def check_step_inputs(block: str, n_loops: int, sp, pv) -> tuple[np.ndarray, np.
     ------
     ValueError
         As :func:`check_inputs`, and for arrays of another length than ``reset()`` was given.
+        NaN and inf pass when ``allow_bad`` (a block's :class:`PVGuard` holds those scans).
 
     Examples
     --------
@@ -221,7 +297,7 @@ def check_step_inputs(block: str, n_loops: int, sp, pv) -> tuple[np.ndarray, np.
     ...
     ValueError: pi: reset() was given 1 loop(s) but step() 2; call reset(sp, pv, op) again for the new set of loops
     """
-    (sp, pv), n, scalar = check_inputs(block, sp=sp, pv=pv)
+    (sp, pv), n, scalar = check_inputs(block, allow_bad, sp=sp, pv=pv)
     if scalar:                      # scalars are shared by all loops
         return np.full(n_loops, sp[0]), np.full(n_loops, pv[0]), True
     if n != n_loops:
@@ -277,7 +353,9 @@ class FunctionBlock(ABC):
     name: ClassVar[str] = "block"
     SETTINGS: ClassVar[tuple[Setting, ...]] = ()
 
-    def __init__(self, **settings):
+    def __init__(self, pv_range=PV_RANGE, **settings):
+        #: the bad-measurement hold (see :class:`PVGuard`); ``pv_range`` [PV units] its plausible range
+        self.guard = PVGuard(self.name, pv_range)
         #: resolved settings as floats or (n,) float arrays, for the block's arithmetic
         given = resolve_settings(self.name, self.SETTINGS, settings)
         ruled = [k for k, v in given.items() if v is None]
@@ -346,9 +424,23 @@ class FunctionBlock(ABC):
         check_op_limits(self.name, op, self.p["op_lo"], self.p["op_hi"])
         self._state = self.initial_state(sp, pv, op)
         self._n, self._scalar = n, scalar
+        self.guard.start(op)
+
+    @property
+    def held(self) -> np.ndarray:
+        """(n,) bool: the loops whose output the last scan held on a bad measurement (see :class:`PVGuard`)."""
+        return self.guard.held
+
+    @property
+    def bad_pv_scans(self) -> np.ndarray:
+        """(n,) int: scans held on a bad measurement since :meth:`reset`, per loop."""
+        return self.guard.bad_pv_scans
 
     def step(self, sp, pv) -> ArrayOrFloat:
         """One scan: the valve input to apply for the next ``scan_s`` seconds.
+
+        A loop whose ``sp`` or ``pv`` is bad (NaN, inf, outside ``pv_range``) keeps its last output
+        and memory on this scan, as a DCS block on a ``BAD`` PV status (see :class:`PVGuard`).
 
         Parameters
         ----------
@@ -360,8 +452,11 @@ class FunctionBlock(ABC):
         """
         if self._state is None:
             raise not_reset_error(self.name)
-        sp, pv, scalar = check_step_inputs(self.name, int(self._n or 1), sp, pv)
-        self._state, op = self.advance(self._state, sp, pv)
+        sp, pv, scalar = check_step_inputs(self.name, int(self._n or 1), sp, pv, allow_bad=True)
+        sp, pv, bad = self.guard.screen(sp, pv)
+        state, op = self.advance(self._state, sp, pv)
+        self._state = merge_rows(~bad, state, self._state) if bad.any() else state
+        op = self.guard.finish(op, bad)
         return float(op[0]) if (scalar and self._scalar) else op
 
     @abstractmethod

@@ -16,6 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ...signals import acf as autocorrelation
+
 __all__ = ["DEFAULT_MAX_SAMPLES", "MIN_AFTER_DECIMATION", "MIN_SAMPLES_PER_TIME_SCALE", "SAMPLES_PER_TIME_SCALE",
            "Conditioning",
            "condition", "time_scale"]
@@ -92,8 +94,7 @@ def _acf_scale(x: np.ndarray) -> float:
     y = x - x.mean()
     if not np.any(y):
         return float(n)
-    f = np.fft.rfft(y, 2 * n)
-    acf = np.fft.irfft(f * np.conj(f))[:n]
+    acf = autocorrelation(y, n - 1, normalise=False)
     if acf[0] <= 0 or acf[1] <= 0:
         return 1.0
     below = np.flatnonzero(acf[1:] < acf[1] / np.e)

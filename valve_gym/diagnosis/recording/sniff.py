@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..._io import not_regular_file
 from ._base import RecordingError
 
 __all__ = ["COLUMNWISE_BYTES", "DCS_EXPORT_SUFFIXES", "ENGINES", "Sniffed", "is_dcs_export", "recording_files",
@@ -98,6 +99,9 @@ def _open_prefix(path: Path, src: str) -> tuple[bytes, int]:
         raise RecordingError(f"{src}: file not found; check the path (relative paths start at {os.getcwd()})")
     if path.is_dir():
         raise RecordingError(f"{src}: is a folder, not a CSV file; give the path of a .csv file in it")
+    why = not_regular_file(path)
+    if why:  # a FIFO or a device would block the read or never end
+        raise RecordingError(f"{src}: is {why.split(' is ', 1)[-1]}; give a recording file (CSV or Parquet)")
     try:
         size = path.stat().st_size
         with open(path, "rb") as f:
@@ -190,6 +194,8 @@ def _dcs_export(text: str, src: str) -> tuple[tuple[str, ...], int, int, tuple[t
 
 def is_dcs_export(path: str | os.PathLike) -> bool:
     """Whether ``path`` is a readable file whose first non-blank line starts with ``PROCESSDATA``."""
+    if not os.path.isfile(path):  # a FIFO or a device is not read (it could block)
+        return False
     try:
         with open(path, "rb") as f:
             head = f.read(4096)

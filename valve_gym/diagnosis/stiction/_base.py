@@ -2,9 +2,9 @@
 
 Every method of :mod:`valve_gym.diagnosis.stiction` returns an :class:`Evidence`:
 its own index value, whether the method applies to this record at all and how
-reliable its reading is here.  :class:`Oscillation` describes the dominant
-oscillation of a signal (Thornhill, Huang & Zhang 2003), which most methods
-need before they can say anything.
+reliable its reading is here.  :func:`oscillation` is the ``"stiction"`` rule of the
+one oscillation detector (:func:`valve_gym.oscillation.detect_oscillation`,
+Thornhill, Huang & Zhang 2003), which most methods need before they can say anything.
 
 References
 ----------
@@ -17,7 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ...signals import acf, acf_zero_crossings, detrend
+from ...oscillation import Oscillation, detect_oscillation
+from ...signals import detrend
 
 __all__ = ["Evidence", "Oscillation", "oscillation", "bandpass", "check_signals", "not_applicable"]
 
@@ -86,47 +87,15 @@ def check_signals(op, pv, dt: float):
     return op, pv
 
 
-@dataclass(frozen=True)
-class Oscillation:
-    """Dominant oscillation of a signal from the zero crossings of its autocorrelation.
-
-    Attributes
-    ----------
-    present : bool, regular oscillation (``regularity > 1`` and at least 3 cycles in the record)
-    period : float, samples (nan if no oscillation period could be read)
-    regularity : float, Thornhill's ``r = mean(Tp) / (3 std(Tp))`` (> 1: regular)
-    n_cycles : float, record length / period
-    """
-
-    present: bool
-    period: float
-    regularity: float
-    n_cycles: float
-
-
 def oscillation(x, min_period: float = 4.0) -> Oscillation:
-    """Period and regularity of the oscillation in ``x`` (T,) [any units].
+    """The oscillation of ``x`` (T,) [any units] by the stiction evidence's rule, in samples.
 
-    Notes
-    -----
-    Intervals between successive zero crossings of the autocorrelation
-    function (after the first), doubled, are period estimates ``Tp_i``;
-    ``r = mean(Tp) / (3 std(Tp))`` (Thornhill et al. 2003).  Needs at least
-    three crossings; ``std`` is floored at one sample.
+    :func:`valve_gym.oscillation.detect_oscillation` with ``rule="stiction"`` and ``dt = 1``
+    (so ``period_s`` and :attr:`~valve_gym.oscillation.Oscillation.period_samples` are in
+    samples): regular ACF zero crossings (the periods' std floored at one sample), 3 or more
+    cycles in the record and a period of at least ``min_period`` samples.
     """
-    x = detrend(x)
-    n = len(x)
-    if np.std(x) <= 1e-12 * max(np.abs(x).max(), 1e-300):
-        return Oscillation(False, float("nan"), 0.0, 0.0)
-    zc = acf_zero_crossings(acf(x, n // 2), 12)      # interpolated crossing lags
-    if len(zc) < 3:
-        return Oscillation(False, float("nan"), 0.0, 0.0)
-    tp = 2.0 * np.diff(zc)
-    period = float(np.mean(tp))
-    r = period / (3.0 * max(float(np.std(tp)), 1.0))
-    cycles = n / period if period > 0 else 0.0
-    present = bool(r > 1.0 and cycles >= 3.0 and period >= min_period)
-    return Oscillation(present, period, float(r), float(cycles))
+    return detect_oscillation(x, 1.0, "stiction", min_period=min_period)
 
 
 def bandpass(x, period: float, width: float = 0.6) -> np.ndarray:

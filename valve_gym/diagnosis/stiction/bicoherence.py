@@ -96,7 +96,7 @@ def bicoherence_evidence(op, pv, dt: float = 1.0, sp=None) -> Evidence:
     nfft = 128 if n >= 128 * 6 else 64
     if n < nfft * 3:
         return not_applicable("bicoherence", CITE, f"too short for the test (< {3 * nfft} samples)", DOC)
-    if osc.present and osc.period * 2.5 > nfft and n >= 256 * 5:
+    if osc.present and osc.period_samples * 2.5 > nfft and n >= 256 * 5:
         nfft = 256
     bic2, crit = bicoherence(e, nfft)
     sig = bic2[bic2 > crit]

@@ -181,15 +181,15 @@ def ellipse_evidence(op, pv, dt: float = 1.0) -> Evidence:
         if not osc_op.present:
             return not_applicable("ellipse", CITE, "neither PV nor OP oscillates regularly", DOC)
         osc = osc_op
-    opf = bandpass(op, osc.period)
-    pvf = bandpass(pv, osc.period)
+    opf = bandpass(op, osc.period_samples)
+    pvf = bandpass(pv, osc.period_samples)
     e = fit_ellipse(opf, pvf)
     if e is None:
         return not_applicable("ellipse", CITE, "the PV-OP plot is not an ellipse (a line)", DOC)
     s = apparent_stiction(e)
     amp = float(np.quantile(opf, 0.98) - np.quantile(opf, 0.02))
     idx = float(np.clip(s / max(amp, 1e-300), 0.0, 1.0))
-    wins = _window_estimates(opf, pvf, osc.period)
+    wins = _window_estimates(opf, pvf, osc.period_samples)
     if len(wins) >= 2:
         lo, hi = float(np.quantile(wins, 0.05)), float(np.quantile(wins, 0.95))
     else:
@@ -204,4 +204,4 @@ def ellipse_evidence(op, pv, dt: float = 1.0) -> Evidence:
                     f"{100 * amp:.2g} %", DOC,
                     {"S_app": s, "S_lo": lo, "S_hi": hi, "S_est": est[0], "S_est_lo": est[1],
                      "S_est_hi": est[2], "n_windows": float(len(wins)),
-                     "period_samples": osc.period, "op_pp_filtered": amp})
+                     "period_samples": osc.period_samples, "op_pp_filtered": amp})

@@ -115,9 +115,9 @@ def episodes_evidence(op, pv, dt: float = 1.0, plant: str = "first_order", sp=No
     osc = oscillation(pv)
     regular = float(osc.present or oscillation(op).present)
     long_ok = n >= 12 * w
-    if osc.present and 3 * w > osc.period / 4:      # slopes need windows within a quarter cycle
+    if osc.present and 3 * w > osc.period_samples / 4:      # slopes need windows within a quarter cycle
         long_ok = False
-        w = max(4, min(w, int(osc.period / 4)))
+        w = max(4, min(w, int(osc.period_samples / 4)))
     if n < 4 * w:
         return _silent(f"too short (< {4 * w} samples)", regular)
     e = (np.asarray(sp, float) if sp is not None else np.full(n, pv.mean())) - pv

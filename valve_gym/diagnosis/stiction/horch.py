@@ -45,7 +45,7 @@ def _integrating(pv) -> Evidence:
     osc = oscillation(pv)
     if not osc.present:
         return not_applicable("horch", CITE_INT, "the PV does not oscillate regularly", DOC_INT)
-    w = max(1, int(round(osc.period / 12)))
+    w = max(1, int(round(osc.period_samples / 12)))
     d = np.diff(_smooth(pv, w))
     d = d - d.mean()
     s = d.std()
@@ -58,7 +58,7 @@ def _integrating(pv) -> Evidence:
     return Evidence("horch", CITE_INT, True, float(b), reliability(osc), verdict,
                     "two-peaked PV slope: square valve moves" if verdict == "stiction" else
                     "the PV slope is not two-valued", DOC_INT,
-                    {"period_samples": osc.period, "regularity": osc.regularity})
+                    {"period_samples": osc.period_samples, "regularity": osc.regularity})
 
 
 def horch_evidence(op, pv, dt: float = 1.0, plant: str = "first_order") -> Evidence:

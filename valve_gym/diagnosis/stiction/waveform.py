@@ -100,10 +100,10 @@ def waveform_evidence(op, pv, dt: float = 1.0, plant: str = "first_order") -> Ev
         if not osc2.present:
             return not_applicable("waveform", CITE, f"the {name} does not oscillate regularly", DOC)
         osc = osc2
-    si, nh = stiction_shape_index(x, osc.period)
+    si, nh = stiction_shape_index(x, osc.period_samples)
     if not np.isfinite(si):
         return not_applicable("waveform", CITE, f"fewer than 2 half-cycles of the {name} to fit", DOC)
     verdict = "stiction" if si > 0.6 else ("no stiction" if si < 0.4 else "undetermined")
     return Evidence("waveform", CITE, True, float(si), reliability(osc) * min(1.0, nh / 6), verdict,
                     f"{name} half-cycles fit a {'triangle' if si > 0.5 else 'sine'} better", DOC,
-                    {"n_half_cycles": float(nh), "period_samples": osc.period})
+                    {"n_half_cycles": float(nh), "period_samples": osc.period_samples})
