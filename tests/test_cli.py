@@ -1,4 +1,4 @@
-"""Bad input to ``valve-gym benchmark``, ``train`` and ``convert-policy``: exit 2, a message that
+"""The command line of ``valve-gym benchmark``, ``train`` and ``convert-policy``: bad input is exit 2, a message that
 names the problem, no traceback, refused before any work starts and nothing left on disk.
 
 Every test replaces the long-running work (benchmark, training, unpickling) with a function that
