@@ -147,8 +147,9 @@ def test_learned_step_with_another_number_of_loops_says_so_as_the_other_blocks()
     c.reset([1.0, 1.0], [1.0, 1.0], [0.5, 0.5])
     with pytest.raises(ValueError, match=r"^learned: reset\(\) was given 2 loop\(s\) but step\(\) 3;"):
         c.step([1.0] * 3, [1.0] * 3)
-    with pytest.raises(ValueError, match=r"^learned: pv contains NaN or inf at loop\(s\) \[1\]"):
-        c.step(1.0, [1.0, np.nan])
+    with pytest.warns(RuntimeWarning, match=r"^learned: bad measurement .* at loop\(s\) \[1\]; output held"):
+        held = c.step(1.0, [1.0, np.nan])                 # a bad PV holds that loop's output (DCS bad-PV hold)
+    assert held[1] == 0.5 and c.held.tolist() == [False, True]
     assert np.shape(c.step(1.0, [0.9, 1.0])) == (2,)      # still usable; a scalar is shared by the loops
     assert np.shape(c.step(1.0, 1.0)) == (2,)
 

@@ -28,12 +28,12 @@ def detrend(x) -> np.ndarray:
     return x - np.polyval(np.polyfit(t, x, 1), t)
 
 
-def acf(x, max_lag: int, normalise: bool = True) -> np.ndarray:
+def acf(x, max_lag: int, normalise: bool = True, demean: bool = True) -> np.ndarray:
     """Biased autocorrelation of ``x`` (mean removed) at lags ``0..max_lag``; zeros for a constant ``x``.
 
     ``r[k] = sum_t x_t x_{t+k} / sum_t x_t^2`` by FFT; with ``normalise=False`` the biased
     autocovariance ``c[k] = sum_t x_t x_{t+k} / N`` ([x]^2) instead.  ``max_lag`` is at most
-    ``N - 1``.
+    ``N - 1``.  ``demean=False`` takes ``x`` as already centred (its mean is not subtracted again).
 
     Examples
     --------
@@ -42,7 +42,9 @@ def acf(x, max_lag: int, normalise: bool = True) -> np.ndarray:
     >>> round(float(r[0]), 6), bool(r[10] < -0.8), bool(r[20] > 0.8)
     (1.0, True, True)
     """
-    x = np.asarray(x, float) - np.mean(x)
+    x = np.asarray(x, float)
+    if demean:
+        x = x - np.mean(x)
     n = len(x)
     f = np.fft.rfft(x, 2 * n)
     a = np.fft.irfft(f * np.conj(f), 2 * n)[: max_lag + 1]

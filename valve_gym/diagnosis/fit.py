@@ -83,7 +83,7 @@ def effective_n(residual, max_lag: int | None = None) -> float:
     if not 1e-100 < m < 1e100:          # tiny or huge units: the squares would under- or overflow
         r = r / m
     L = min(max_lag or min(n // 3, 500), n - 1)
-    acf = autocorrelation(r, L)
+    acf = autocorrelation(r, L, demean=False)      # r is centred above
     s = 0.0
     for k in range(1, L + 1):
         if acf[k] <= 0:

@@ -94,7 +94,7 @@ def _acf_scale(x: np.ndarray) -> float:
     y = x - x.mean()
     if not np.any(y):
         return float(n)
-    acf = autocorrelation(y, n - 1, normalise=False)
+    acf = autocorrelation(x, n - 1, normalise=False)      # removes the mean itself
     if acf[0] <= 0 or acf[1] <= 0:
         return 1.0
     below = np.flatnonzero(acf[1:] < acf[1] / np.e)
