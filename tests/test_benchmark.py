@@ -32,7 +32,7 @@ def test_quick_run_tables(quick_run):
     cfg = BenchConfig().quick_version()
     res = pd.read_csv(quick_run / "results.csv")
     assert list(res.columns) == ["part", "controller", "band", "metric", "stat", "value", "ci_lo", "ci_hi", "n", "unit"]
-    assert set(res["part"]) == {"regulation", "servo"} and set(res["band"]) == set(BAND_GROUPS)
+    assert set(res["part"]) == {"regulation", "servo", "generalisation"} and set(res["band"]) == set(BAND_GROUPS)
     ctrls = set(res["controller"])
     assert {"PI frictionless", "PI (SIMC)", "PI Kc x0.5", "knocker", "knocker S x0.5", "two_move S x1.5",
             "constant_reinforcement", "integral_freeze"} <= ctrls

@@ -81,8 +81,8 @@ class GenFamily:
     noise: tuple[float, float] = (0.001, 0.003)
 
     def quick(self) -> GenFamily:
-        """The ``--quick`` family: two loops per band, 15 minutes."""
-        return replace(self, n_healthy=2, n_sticky=2, n_severe=2, duration_s=900.0)
+        """The ``--quick`` family (a smoke test): two loops per band, 10 minutes, 1-s scans."""
+        return replace(self, n_healthy=2, n_sticky=2, n_severe=2, duration_s=600.0, scans=(1.0,))
 
 
 @dataclass(frozen=True, eq=False)
