@@ -8,11 +8,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from valve_gym import core
 from valve_gym.agents import available_controllers, load_controller
 from valve_gym.agents.controllers import ConstantReinforcement, IntegralFreeze, Knocker, PIBlock, TwoMove
 from valve_gym.agents.controllers.registry import ControllerLoadError
 from valve_gym.agents.controllers.two_move import HOLD, NORMAL, ValveEstimate, valve_estimate
-from valve_gym import core
 from valve_gym.params import ModelParams, SlipJump
 
 BLOCKS = ["pi", "knocker", "constant_reinforcement", "two_move", "integral_freeze"]
@@ -28,7 +28,7 @@ def _signals(T, n, seed):
 # ----------------------------------------------------------------------------------------- interface
 def test_available_controllers():
     assert available_controllers() == ("pi", "knocker", "constant_reinforcement", "two_move",
-                                       "integral_freeze", "learned")
+                                       "integral_freeze", "learned", "learned_adaptive")
 
 
 @pytest.mark.parametrize("name", BLOCKS)
