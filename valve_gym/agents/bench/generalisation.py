@@ -25,7 +25,7 @@ import time
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, replace
-from typing import cast
+from typing import Any, cast
 
 import numpy as np
 
@@ -229,7 +229,7 @@ def _controller(spec: GenSpec, loops: GenLoops, idx: np.ndarray, scan_s: float):
     """The block of ``spec`` for loops ``idx`` (one scan time): per-loop tuning, else one block per loop."""
     from valve_gym.agents import load_controller
 
-    kw = dict(spec.settings, scan_s=scan_s)
+    kw: dict[str, Any] = dict(spec.settings, scan_s=scan_s)
     if spec.family == "known":
         kw["S"] = np.maximum(loops.S[idx], ESTIMATE_MIN)
     try:
