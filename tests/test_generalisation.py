@@ -71,6 +71,14 @@ def test_family_is_fixed_and_covers_its_cases():
     assert set(a.scan_s.tolist()) == {0.5, 1.0, 2.0}
 
 
+def test_family_follows_the_size_of_the_run():
+    assert GenFamily.for_config(BenchConfig()) == GenFamily()
+    q = GenFamily.for_config(BenchConfig().quick_version())
+    assert (q.n_healthy, q.n_sticky, q.n_severe) == (1, 1, 1) and q.duration_s == 2400.0 * 600.0 / 3600.0
+    small, full = gen_loops(q), gen_loops()
+    assert small.specs[0] == full.specs[0]                 # loop i is the same loop in every size
+
+
 def test_quick_part_scores_every_row_with_the_benchmark_scores():
     cfg = BenchConfig().quick_version()
     fam = GenFamily(n_healthy=1, n_sticky=1, n_severe=1, duration_s=240.0, scans=(1.0,))

@@ -29,7 +29,7 @@ from typing import Any, cast
 
 import numpy as np
 
-from .config import BenchConfig
+from .config import BAND_NAMES, BenchConfig
 from .runner import ESTIMATE_MIN, ControllerBank, Runs
 from .scenarios import Scenarios
 from .scores import (
@@ -56,7 +56,6 @@ LOAD_LEVELS = {"small": 0.0015, "large": 0.012}
 #: Range of the constant part of every load (random sign), fraction of full valve flow: the valve must move
 #: off the opening it rests at, as after any change of the operating point.
 OFFSET = (0.005, 0.02)
-_COMPENSATORS = ("knocker", "constant_reinforcement", "two_move", "integral_freeze")
 
 
 @dataclass(frozen=True)
@@ -80,9 +79,23 @@ class GenFamily:
     scans: tuple[float, ...] = (0.5, 1.0, 2.0)
     noise: tuple[float, float] = (0.001, 0.003)
 
-    def quick(self) -> GenFamily:
-        """The ``--quick`` family (a smoke test): two loops per band, 10 minutes, 1-s scans."""
-        return replace(self, n_healthy=2, n_sticky=2, n_severe=2, duration_s=600.0, scans=(1.0,))
+    @classmethod
+    def for_config(cls, config: BenchConfig) -> GenFamily:
+        """The family for a benchmark run of ``config``.
+
+        The full family for the default size or larger; for a smaller run (``--quick``, a test's tiny
+        configuration) as many times fewer loops and as much shorter records as that run has against the
+        default (at least one loop per band; loop ``i`` is the same loop in every size).
+        """
+        full, ref = cls(), BenchConfig()
+        count = sum(getattr(config.bands, b).n for b in BAND_NAMES)
+        r_n = min(1.0, count / sum(getattr(ref.bands, b).n for b in BAND_NAMES))
+        r_t = min(1.0, config.regulation.duration_s / ref.regulation.duration_s)
+        if r_n >= 1.0 and r_t >= 1.0:
+            return full
+        return replace(full, n_healthy=max(1, round(full.n_healthy * r_n)),
+                       n_sticky=max(1, round(full.n_sticky * r_n)), n_severe=max(1, round(full.n_severe * r_n)),
+                       duration_s=full.duration_s * r_t)
 
 
 @dataclass(frozen=True, eq=False)
@@ -161,7 +174,7 @@ def gen_loops(family: GenFamily = GenFamily()) -> GenLoops:
 
     Examples
     --------
-    >>> g = gen_loops(GenFamily().quick())
+    >>> g = gen_loops(GenFamily(n_healthy=2, n_sticky=2, n_severe=2, duration_s=600.0))
     >>> g.n, sorted(set(g.band.tolist()))
     (6, ['healthy', 'severe', 'sticky'])
     """
@@ -214,14 +227,15 @@ class GenSpec:
 def gen_lineup(config: BenchConfig, learned: tuple[str, ...] = ("learned",)) -> tuple[GenSpec, ...]:
     """The rows of the part.
 
-    Frictionless PI, PI, detuned PIs, compensators at default settings, the learned blocks, then the
-    compensators with the true ``S``.
+    Frictionless PI, PI, the detuned PIs of ``config.controllers.detune``, its compensators at default
+    settings, the learned blocks, then the same compensators with the true ``S``.
     """
     rows = [GenSpec(REFERENCE_FRICTIONLESS, "pi", "frictionless", frictionless=True), GenSpec(REFERENCE_PI, "pi", "pi")]
     rows += [GenSpec(f"PI Kc x{k:g}", "pi", "detuned", (("detune", float(k)),)) for k in config.controllers.detune]
-    rows += [GenSpec(c, c, "default") for c in _COMPENSATORS]
+    comps = config.controllers.compensators
+    rows += [GenSpec(c, c, "default") for c in comps]
     rows += [GenSpec(n, n, "learned") for n in learned]
-    rows += [GenSpec(f"{c} (S known)", c, "known") for c in _COMPENSATORS]
+    rows += [GenSpec(f"{c} (S known)", c, "known") for c in comps]
     return tuple(rows)
 
 
@@ -375,7 +389,7 @@ def run_generalisation(config: BenchConfig, family: GenFamily = GenFamily(), job
         Worker processes (one row per task).
     progress : callable, optional
     learned : tuple of str, optional
-        Learned blocks to run (default: :func:`learned_names`).
+        Learned blocks to run (default: :func:`learned_names` when ``config.controllers.learned``, else none).
 
     Returns
     -------
@@ -383,7 +397,9 @@ def run_generalisation(config: BenchConfig, family: GenFamily = GenFamily(), job
     """
     t0 = time.perf_counter()
     loops = gen_loops(family)
-    specs, notes = _available(gen_lineup(config, learned_names() if learned is None else learned), loops)
+    if learned is None:
+        learned = learned_names() if config.controllers.learned else ()
+    specs, notes = _available(gen_lineup(config, learned), loops)
     _GEN.update(specs=specs, loops=loops, config=config)
     res = _execute(len(specs), max(1, min(int(jobs), len(specs))), progress)
     by = {i: s for i, s, _ in res}

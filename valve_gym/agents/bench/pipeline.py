@@ -259,11 +259,10 @@ def run_benchmark(config: BenchConfig, jobs: int = 1, progress: Callable[[str], 
 
 
 def _generalisation(config: BenchConfig, jobs: int, progress: Callable[[str], None] | None):
-    """The generalisation part (its own fixed family; the short one for the ``--quick`` configuration)."""
+    """The generalisation part (its own fixed family, made smaller for a smaller run such as ``--quick``)."""
     from .generalisation import GenFamily, run_generalisation
 
-    fam = GenFamily().quick() if config == config.quick_version() else GenFamily()
-    return run_generalisation(config, fam, jobs=jobs, progress=progress)
+    return run_generalisation(config, GenFamily.for_config(config), jobs=jobs, progress=progress)
 
 
 def default_jobs() -> int:
