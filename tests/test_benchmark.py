@@ -31,8 +31,10 @@ def test_quick_run_tables(quick_run):
     cfg = BenchConfig().quick_version()
     res = pd.read_csv(quick_run / "results.csv")
     assert list(res.columns) == ["part", "controller", "band", "metric", "stat", "value", "ci_lo", "ci_hi", "n", "unit"]
-    assert set(res["part"]) == {"regulation", "servo"} and set(res["band"]) == set(BAND_GROUPS)
-    ctrls = set(res["controller"])
+    assert set(res["part"]) == {"regulation", "servo", "generalisation"} and set(res["band"]) == set(BAND_GROUPS)
+    gen = res[res.part == "generalisation"]
+    assert {"PI (SIMC)", "knocker", "knocker (S known)", "learned_adaptive"} <= set(gen["controller"])
+    ctrls = set(res[res.part != "generalisation"]["controller"])
     assert {"PI frictionless", "PI (SIMC)", "PI Kc x0.5", "knocker", "knocker S x0.5", "two_move S x1.5",
             "constant_reinforcement", "integral_freeze"} <= ctrls
     r = res[(res.metric == "R") & (res.controller == "PI (SIMC)")]
@@ -52,7 +54,7 @@ def test_quick_run_tables(quick_run):
     assert bool(np.all(np.asarray(fr["lc_present"]) == 0))
     assert load_bench_config(quick_run / "config.yaml") == cfg
     md = (quick_run / "results.md").read_text()
-    assert "## Headline" in md and "valve-gym benchmark --quick" in md
+    assert "## Headline" in md and "valve-gym benchmark --quick" in md and "## Generalisation" in md
 
 
 def test_bad_config_and_options_exit_2(tmp_path, capsys):

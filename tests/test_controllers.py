@@ -28,7 +28,7 @@ def _signals(T, n, seed):
 # ----------------------------------------------------------------------------------------- interface
 def test_available_controllers():
     assert available_controllers() == ("pi", "knocker", "constant_reinforcement", "two_move",
-                                       "integral_freeze", "learned")
+                                       "integral_freeze", "learned", "learned_adaptive")
 
 
 @pytest.mark.parametrize("name", BLOCKS)

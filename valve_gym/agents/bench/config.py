@@ -189,7 +189,8 @@ class ControllersConfig:
     estimate_factors : tuple of float
         The estimate given to each compensator is ``factor * S_true`` (1.0 first: the headline row).
     learned : bool
-        Include ``load_controller("learned")`` (skipped with a note when it cannot be loaded).
+        Include ``load_controller("learned")`` and every other registered ``learned_*`` block (each
+        skipped with a note when it cannot be loaded).
     """
 
     detune: tuple[float, ...] = (2.0, 1.5, 0.7, 0.5, 0.35, 0.25)

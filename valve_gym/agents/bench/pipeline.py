@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -83,6 +84,8 @@ class BenchmarkResult:
         Worker processes asked for (``--jobs``); 0: not known (taken as ``jobs``).
     n_tasks : int
         Tasks run (controllers x parts).
+    generalisation : GenResult or None
+        The generalisation part (:mod:`~valve_gym.agents.bench.generalisation`), None when not run.
     """
 
     config: BenchConfig
@@ -97,6 +100,7 @@ class BenchmarkResult:
     jobs: int
     jobs_asked: int = 0
     n_tasks: int = 0
+    generalisation: Any = None
 
     def jobs_text(self, unit: str = "job(s)") -> str:
         """The workers used, and the number asked when fewer were used (:func:`jobs_text`)."""
@@ -249,8 +253,16 @@ def run_benchmark(config: BenchConfig, jobs: int = 1, progress: Callable[[str], 
     classical = tuple(s.label for s in specs if s.family in ("pi", "detuned")
                       or (s.family == "compensator" and s.estimate == 1.0))
     comp = compare_learned(res.part_scores("regulation"), scen.regulation, config, classical)
+    gen = _generalisation(config, used, progress)
     return BenchmarkResult(config, scen, specs, results, summary, comp, res.example, notes,
-                           time.perf_counter() - t0, used, int(jobs), len(tasks))
+                           time.perf_counter() - t0, used, int(jobs), len(tasks), gen)
+
+
+def _generalisation(config: BenchConfig, jobs: int, progress: Callable[[str], None] | None):
+    """The generalisation part (its own fixed family, made smaller for a smaller run such as ``--quick``)."""
+    from .generalisation import GenFamily, run_generalisation
+
+    return run_generalisation(config, GenFamily.for_config(config), jobs=jobs, progress=progress)
 
 
 def default_jobs() -> int:

@@ -24,9 +24,10 @@ def summary_frame(res: BenchmarkResult):
     """``results.csv`` as a DataFrame: ``part, controller, band, metric, stat, value, ci_lo, ci_hi, n, unit``."""
     import pandas as pd
 
+    gen = res.generalisation.summary if res.generalisation is not None else ()
     return pd.DataFrame([{"part": r.part, "controller": r.controller, "band": r.band, "metric": r.metric,
                           "stat": r.stat, "value": r.estimate.value, "ci_lo": r.estimate.lo,
-                          "ci_hi": r.estimate.hi, "n": r.estimate.n, "unit": r.unit} for r in res.summary])
+                          "ci_hi": r.estimate.hi, "n": r.estimate.n, "unit": r.unit} for r in (*res.summary, *gen)])
 
 
 def _index(res: BenchmarkResult) -> dict[tuple[str, str, str, str], Estimate]:
@@ -117,6 +118,10 @@ def results_markdown(res: BenchmarkResult, command: str = "") -> str:
     for part in PARTS:
         for band in BAND_GROUPS:
             out += [f"## {part.capitalize()}: {band}", "", _part_table(res, part, band), ""]
+    if res.generalisation is not None:
+        from .generalisation import generalisation_markdown
+
+        out += [generalisation_markdown(res.generalisation, cfg)]
     out += ["## Settings of each block", ""]
     set_by = {r.spec.label: r for r in res.scores}
     out += [f"- {s.label}: `{s.name}`" + (f", S = {s.estimate:g} x true S" if s.estimate else "")

@@ -75,7 +75,10 @@ def lineup(config: BenchConfig) -> tuple[ControllerSpec, ...]:
             label = comp if f == 1.0 else f"{comp} S x{f:g}"
             specs.append(ControllerSpec(label, comp, "compensator", estimate=float(f)))
     if cc.learned:
-        specs.append(ControllerSpec("learned", "learned", "learned"))
+        from valve_gym.agents import available_controllers
+
+        specs += [ControllerSpec(n, n, "learned") for n in available_controllers()
+                  if n == "learned" or n.startswith("learned_")]
     return tuple(specs)
 
 

@@ -46,9 +46,22 @@ def _load_learned(**settings):
             from exc
 
 
+def _load_adaptive(**settings):
+    from valve_gym.agents.adaptive import load_adaptive
+
+    try:
+        return load_adaptive(**settings)
+    except (ValueError, TypeError):
+        raise
+    except Exception as exc:  # noqa: BLE001 - a missing or unreadable file is reported with its cause
+        raise ControllerLoadError(f"the adaptive compensator could not be loaded: {type(exc).__name__}: {exc}") \
+            from exc
+
+
 _BLOCKS: dict[str, type] = {cls.name: cls for cls in (PIBlock, Knocker, ConstantReinforcement, TwoMove,
                                                        IntegralFreeze)}
-_LOADERS: dict[str, Callable[..., object]] = {**_BLOCKS, "learned": _load_learned}
+_LOADERS: dict[str, Callable[..., object]] = {**_BLOCKS, "learned": _load_learned,
+                                              "learned_adaptive": _load_adaptive}
 
 
 def available_controllers() -> tuple[str, ...]:
@@ -57,7 +70,7 @@ def available_controllers() -> tuple[str, ...]:
     Examples
     --------
     >>> available_controllers()
-    ('pi', 'knocker', 'constant_reinforcement', 'two_move', 'integral_freeze', 'learned')
+    ('pi', 'knocker', 'constant_reinforcement', 'two_move', 'integral_freeze', 'learned', 'learned_adaptive')
     """
     return tuple(_LOADERS)
 

@@ -1,0 +1,219 @@
+"""A second held-out check of the stiction compensators, on plants and valves coded here alone.
+
+Nothing in this script was used while the compensators were designed or trained, and nothing here is
+shared with the physics core (:mod:`valve_gym.core`) or with the benchmark's generalisation plants
+(:mod:`valve_gym.agents.bench.unseen_plants`). The scores are the benchmark's
+(:func:`valve_gym.agents.bench.scores.score_runs`, :func:`~valve_gym.agents.bench.scores.compensation_ratio`).
+
+Plants (one scan per loop: 1 or 3 s)
+    ``cascade``: two non-interacting Torricelli tanks in series, the lower tank's level measured;
+    ``thermal``: a second-order-plus-dead-time loop (two lags 5-60 s, 2-10 s delay), equal-percentage valve;
+    ``vessel``: a gas vessel, pressure ``P`` with inflow ``q_max x sqrt(P_s - P)`` and outflow ``k P``.
+Valves
+    He, Wang, Pottmann & Qin (2007) two-layer model (static ``f_s``, dynamic ``f_d`` friction, a residual
+    force that accumulates the input's moves), and Stenman's one-parameter model (the stem jumps to the
+    input once they differ by more than ``d``), each behind a first-order positioner (0.5-3 s).
+Loads
+    a load step of 1-4 % of full flow at a random time in the first half plus a slow random walk.
+
+Each controller comes from ``load_controller(name)`` with the loop's PI tuning (SIMC on a first-order
+model found by a step test of the frictionless loop, ``tau_c = max(T/6, 3 theta)``) and its scan only.
+
+Usage::
+
+    python benchmarks/learned_unseen_check.py [--n 36] [--seed 913] [--names pi knocker learned learned_adaptive]
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import time
+import warnings
+
+import numpy as np
+
+from valve_gym.agents import load_controller
+from valve_gym.agents.bench.config import BenchConfig
+from valve_gym.agents.bench.runner import ControllerBank, Runs
+from valve_gym.agents.bench.scores import compensation_ratio, score_runs
+
+KINDS = ("cascade", "thermal", "vessel")
+VALVE_KINDS = ("he2007", "stenman")
+
+
+def draw(n: int, seed: int) -> list[dict]:
+    """``n`` loops: every third healthy (S <= 0.4 %), the others S 1-9 % of stroke."""
+    out = []
+    for i in range(n):
+        r = np.random.default_rng([seed, i])
+        S = r.uniform(0.0, 0.004) if i % 3 == 0 else r.uniform(0.01, 0.09)
+        out.append(dict(kind=KINDS[i % 3], valve=VALVE_KINDS[(i // 3) % 2], S=S, J=r.uniform(0.0, 1.0) * S,
+                        tau_p=r.uniform(0.5, 3.0), scan=(1.0, 3.0)[int(r.integers(2))], x0=r.uniform(0.35, 0.65),
+                        a1=r.uniform(0.2, 0.6), a2=r.uniform(0.2, 0.6), T1=r.uniform(5.0, 60.0),
+                        T2=r.uniform(5.0, 60.0), delay=r.uniform(2.0, 10.0), noise=r.uniform(0.0005, 0.004),
+                        step=r.uniform(0.01, 0.04) * r.choice([-1.0, 1.0]), t_step=r.uniform(0.1, 0.5),
+                        walk=r.uniform(0.0, 2e-4), seed=int(r.integers(1 << 30))))
+    return out
+
+
+class Loops:
+    """Batched simulation of loops of one scan time (Euler, 0.1-s steps)."""
+
+    def __init__(self, rows: list[dict], scan: float, frictionless: bool):
+        self.rows, self.scan, self.n = rows, scan, len(rows)
+        self.m = int(round(scan / 0.1))
+        self.h = scan / self.m
+        c = {k: np.array([r[k] for r in rows], float) for k in ("S", "J", "tau_p", "x0", "a1", "a2", "T1", "T2",
+                                                                  "delay")}
+        self.c = c
+        self.kind = np.array([r["kind"] for r in rows])
+        self.he = np.array([r["valve"] == "he2007" for r in rows]) & (not frictionless)
+        self.st = np.array([r["valve"] == "stenman" for r in rows]) & (not frictionless)
+        self.fs, self.fd = (c["S"] + c["J"]) / 2.0, (c["S"] - c["J"]) / 2.0
+        self.D = np.maximum(1, np.rint(c["delay"] / self.h).astype(int))
+
+    def flow(self, x):
+        """Valve flow fraction: linear, equal-percentage (R = 30) for the thermal loop."""
+        return np.where(self.kind == "thermal", 30.0 ** (x - 1.0), x)
+
+    def reset(self):
+        """Rest at the operating point: ``(pv, stem, op)``."""
+        f0 = self.flow(self.c["x0"])
+        self.k1 = f0.copy()                                  # cascade: both levels 1 at f0 (k sqrt(1) = f0)
+        self.L1, self.L2 = np.ones(self.n), np.ones(self.n)
+        self.y1, self.y2 = f0.copy(), f0.copy()               # thermal: two lags, unit gain on the flow
+        self.P = np.full(self.n, 0.5)                        # vessel: supply 1, P = 0.5 at x0
+        self.k_v = f0 * math.sqrt(0.5) / 0.5
+        x0 = self.c["x0"]
+        self.p, self.x, self.u_prev = x0.copy(), x0.copy(), x0.copy()
+        self.ur = np.zeros(self.n)
+        self.buf = np.repeat(f0[None, :], int(self.D.max()) + 1, axis=0)
+        self.j = 0
+        return self.pv(), self.x.copy(), x0.copy()
+
+    def pv(self):
+        """Measured variable: lower level (cascade), outlet temperature (thermal), pressure (vessel)."""
+        return np.where(self.kind == "cascade", self.L2, np.where(self.kind == "thermal", self.y2, self.P))
+
+    def _valve(self):
+        du = self.p - self.u_prev
+        self.u_prev = self.p.copy()
+        ur = self.ur + du                                   # He et al. 2007: residual force
+        slip = np.abs(ur) > self.fs
+        x_he = np.where(slip, self.x + ur - np.sign(ur) * self.fd, self.x)
+        ur = np.where(slip, np.sign(ur) * self.fd, ur)
+        x_st = np.where(np.abs(self.p - self.x) > self.c["S"], self.p, self.x)   # Stenman
+        self.ur = np.where(self.he, ur, self.ur)
+        self.x = np.clip(np.where(self.he, x_he, np.where(self.st, x_st, self.p)), 0.0, 1.0)
+
+    def step(self, op, load):
+        """One scan with input ``op`` and load ``load`` (fraction of full flow) held."""
+        c, h = self.c, self.h
+        a_p = np.exp(-h / c["tau_p"])
+        op = np.clip(op, 0.0, 1.0)
+        for _ in range(self.m):
+            self.p = op + (self.p - op) * a_p
+            self._valve()
+            f = self.flow(self.x) + load
+            self.buf[self.j % self.buf.shape[0]] = f
+            fdel = self.buf[(self.j - self.D) % self.buf.shape[0], np.arange(self.n)]
+            self.j += 1
+            q1 = self.k1 * np.sqrt(np.maximum(self.L1, 0.0))
+            q2 = self.k1 * np.sqrt(np.maximum(self.L2, 0.0))
+            self.L1 = np.maximum(self.L1 + h * (f - q1) / (c["a1"] * 100.0), 0.0)
+            self.L2 = np.maximum(self.L2 + h * (q1 - q2) / (c["a2"] * 100.0), 0.0)
+            self.y1, self.y2 = self.y1 + h * (fdel - self.y1) / c["T1"], self.y2 + h * (self.y1 - self.y2) / c["T2"]
+            qin = f * np.sqrt(np.maximum(1.0 - self.P, 0.0))     # k_v P = f0 sqrt(0.5) at P = 0.5
+            self.P = np.clip(self.P + h * (qin - self.k_v * self.P) / c["T1"], 0.0, 1.0)
+        return self.pv(), self.x.copy()
+
+
+def tune(rows: list[dict], scan: float) -> tuple[np.ndarray, np.ndarray]:
+    """SIMC PI from an open-loop step of +0.05 on the frictionless loop (first-order fit, 63 % method)."""
+    sim = Loops(rows, scan, frictionless=True)
+    y0, _, x0 = sim.reset()
+    T = int(round(1200.0 / scan))
+    ys = np.empty((T, sim.n))
+    for k in range(T):
+        ys[k], _ = sim.step(x0 + 0.05, np.zeros(sim.n))
+    dy = ys - y0
+    K = dy[-1] / 0.05
+    frac = dy / np.where(dy[-1] == 0, 1e-12, dy[-1])
+    t = (np.arange(T) + 1) * scan
+    t05 = np.array([t[np.argmax(frac[:, i] >= 0.05)] for i in range(sim.n)])
+    t63 = np.array([t[np.argmax(frac[:, i] >= 0.632)] for i in range(sim.n)])
+    theta = np.maximum(t05 - scan, 0.0) + scan / 2.0 + np.array([r["tau_p"] for r in rows])
+    Tc = np.maximum(t63 - t05, scan)
+    tc = np.maximum(Tc / 6.0, 3.0 * theta)
+    return Tc / (np.abs(K) * (tc + theta)), np.minimum(Tc, 4.0 * (tc + theta))
+
+
+def run(name: str, rows: list[dict], scan: float, Kc, Ti, frictionless: bool, duration: float) -> Runs:
+    """One controller on the loops of one scan time."""
+    sim = Loops(rows, scan, frictionless)
+    y, x, u0 = sim.reset()
+    T = int(round(duration / scan))
+    n = sim.n
+    rng = [np.random.default_rng(r["seed"]) for r in rows]
+    noise = np.stack([g.standard_normal(T) * r["noise"] for g, r in zip(rng, rows)], axis=1)
+    walk = np.cumsum(np.stack([g.standard_normal(T) * r["walk"] for g, r in zip(rng, rows)], axis=1), axis=0)
+    step = np.array([r["step"] for r in rows])[None, :] * (np.arange(T)[:, None] * scan
+                                                           >= np.array([r["t_step"] for r in rows]) * duration)
+    load = step + walk
+    try:
+        ctrl = load_controller(name, Kc=Kc, Ti=Ti, scan_s=scan)
+    except (ValueError, TypeError):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)
+            blocks = [load_controller(name, Kc=float(a), Ti=float(b), scan_s=scan) for a, b in zip(Kc, Ti)]
+            ctrl = ControllerBank(blocks, [np.array([i]) for i in range(n)], n)
+    sp = y.copy()
+    ctrl.reset(sp, y + noise[0], u0)
+    lv, st, op = np.empty((T, n)), np.empty((T, n)), np.empty((T, n))
+    for k in range(T):
+        lv[k], st[k] = y, x
+        op[k] = np.asarray(ctrl.step(sp, y + noise[k]), float)
+        y, x = sim.step(op[k], load[k])
+    return Runs(name, "check", scan, np.broadcast_to(sp, (T, n)), lv + noise, lv, op, st)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    ap.add_argument("--n", type=int, default=36, help="loops (every third healthy)")
+    ap.add_argument("--seed", type=int, default=913)
+    ap.add_argument("--duration", type=float, default=3600.0, help="record length [s]")
+    ap.add_argument("--names", nargs="+", default=["pi", "knocker", "learned", "learned_adaptive"])
+    a = ap.parse_args(argv)
+    t0 = time.perf_counter()
+    rows = draw(a.n, a.seed)
+    cfg = BenchConfig()
+    scans = np.array([r["scan"] for r in rows])
+    sticky = np.array([r["S"] > 0.005 for r in rows])
+    res = {}
+    for label, name, fr in [("PI frictionless", "pi", True)] + [(nm, nm, False) for nm in a.names]:
+        per = {f: np.empty(a.n) for f in ("lc", "amp", "iae", "travel", "offset")}
+        for scan in np.unique(scans):
+            idx = np.flatnonzero(scans == scan)
+            sub = [rows[i] for i in idx]
+            Kc, Ti = tune(sub, float(scan))
+            sc = score_runs(run(name, sub, float(scan), Kc, Ti, fr, a.duration), cfg)
+            per["lc"][idx], per["amp"][idx], per["iae"][idx] = sc.lc_present, sc.lc_amplitude, sc.iae_per_h
+            per["travel"][idx], per["offset"][idx] = sc.travel_per_h, np.abs(sc.offset)
+        res[label] = per
+    pi, fr0 = res["pi"], res["PI frictionless"]
+    print(f"{a.n} loops ({int(sticky.sum())} sticky, S 1-9 %), seed {a.seed}, {a.duration:g} s, "
+          f"{time.perf_counter() - t0:.0f} s")
+    print("| controller | LC share | mean LC amp. [pv x1000] | median R | travel / frictionless PI | "
+          "median abs. offset [pv x1000] | healthy IAE / PI |")
+    print("|---|---|---|---|---|---|---|")
+    for label, p in res.items():
+        R = compensation_ratio(pi["iae"], p["iae"], fr0["iae"])
+        print(f"| {label} | {p['lc'][sticky].mean():.2f} | {1000 * p['amp'][sticky].mean():.2f} | "
+              f"{np.median(R[sticky]):.2f} | {np.median(p['travel'][sticky] / fr0['travel'][sticky]):.2f} | "
+              f"{1000 * np.median(p['offset'][sticky]):.2f} | "
+              f"{np.median(p['iae'][~sticky] / pi['iae'][~sticky]):.2f} |")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
