@@ -99,6 +99,9 @@ class ValveResponse(NamedTuple):
         move only while ``|z| > z_max``.
     z_max : float, s
         Half width of the friction band of this valve.
+    stuck : (T,) array or None
+        1.0 while the slip-jump friction block holds the stem stuck, else 0.0
+        (``None`` for a valve without that block).
     """
 
     label: str
@@ -107,9 +110,10 @@ class ValveResponse(NamedTuple):
     h: np.ndarray
     z: np.ndarray
     z_max: float
+    stuck: np.ndarray | None = None
 
 
-def valve_response(valve: ValveParams, u, sample_time: float, dt: float = 1e-3,
+def valve_response(valve: ValveParams | ModelParams, u, sample_time: float, dt: float = 1e-3,
                    h0: float | None = None, label: str = "") -> ValveResponse:
     """Drive the valve alone with the input ``u`` and record stem and friction state.
 
@@ -120,8 +124,10 @@ def valve_response(valve: ValveParams, u, sample_time: float, dt: float = 1e-3,
 
     Parameters
     ----------
-    valve : ValveParams
-        Scalar valve parameters.
+    valve : ValveParams or ModelParams
+        Scalar valve parameters (the paper's valve), or a whole scalar model
+        (e.g. from :func:`valve_gym.friction.valve_model`, any friction
+        model); its ``dt`` is replaced by ``dt``.
     u : (T,) array_like, -
         Valve input (0..1), held over each sample of ``sample_time`` seconds.
     sample_time : float, s
@@ -144,7 +150,7 @@ def valve_response(valve: ValveParams, u, sample_time: float, dt: float = 1e-3,
     if u.size == 0 or not np.isfinite(u).all():
         raise ValueError("u must be a non-empty array of finite valve inputs (0..1)")
     n_sub = _n_sub(sample_time, dt)
-    params = ModelParams(valve=valve, dt=dt)
+    params = replace(valve, dt=dt) if isinstance(valve, ModelParams) else ModelParams(valve=valve, dt=dt)
     pk = pack(params, 1)
     st = initial_state(params, 1, h=float(u[0] if h0 is None else h0), buf_len=pk.buf_len)
     S = state_to_array(st)
@@ -156,13 +162,16 @@ def valve_response(valve: ValveParams, u, sample_time: float, dt: float = 1e-3,
     Y, H, LV = (np.empty((1, 1)) for _ in range(3))
     h = np.empty(T)
     z = np.empty(T)
+    stuck = np.empty(T)
     for k in range(T):
         run_packed(pk, S, buf, U[k:k + 1], D, n_sub, Y, H, LV)
         h[k] = H[0, 0]
         z[k] = view.z[0]
+        stuck[k] = view.stuck[0]
     t = np.arange(1, T + 1) * sample_time
     return ValveResponse(label=label, t=t, u=np.clip(u, 0.0, 1.0), h=h, z=z,
-                         z_max=float(valve.z_max))
+                         z_max=float(np.asarray(params.valve.z_max)),
+                         stuck=stuck if params.slip_jump is not None else None)
 
 
 def _n_sub(sample_time: float, dt: float) -> int:
@@ -310,7 +319,7 @@ class ClosedLoopResult(NamedTuple):
 
 def closed_loop_pi(params: ModelParams, sp, Kc, Ti, control_period: float = 1.0,
                    seconds: float = 1000.0, noise_std: float = 0.0,
-                   seed: int | None = None, state=None) -> ClosedLoopResult:
+                   seed: int | None = None, state=None, load=None) -> ClosedLoopResult:
     """Level loop: the PI law of :mod:`valve_gym.control` driving the model.
 
     Every ``control_period`` seconds the controller reads the level (plus white
@@ -340,6 +349,9 @@ def closed_loop_pi(params: ModelParams, sp, Kc, Ti, control_period: float = 1.0,
     state : State, optional
         Initial state (default :func:`valve_gym.core.initial_state`: at rest,
         at ``params.process.level0``, stem at the steady opening).
+    load : float or (T,) array_like, m^3/s, optional
+        Extra inflow held over each control sample (negative: an offtake;
+        process units for ``first_order``); default none.
 
     Returns
     -------
@@ -396,6 +408,12 @@ def closed_loop_pi(params: ModelParams, sp, Kc, Ti, control_period: float = 1.0,
     if buf.shape != (n, pk.buf_len):
         raise ValueError("state.delay_buf does not match the model's dead time")
     view = array_to_state(S, buf)
+    da = np.zeros(T) if load is None else np.asarray(load, dtype=float)
+    if da.ndim == 0:
+        da = np.full(T, float(da))
+    if da.shape != (T,) or not np.isfinite(da).all():
+        raise ValueError(f"load must be a finite number or a ({T},) profile of inflows (m^3/s), "
+                         f"got shape {da.shape}")
     D = np.zeros((1, 1))
     Y, H, LV = (np.empty((1, n)) for _ in range(3))
     pv = np.empty((T, n))
@@ -413,6 +431,7 @@ def closed_loop_pi(params: ModelParams, sp, Kc, Ti, control_period: float = 1.0,
         level[k] = level_now
         ctl, u = pi_step(ctl, spa[k] - pvk, pi)
         op[k] = u
+        D[0, 0] = da[k]
         run_packed(pk, S, buf, np.ascontiguousarray(u.reshape(1, n)), D, n_sub, Y, H, LV)
     t = np.arange(T) * control_period
     return ClosedLoopResult(t=t, sp=spa, pv=pv, op=op, stem=stem, level=level)
