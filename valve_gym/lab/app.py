@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import io
 from collections.abc import Callable
+from typing import Any
 
 from ._need import need_panel
 
@@ -40,7 +41,6 @@ def _fig(title: str, x: str, y: str, height: int = 260, x_range=None, width: int
                tools="pan,wheel_zoom,box_zoom,reset", toolbar_location="right", **kw)
     if x_range is not None:
         f.x_range = x_range
-    f.title.text_font_size = "11pt"
     return f
 
 
@@ -88,9 +88,9 @@ class _Cached(param.Parameterized):
             return io.BytesIO(png_bytes(tr, stem) if tr is not None else b"")
 
         return pn.Row(pn.widgets.FileDownload(callback=csv, filename=f"{stem}_traces.csv", label="traces (CSV)",
-                                              button_type="primary", css_classes=[f"vg-{stem}-csv"]),
+                                              css_classes=[f"vg-{stem}-csv"]),
                       pn.widgets.FileDownload(callback=png, filename=f"{stem}.png", label="figure (PNG)",
-                                              button_type="primary", css_classes=[f"vg-{stem}-png"]))
+                                              css_classes=[f"vg-{stem}-png"]))
 
 
 # --------------------------------------------------------------------------- the valve
@@ -136,8 +136,9 @@ class ValvePage(ValveLab, _Cached):
         if tr is None:
             return self._error_pane()
         c = tr.columns
-        src = ColumnDataSource(dict(t=tr.t, input=c["input"], stem=c["stem"], healthy=c["healthy_h"],
-                                    friction=c["friction"]), name="valve_source")
+        data: dict[str, Any] = dict(t=tr.t, input=c["input"], stem=c["stem"], healthy=c["healthy_h"],
+                                    friction=c["friction"])
+        src = ColumnDataSource(data=data, name="valve_source")
         io_ = _fig("Input vs stem position", "input i [fraction of stroke]", "stem h [fraction of stroke]",
                    height=330, width=380, match_aspect=True)
         lo, hi = float(c["input"].min()), float(c["input"].max())
@@ -145,14 +146,14 @@ class ValvePage(ValveLab, _Cached):
         io_.line("input", "healthy", source=src, color=_C["ghost"], line_width=1.5, legend_label="healthy valve")
         io_.line("input", "stem", source=src, color=_C["stem"], line_width=2, legend_label="this valve")
         _legend(io_)
-        tf = _fig("Time response", "time [s]", "[fraction of stroke]", height=250)
+        tf = _fig("Time response", "time [s]", "[fraction of stroke]", height=250, width=580)
         tf.line("t", "input", source=src, color=_C["input"], line_dash="dashed", legend_label="input i")
         tf.line("t", "healthy", source=src, color=_C["ghost"], line_width=1.5, legend_label="healthy stem")
         tf.line("t", "stem", source=src, color=_C["stem"], line_width=2, legend_label="stem h")
         _legend(tf)
         unit = tr.summary["friction_unit"]
         ylab = {"z/z_max": "z / z_max [-]", "stuck": "stuck (1) / moving (0)"}.get(unit, "stem velocity [stroke/s]")
-        ff = _fig("Friction state", "time [s]", ylab, height=180, x_range=tf.x_range)
+        ff = _fig("Friction state", "time [s]", ylab, height=180, x_range=tf.x_range, width=580)
         if unit == "z/z_max":
             ff.add_layout(BoxAnnotation(bottom=-1, top=1, fill_color="#dddddd", fill_alpha=0.6))
         ff.line("t", "friction", source=src, color=_C["stem"], line_width=1.5)
@@ -160,8 +161,15 @@ class ValvePage(ValveLab, _Cached):
         note = pn.pane.Markdown(
             f"**{jumps} stem jump(s)** (stick-slip: the stem stands still, then moves at once), "
             f"stem travel {tr.summary['stem_travel']:.3f} strokes. Grey band: `|z| <= z_max`, the stem is stuck.",
-            css_classes=["vg-valve-summary"])
+            css_classes=["vg-valve-summary"], width=380)
         return pn.Row(pn.Column(io_, note), pn.Column(tf, ff))
+
+
+def _layout(controls, plots, text: str, page: str):
+    """Controls on the left; the plots, and under them the equations and how to read the plots."""
+    card = pn.Card(pn.pane.Markdown(text, width=960), title="The model, its equations and how to read the plots",
+                   collapsed=False, width=990)
+    return pn.Row(controls, pn.Column(plots, card), css_classes=[f"vg-page-{page}"])
 
 
 def _slider_classes(names, prefix: str) -> dict:
@@ -179,8 +187,7 @@ def valve_page(lab: ValvePage | None = None):
         pn.pane.Markdown("**Input signal**"),
         pn.Param(lab, parameters=sig, show_name=False, widgets=_slider_classes(sig, "v")),
         lab.downloads("valve"), width=320)
-    return pn.Row(controls, pn.Column(lab.plots), pn.pane.Markdown(_VALVE_TEXT, width=380),
-                  css_classes=["vg-page-valve"])
+    return _layout(controls, lab.plots, _VALVE_TEXT, "valve")
 
 
 # --------------------------------------------------------------------------- the loop
@@ -190,15 +197,16 @@ _LOOP_TEXT = """
 The paper's tank: inflow through the valve, outflow through an orifice,
 
 ```
-A dL/dt = q_max f(h) + d - k sqrt(L)        (level L [m], load d [m^3/s])
+A dL/dt = q_max f(h) + d - k sqrt(L)      (level L [m]; load d = load step x q_max, q_max = 0.01 m^3/s)
 ```
 
 under the PI law (scan 1 s): `u = Kc (e + (1/Ti) sum e Ts)`, `e = SP - PV`. The flow loop is a
 first-order process `T dy/dt = f(h) + d - y` (T = 10 s), PV a fraction of the maximum flow.
 
 With friction the loop cycles (figures 9-10): the stem sticks while the PI's integral winds up,
-then slips past the target; the PV is rectangular-ish, the OP a triangle. More friction, larger
-amplitude. The **limit cycle** is read on `SP - PV` after the transient by the benchmark's detector
+then slips past the target; the stem moves as a square wave, the OP and the level as triangles
+(saw teeth). More friction, a larger and faster cycle. The **limit cycle** is read on `SP - PV` after the
+transient by the benchmark's detector
 (`valve_gym.metrics.acf_oscillation`: a regular, undamped autocorrelation; amplitude is half the
 peak-to-peak). Grey: the same loop with a frictionless valve.
 
@@ -219,29 +227,29 @@ class LoopPage(LoopLab, _Cached):
     def _loop_figs(self, tr: Traces, title: str, ghost: bool, width: int = _W, name: str = "loop_source"):
         c = tr.columns
         unit = "m" if self.process == "level tank" or self.fig10 else "fraction"
-        data = dict(t=tr.t, sp=c["sp"], pv=c["pv"], op=c["op"], stem=c["stem"])
+        data: dict[str, Any] = dict(t=tr.t, sp=c["sp"], pv=c["pv"], op=c["op"], stem=c["stem"])
         if ghost and "pv_ghost" in c:
             data.update(pv_ghost=c["pv_ghost"], op_ghost=c["op_ghost"])
-        src = ColumnDataSource(data, name=name)
-        top = _fig(title, "time [s]", f"level / PV [{unit}]", height=260, width=width)
+        src = ColumnDataSource(data=data, name=name)
+        k0 = tr.t >= tr.t[-1] - 800.0
+        xr = Range1d(start=float(tr.t[k0][0]), end=float(tr.t[-1]))
+        top = _fig(title, "time [s]", f"level / PV [{unit}]", height=260, width=width, x_range=xr)
         top.line("t", "sp", source=src, color=_C["sp"], line_dash="dashed", legend_label="SP")
         if "pv_ghost" in data:
             top.line("t", "pv_ghost", source=src, color=_C["ghost"], line_width=1.5, legend_label="PV, frictionless")
         top.line("t", "pv", source=src, color=_C["pv"], line_width=1.8, legend_label="PV")
         _legend(top, "bottom_right")
-        bot = _fig("", "time [s]", "OP, stem [fraction of stroke]", height=220, x_range=top.x_range, width=width)
+        bot = _fig("", "time [s]", "OP, stem [fraction of stroke]", height=220, x_range=xr, width=width)
         if "op_ghost" in data:
             bot.line("t", "op_ghost", source=src, color=_C["ghost"], line_width=1.5, legend_label="OP, frictionless")
         bot.line("t", "op", source=src, color=_C["op"], line_width=1.5, legend_label="OP")
         bot.line("t", "stem", source=src, color=_C["stem"], line_width=1.5, legend_label="stem")
         _legend(bot, "bottom_right")
-        k0 = tr.t >= tr.t[-1] - 800.0
         for f, keys in ((top, ("sp", "pv")), (bot, ("op", "stem"))):
             lo = min(float(np.min(data[k][k0])) for k in keys)
             hi = max(float(np.max(data[k][k0])) for k in keys)
             pad = max(0.15 * (hi - lo), 0.005)
-            f.y_range = Range1d(lo - pad, hi + pad)
-        top.x_range.start, top.x_range.end = float(tr.t[k0][0]), float(tr.t[-1])
+            f.y_range = Range1d(start=lo - pad, end=hi + pad)
         return pn.Column(top, bot)
 
     @param.depends(*LoopLab.param, watch=False)
@@ -276,8 +284,7 @@ def loop_page(lab: LoopPage | None = None):
         pn.pane.Markdown("**PI and the run**"),
         pn.Param(lab, parameters=rest, show_name=False, widgets=_slider_classes(rest, "l")),
         lab.downloads("loop"), width=320)
-    return pn.Row(controls, pn.Column(lab.plots), pn.pane.Markdown(_LOOP_TEXT, width=380),
-                  css_classes=["vg-page-loop"])
+    return _layout(controls, lab.plots, _LOOP_TEXT, "loop")
 
 
 # --------------------------------------------------------------------------- the compensators
@@ -286,9 +293,9 @@ _COMP_TEXT = """
 
 Each is a PI (the benchmark's SIMC tuning) plus a rule, given a stiction estimate **S_est**:
 
-* **knocker** (Hägglund): pulses of amplitude `a` (default S/2) every `h_k` s, width `tau_k`,
-  in the direction of the PI's rate: `u = u_PI + a sign(du_PI/dt)`.
-* **constant reinforcement**: `u = u_PI + a sign(e)` (default `a = (S - J)/2`).
+* **knocker** (Hägglund): pulses of amplitude `a` (default S/2) and width `tau_k` every `h_k` s,
+  in the direction the PI's integral part moved: `u = u_PI + a sign(I(t_p) - I(t_p - h_k))`.
+* **constant reinforcement**: `u = u_PI + a sign(du_PI/dt)` (default `a = (S - J)/2`).
 * **two-move**: moves the valve in two steps to land past the stick band, then holds.
 * **integral freeze**: no integration while `|e| < band`.
 * **learned**: the shipped learned compensator.
@@ -347,19 +354,20 @@ class CompensatorPage(CompensatorLab, _Cached):
                  f"| travel [strokes/h] | {s['travel_pi']:.2f} | {s['travel']:.2f} |\n\n"
                  f"Settings: `{s['settings'] if len(s['settings']) < 200 else s['settings'][:200] + '...'}`")
         c = tr.columns
-        src = ColumnDataSource(dict(t=tr.t, sp=c["sp"], pv=c["pv"], op=c["op"], stem=c["stem"], pv_pi=c["pv_pi"],
-                                    op_pi=c["op_pi"], stem_pi=c["stem_pi"]), name="comp_source")
-        top = _fig("Loop 1: level", "time [s]", "level [m]", height=240)
+        data: dict[str, Any] = dict(t=tr.t, sp=c["sp"], pv=c["pv"], op=c["op"], stem=c["stem"], pv_pi=c["pv_pi"],
+                                    op_pi=c["op_pi"], stem_pi=c["stem_pi"])
+        src = ColumnDataSource(data=data, name="comp_source")
+        xr = Range1d(start=0.0, end=min(900.0, float(tr.t[-1])))
+        top = _fig("Loop 1: level", "time [s]", "level [m]", height=240, x_range=xr)
         top.line("t", "sp", source=src, color=_C["sp"], line_dash="dashed", legend_label="SP")
         top.line("t", "pv_pi", source=src, color=_C["pi"], legend_label="PV, PI")
         top.line("t", "pv", source=src, color=_C["pv"], line_width=1.5, legend_label=f"PV, {self.controller}")
         _legend(top, "bottom_right")
-        bot = _fig("", "time [s]", "[fraction of stroke]", height=220, x_range=top.x_range)
+        bot = _fig("", "time [s]", "[fraction of stroke]", height=220, x_range=xr)
         bot.line("t", "stem_pi", source=src, color=_C["pi"], legend_label="stem, PI")
         bot.line("t", "op", source=src, color=_C["op"], legend_label=f"OP, {self.controller}")
         bot.line("t", "stem", source=src, color=_C["stem"], line_width=1.5, legend_label=f"stem, {self.controller}")
         _legend(bot, "bottom_right")
-        top.x_range.start, top.x_range.end = 0.0, min(900.0, float(tr.t[-1]))
         return pn.Column(pn.pane.Markdown(table, css_classes=["vg-comp-scores"]), top, bot)
 
 
@@ -370,10 +378,10 @@ def compensator_page(lab: CompensatorPage | None = None):
         pn.Param(lab, parameters=["controller", "exercise"], show_name=False,
                  widgets=_slider_classes(["controller", "exercise"], "c")),
         lab.valve_controls, lab.setting_controls,
-        pn.Param(lab, parameters=["n_loops", "seed"], show_name=False, widgets=_slider_classes(["n_loops", "seed"], "c")),
+        pn.Param(lab, parameters=["n_loops", "seed"], show_name=False,
+                 widgets=_slider_classes(["n_loops", "seed"], "c")),
         lab.downloads("compensator"), width=320)
-    return pn.Row(controls, pn.Column(lab.plots), pn.pane.Markdown(_COMP_TEXT, width=380),
-                  css_classes=["vg-page-compensator"])
+    return _layout(controls, lab.plots, _COMP_TEXT, "compensator")
 
 
 # --------------------------------------------------------------------------- the app

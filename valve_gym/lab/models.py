@@ -161,21 +161,31 @@ class ValveLab(param.Parameterized):
     """
 
     preset = param.Selector(default="custom", objects=["custom", "fig6", "fig7", "fig8"],
-                            doc="load the settings of the paper's figure 6, 7 or 8")
-    model = param.Selector(default="riihilahti", objects=list(VALVE_MODELS), doc="friction model")
-    tau = param.Number(0.1, bounds=(0.01, 2.0), step=0.01, doc="stem time constant tau [s]")
-    v_max = param.Number(0.5, bounds=(0.01, 2.0), step=0.01, doc="stem speed limit v_max [stroke/s]")
-    e_dead = param.Number(0.02, bounds=(0.0, 0.1), step=0.001, doc="half dead band e_dead [fraction of stroke]")
-    z_max = param.Number(0.2, bounds=(0.0, 1.0), step=0.005, doc="half friction band z_max [s]")
-    S = param.Number(0.04, bounds=(0.0, 0.3), step=0.005, doc="stick band + dead band S [fraction of stroke]")
-    J = param.Number(0.02, bounds=(0.0, 0.3), step=0.005, doc="slip jump J <= S [fraction of stroke]")
-    input = param.Selector(default="ramps", objects=["steps", "ramps", "sine"], doc="input signal i(t)")
-    seconds = param.Number(130.0, bounds=(10.0, 600.0), step=5.0, doc="length of the experiment [s]")
-    step = param.Number(0.05, bounds=(0.005, 0.2), step=0.005, doc="staircase step [fraction of stroke]")
-    hold = param.Number(15.0, bounds=(1.0, 60.0), step=1.0, doc="time each step is held [s]")
-    ramp_speed = param.Number(1.0, bounds=(0.1, 5.0), step=0.1, doc="ramp speed factor (1: 0.5 to 2 %/s) [-]")
-    amplitude = param.Number(0.3, bounds=(0.01, 0.5), step=0.01, doc="sine amplitude [fraction of stroke]")
-    period = param.Number(100.0, bounds=(5.0, 400.0), step=5.0, doc="sine period [s]")
+                            doc="load the settings of the paper's figure 6, 7 or 8", label="preset")
+    model = param.Selector(default="riihilahti", objects=list(VALVE_MODELS),
+                           doc="friction model", label="friction model")
+    tau = param.Number(0.1, bounds=(0.01, 2.0), step=0.01, doc="stem time constant tau [s]", label="tau [s]")
+    v_max = param.Number(0.5, bounds=(0.01, 2.0), step=0.01,
+                         doc="stem speed limit v_max [stroke/s]", label="v_max [stroke/s]")
+    e_dead = param.Number(0.02, bounds=(0.0, 0.1), step=0.001,
+                          doc="half dead band e_dead [fraction of stroke]", label="e_dead [fraction of stroke]")
+    z_max = param.Number(0.2, bounds=(0.0, 1.0), step=0.005, doc="half friction band z_max [s]", label="z_max [s]")
+    S = param.Number(0.04, bounds=(0.0, 0.3), step=0.005,
+                     doc="stick band + dead band S [fraction of stroke]", label="S [fraction of stroke]")
+    J = param.Number(0.02, bounds=(0.0, 0.3), step=0.005,
+                     doc="slip jump J <= S [fraction of stroke]", label="J [fraction of stroke]")
+    input = param.Selector(default="ramps", objects=["steps", "ramps", "sine"],
+                           doc="input signal i(t)", label="input signal")
+    seconds = param.Number(130.0, bounds=(10.0, 600.0), step=5.0,
+                           doc="length of the experiment [s]", label="length [s]")
+    step = param.Number(0.05, bounds=(0.005, 0.2), step=0.005,
+                        doc="staircase step [fraction of stroke]", label="step [fraction of stroke]")
+    hold = param.Number(15.0, bounds=(1.0, 60.0), step=1.0, doc="time each step is held [s]", label="hold [s]")
+    ramp_speed = param.Number(1.0, bounds=(0.1, 5.0), step=0.1,
+                              doc="ramp speed factor (1: 0.5 to 2 %/s) [-]", label="ramp speed factor [-]")
+    amplitude = param.Number(0.3, bounds=(0.01, 0.5), step=0.01,
+                             doc="sine amplitude [fraction of stroke]", label="amplitude [fraction of stroke]")
+    period = param.Number(100.0, bounds=(5.0, 400.0), step=5.0, doc="sine period [s]", label="period [s]")
 
     def __init__(self, **params):
         preset = params.pop("preset", "custom")
@@ -189,7 +199,7 @@ class ValveLab(param.Parameterized):
             self.param.update(**_STICKY, **VALVE_PRESETS[self.preset])
 
     def params(self) -> ModelParams:
-        """This valve's model (:func:`valve_params`)."""
+        """The valve's model (:func:`valve_params`)."""
         return valve_params(self.model, self.tau, self.v_max, self.e_dead, self.z_max, self.S, self.J)
 
     def signal(self) -> np.ndarray:
@@ -245,23 +255,35 @@ class LoopLab(param.Parameterized):
     """A PI loop (the paper's level tank, or a flow loop) with a sticky valve and its frictionless ghost."""
 
     process = param.Selector(default="level tank", objects=["level tank", "flow loop"],
-                             doc="the process: the paper's tank (level, m) or a first-order flow loop (T = 10 s)")
-    model = param.Selector(default="riihilahti", objects=list(VALVE_MODELS), doc="friction model")
-    e_dead = param.Number(0.01, bounds=(0.0, 0.1), step=0.001, doc="half dead band e_dead [fraction of stroke]")
-    z_max = param.Number(0.3, bounds=(0.0, 1.0), step=0.005, doc="half friction band z_max [s]")
-    S = param.Number(0.04, bounds=(0.0, 0.3), step=0.005, doc="stick band + dead band S [fraction of stroke]")
-    J = param.Number(0.02, bounds=(0.0, 0.3), step=0.005, doc="slip jump J <= S [fraction of stroke]")
-    Kc = param.Number(1.0, bounds=(0.05, 20.0), step=0.05, doc="PI gain Kc [1/m] (flow: [-])")
-    Ti = param.Number(30.0, bounds=(1.0, 600.0), step=1.0, doc="PI integral time Ti [s]")
-    sp_step = param.Number(0.2, bounds=(-0.5, 0.5), step=0.01, doc="set-point step [m] (flow: fraction)")
-    sp_at = param.Number(60.0, bounds=(0.0, 3600.0), step=10.0, doc="time of the set-point step [s]")
-    load = param.Number(0.0, bounds=(-5e-3, 5e-3), step=1e-4,
-                        doc="load step: extra inflow [m^3/s] (flow: fraction)")
-    load_at = param.Number(1800.0, bounds=(0.0, 3600.0), step=10.0, doc="time of the load step [s]")
-    seconds = param.Number(3600.0, bounds=(300.0, 7200.0), step=100.0, doc="length of the run [s] (scan 1 s)")
+                             doc="the process: the paper's tank (level, m) or a first-order flow loop (T = 10 s)",
+                             label="process")
+    model = param.Selector(default="riihilahti", objects=list(VALVE_MODELS),
+                           doc="friction model", label="friction model")
+    e_dead = param.Number(0.01, bounds=(0.0, 0.1), step=0.001,
+                          doc="half dead band e_dead [fraction of stroke]", label="e_dead [fraction of stroke]")
+    z_max = param.Number(0.3, bounds=(0.0, 1.0), step=0.005, doc="half friction band z_max [s]", label="z_max [s]")
+    S = param.Number(0.04, bounds=(0.0, 0.3), step=0.005,
+                     doc="stick band + dead band S [fraction of stroke]", label="S [fraction of stroke]")
+    J = param.Number(0.02, bounds=(0.0, 0.3), step=0.005,
+                     doc="slip jump J <= S [fraction of stroke]", label="J [fraction of stroke]")
+    Kc = param.Number(1.0, bounds=(0.05, 20.0), step=0.05, doc="PI gain Kc [1/m] (flow: [-])", label="Kc [1/m]")
+    Ti = param.Number(30.0, bounds=(1.0, 600.0), step=1.0, doc="PI integral time Ti [s]", label="Ti [s]")
+    sp_step = param.Number(0.2, bounds=(-0.5, 0.5), step=0.01,
+                           doc="set-point step [m] (flow: fraction)", label="set-point step [m]")
+    sp_at = param.Number(60.0, bounds=(0.0, 3600.0), step=10.0,
+                         doc="time of the set-point step [s]", label="set-point step at [s]")
+    load = param.Number(0.0, bounds=(-0.3, 0.3), step=0.01,
+                        doc="load step: extra inflow, fraction of the valve's full-open flow [-]",
+                        label="load step [-]")
+    load_at = param.Number(1800.0, bounds=(0.0, 3600.0), step=10.0,
+                           doc="time of the load step [s]", label="load step at [s]")
+    seconds = param.Number(3600.0, bounds=(300.0, 7200.0), step=100.0,
+                           doc="length of the run [s] (scan 1 s)", label="length [s]")
     settle = param.Number(900.0, bounds=(0.0, 3000.0), step=50.0,
-                          doc="transient left out of the limit-cycle detection [s]")
-    fig10 = param.Boolean(False, doc="figure 10: the tank with low and high friction side by side")
+                          doc="transient left out of the limit-cycle detection [s]", label="detect after [s]")
+    fig10 = param.Boolean(False,
+                          doc="figure 10: the tank with low and high friction side by side",
+                          label="fig10: low and high friction")
 
     scan_s = 1.0
 
@@ -281,15 +303,17 @@ class LoopLab(param.Parameterized):
         """The loop's model with its sticky valve."""
         base, _ = self.base()
         v = figures.HEALTHY
-        return valve_params(self.model, v.tau, v.v_max, self.e_dead, self.z_max, self.S, self.J, dt=LOOP_DT,
-                            base=base)
+        return valve_params(self.model, float(v.tau), float(v.v_max), self.e_dead, self.z_max, self.S, self.J,
+                            dt=LOOP_DT, base=base)
 
     def _profiles(self) -> tuple[int, np.ndarray, np.ndarray, float]:
         T = int(round(self.seconds / self.scan_s))
         t = np.arange(T) * self.scan_s
         _, sp0 = self.base()
         sp = sp0 + np.where(t >= self.sp_at, self.sp_step, 0.0)
-        load = np.where(t >= self.load_at, self.load, 0.0)
+        base, _ = self.base()
+        q_full = float(getattr(base.process, "K" if self.process == "flow loop" else "q_max"))
+        load = np.where(t >= self.load_at, self.load * q_full, 0.0)
         return T, sp, load, sp0
 
     def _run(self, params: ModelParams) -> figures.ClosedLoopResult:
@@ -378,24 +402,34 @@ class CompensatorLab(param.Parameterized):
     ``exercise_seed`` and hidden until ``reveal``.
     """
 
-    controller = param.Selector(default="knocker", objects=list(COMPENSATORS), doc="compensator")
-    model = param.Selector(default="choudhury", objects=["choudhury", "kano", "karnopp"], doc="friction model")
-    S = param.Number(0.04, bounds=(0.0, 0.2), step=0.005, doc="valve stick band S [fraction of stroke]")
-    J = param.Number(0.02, bounds=(0.0, 0.2), step=0.005, doc="valve slip jump J <= S [fraction of stroke]")
+    controller = param.Selector(default="knocker", objects=list(COMPENSATORS), doc="compensator", label="compensator")
+    model = param.Selector(default="choudhury", objects=["choudhury", "kano", "karnopp"],
+                           doc="friction model", label="friction model")
+    S = param.Number(0.04, bounds=(0.0, 0.2), step=0.005,
+                     doc="valve stick band S [fraction of stroke]", label="S [fraction of stroke]")
+    J = param.Number(0.02, bounds=(0.0, 0.2), step=0.005,
+                     doc="valve slip jump J <= S [fraction of stroke]", label="J [fraction of stroke]")
     S_est = param.Number(0.04, bounds=(0.001, 0.2), step=0.001,
-                         doc="the compensator's stiction estimate S [fraction of stroke]")
+                         doc="the compensator's stiction estimate S [fraction of stroke]",
+                         label="S_est [fraction of stroke]")
     a = param.Number(None, allow_None=True, bounds=(0.0, 0.5),
-                     doc="knocker pulse / reinforcement amplitude a [fraction of stroke] (empty: its rule)")
-    h_k = param.Number(None, allow_None=True, bounds=(1.0, 600.0), doc="knocker: time between pulses h_k [s]")
-    tau_k = param.Number(None, allow_None=True, bounds=(1.0, 60.0), doc="knocker: pulse width tau_k [s]")
+                     doc="knocker pulse / reinforcement amplitude a [fraction of stroke] (empty: its rule)",
+                     label="a [fraction of stroke]")
+    h_k = param.Number(None, allow_None=True, bounds=(1.0, 600.0),
+                       doc="knocker: time between pulses h_k [s]", label="h_k [s]")
+    tau_k = param.Number(None, allow_None=True, bounds=(1.0, 60.0),
+                         doc="knocker: pulse width tau_k [s]", label="tau_k [s]")
     band = param.Number(None, allow_None=True, bounds=(0.0, 1.0),
-                        doc="integral freeze: error band without integration [m]")
-    release = param.Number(None, allow_None=True, bounds=(0.001, 1.0), doc="two-move: error that ends the hold [m]")
-    n_loops = param.Integer(6, bounds=(1, 24), doc="loops (benchmark regulation draws) [-]")
-    seed = param.Integer(0, bounds=(0, 10_000), doc="seed of the loops' load and noise")
-    exercise = param.Boolean(False, doc="exercise: a valve of hidden S; tune the compensator, then reveal S")
-    exercise_seed = param.Integer(1, bounds=(0, 10_000), doc="which hidden valve")
-    reveal = param.Boolean(False, doc="show the hidden valve's S and J")
+                        doc="integral freeze: error band without integration [m]", label="band [m]")
+    release = param.Number(None, allow_None=True, bounds=(0.001, 1.0),
+                           doc="two-move: error that ends the hold [m]", label="release [m]")
+    n_loops = param.Integer(6, bounds=(1, 24), doc="loops (benchmark regulation draws) [-]", label="loops")
+    seed = param.Integer(0, bounds=(0, 10_000), doc="seed of the loops' load and noise", label="seed")
+    exercise = param.Boolean(False,
+                             doc="exercise: a valve of hidden S; tune the compensator, then reveal S",
+                             label="exercise mode")
+    exercise_seed = param.Integer(1, bounds=(0, 10_000), doc="which hidden valve", label="hidden valve no.")
+    reveal = param.Boolean(False, doc="show the hidden valve's S and J", label="reveal S")
 
     _OWN = {"knocker": ("a", "h_k", "tau_k"), "constant_reinforcement": ("a",), "two_move": ("release",),
             "integral_freeze": ("band",), "learned": ()}
@@ -413,8 +447,7 @@ class CompensatorLab(param.Parameterized):
         return round(S, 4), round(S * float(rng.uniform(0.2, 0.9)), 4)
 
     def scenarios(self):
-        """The loops (:class:`~valve_gym.agents.bench.scenarios.Scenarios`): the benchmark's regulation
-        draws with this page's valve."""
+        """The loops: the benchmark's regulation draws with this page's valve (a ``Scenarios``)."""
         S, J = self.valve()
         sc = _regulation(int(self.n_loops), int(self.seed))
         n = sc.n
