@@ -201,3 +201,12 @@ def test_missing_panel_is_one_line(monkeypatch, capsys):
     assert cli_main(["lab", "--no-browser"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ['valve-gym lab: the teaching lab needs Panel and Bokeh: pip install "valve_gym[lab]"']
+
+
+def test_valve_preset_applies_and_a_moved_setting_leaves_it():
+    lab = ValveLab(preset="fig6")
+    assert (lab.input, lab.seconds, lab.z_max) == ("sine", 200.0, figures.STICKY.z_max)
+    lab.z_max = 0.05
+    assert lab.preset == "custom" and lab.z_max == 0.05
+    lab.preset = "fig8"
+    assert (lab.input, lab.z_max) == ("steps", figures.STICKY.z_max)

@@ -198,6 +198,14 @@ class ValveLab(param.Parameterized):
         if self.preset in VALVE_PRESETS:
             self.param.update(**_STICKY, **VALVE_PRESETS[self.preset])
 
+    @param.depends("model", "tau", "v_max", "e_dead", "z_max", "input", "seconds", "step", "hold", "ramp_speed",
+                   "amplitude", "period", watch=True)
+    def _leave_preset(self):
+        """A setting moved away from the preset's: the view is no longer the preset (back to ``custom``)."""
+        want = {**_STICKY, **VALVE_PRESETS.get(self.preset, {})}
+        if self.preset in VALVE_PRESETS and any(getattr(self, k) != v for k, v in want.items()):
+            self.preset = "custom"
+
     def params(self) -> ModelParams:
         """The valve's model (:func:`valve_params`)."""
         return valve_params(self.model, self.tau, self.v_max, self.e_dead, self.z_max, self.S, self.J)
@@ -423,7 +431,7 @@ class CompensatorLab(param.Parameterized):
                         doc="integral freeze: error band without integration [m]", label="band [m]")
     release = param.Number(None, allow_None=True, bounds=(0.001, 1.0),
                            doc="two-move: error that ends the hold [m]", label="release [m]")
-    n_loops = param.Integer(6, bounds=(1, 24), doc="loops (benchmark regulation draws) [-]", label="loops")
+    n_loops = param.Integer(4, bounds=(1, 24), doc="loops (benchmark regulation draws) [-]", label="loops")
     seed = param.Integer(0, bounds=(0, 10_000), doc="seed of the loops' load and noise", label="seed")
     exercise = param.Boolean(False,
                              doc="exercise: a valve of hidden S; tune the compensator, then reveal S",
