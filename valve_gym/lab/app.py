@@ -407,7 +407,7 @@ def build_app(sync_url: bool = True):
         Display it in a notebook, ``.servable()`` it, or serve it with
         ``valve-gym lab``.
     """
-    pn.extension(sizing_mode="fixed")
+    pn.extension(sizing_mode="fixed", loading_indicator=True)
     labs = {}
     tabs = []
     for title, cls, page, prefix in _PAGES:

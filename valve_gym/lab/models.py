@@ -16,8 +16,10 @@ The ``param`` package (installed with Panel) is the only extra dependency.
 
 >>> lab = ValveLab(preset="fig7")
 >>> tr = lab.simulate()
->>> sorted(tr.columns)[:3]
-['healthy_h', 'input', 'stem']
+>>> list(tr.columns)
+['input', 'stem', 'healthy_h', 'friction']
+>>> tr.summary["stem_jumps"] > 0          # the sticky valve's stick-slip under the ramps
+True
 """
 from __future__ import annotations
 
