@@ -97,7 +97,7 @@ def cases() -> dict[str, Callable[[int], object]]:
 
 def main(argv=None) -> int:
     """Time every case; print the table (and write JSON with ``--json``)."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     ap.add_argument("--repeats", type=int, default=7, help="timed calls per case (default 7)")
     ap.add_argument("--json", metavar="OUT", help="also write the results as JSON")
     args = ap.parse_args(argv)

@@ -43,7 +43,7 @@ _LEN = """([name, n]) => { const d = window.Bokeh.documents[0];
 
 def main(argv=None) -> int:
     """Write the screenshots; prints each path."""
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     ap.add_argument("--out", default="docs/figures/lab", help="output folder (default docs/figures/lab)")
     ap.add_argument("--chromium", default="/usr/bin/chromium", help="Chromium executable")
     args = ap.parse_args(argv)
