@@ -146,7 +146,7 @@ def _stick_slip(u: np.ndarray, h: np.ndarray) -> tuple[int, float]:
     return int(np.sum(ramp & (dh < 1e-9))), float(dh[ramp].max())
 
 
-def test_fig7_preset_shows_stick_slip(server, browser):
+def test_fig7_preset_shows_stick_slip_and_downloads_its_traces(server, browser, tmp_path):
     pg = Page(browser, server).open(server + "?v_input=sine&v_seconds=200", "valve_source")
     try:
         sine = pg.data("valve_source", "stem")
@@ -158,6 +158,18 @@ def test_fig7_preset_shows_stick_slip(server, browser):
         assert stalls > 100 and jump > 0.02          # the stem sticks, then jumps, while the input ramps
         assert _stick_slip(u, healthy)[1] < 0.01     # the healthy ghost follows the ramps
         assert "stem jump" in pg.text(".vg-valve-summary p")
+        # the downloads: the CSV holds the plotted traces, the PNG is a PNG
+        with pg.page.expect_download() as dl:
+            pg.page.locator(".vg-valve-csv button").click()
+        dl.value.save_as(tmp_path / "valve.csv")
+        rows = (tmp_path / "valve.csv").read_text().splitlines()
+        assert rows[0].startswith("t_s,input_-,stem_-,healthy_h_-,friction_")
+        csv = np.array([[float(x) for x in r.split(",")] for r in rows[1:]])
+        np.testing.assert_allclose(csv[:, 2], h, rtol=1e-5, atol=1e-6)
+        with pg.page.expect_download() as dl:
+            pg.page.locator(".vg-valve-png button").click()
+        dl.value.save_as(tmp_path / "valve.png")
+        assert (tmp_path / "valve.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
         pg.clean()
     finally:
         pg.close()
@@ -177,3 +189,4 @@ def test_loop_page_limit_cycle_with_high_friction_and_none_without(server, brows
         pg.clean()
     finally:
         pg.close()
+

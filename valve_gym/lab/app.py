@@ -169,7 +169,8 @@ def _layout(controls, plots, text: str, page: str):
     """Controls on the left; the plots, and under them the equations and how to read the plots."""
     card = pn.Card(pn.pane.Markdown(text, width=960), title="The model, its equations and how to read the plots",
                    collapsed=False, width=990)
-    return pn.Row(controls, pn.Column(plots, card), css_classes=[f"vg-page-{page}"])
+    view = pn.param.ParamMethod(plots, lazy=True, loading_indicator=True)    # simulated when first shown
+    return pn.Row(controls, pn.Column(view, card), css_classes=[f"vg-page-{page}"])
 
 
 def _slider_classes(names, prefix: str) -> dict:
