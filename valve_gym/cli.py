@@ -19,6 +19,7 @@ _COMMANDS = {
     "figures": ("valve_gym.figures", "write the teaching figures (PNG)"),
     "diagnose": ("valve_gym.diagnosis.cli", "diagnose a recording (or a folder of loops, on Ray): locate the "
                  "mismatch, name the missing physics, rank the valves"),
+    "lab": ("valve_gym.lab.cli", "serve the teaching lab in the browser: the valve, its loop, the compensators"),
     "convert-policy": ("valve_gym.agents.convert", "convert a TRUSTED old pickle-based SB3 zip to safetensors + JSON"),
 }
 

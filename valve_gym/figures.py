@@ -102,6 +102,9 @@ class ValveResponse(NamedTuple):
         move only while ``|z| > z_max``.
     z_max : float, s
         Half width of the friction band of this valve.
+    stuck : (T,) array or None
+        1.0 while the slip-jump friction block holds the stem stuck, else 0.0
+        (``None`` for a valve without that block).
     """
 
     label: str
@@ -110,9 +113,10 @@ class ValveResponse(NamedTuple):
     h: np.ndarray
     z: np.ndarray
     z_max: float
+    stuck: np.ndarray | None = None
 
 
-def valve_response(valve: ValveParams, u, sample_time: float, dt: float = 1e-3,
+def valve_response(valve: ValveParams | ModelParams, u, sample_time: float, dt: float = 1e-3,
                    h0: float | None = None, label: str = "") -> ValveResponse:
     """Drive the valve alone with the input ``u`` and record stem and friction state.
 
@@ -123,8 +127,10 @@ def valve_response(valve: ValveParams, u, sample_time: float, dt: float = 1e-3,
 
     Parameters
     ----------
-    valve : ValveParams
-        Scalar valve parameters.
+    valve : ValveParams or ModelParams
+        Scalar valve parameters (the paper's valve), or a whole scalar model
+        (e.g. from :func:`valve_gym.friction.valve_model`, any friction
+        model); its ``dt`` is replaced by ``dt``.
     u : (T,) array_like, -
         Valve input (0..1), held over each sample of ``sample_time`` seconds.
     sample_time : float, s
@@ -147,7 +153,7 @@ def valve_response(valve: ValveParams, u, sample_time: float, dt: float = 1e-3,
     if u.size == 0 or not np.isfinite(u).all():
         raise ValueError("u must be a non-empty array of finite valve inputs (0..1)")
     n_sub = _n_sub(sample_time, dt)
-    params = ModelParams(valve=valve, dt=dt)
+    params = replace(valve, dt=dt) if isinstance(valve, ModelParams) else ModelParams(valve=valve, dt=dt)
     pk = pack(params, 1)
     st = initial_state(params, 1, h=float(u[0] if h0 is None else h0), buf_len=pk.buf_len)
     S = state_to_array(st)
@@ -159,13 +165,16 @@ def valve_response(valve: ValveParams, u, sample_time: float, dt: float = 1e-3,
     Y, H, LV = (np.empty((1, 1)) for _ in range(3))
     h = np.empty(T)
     z = np.empty(T)
+    stuck = np.empty(T)
     for k in range(T):
         run_packed(pk, S, buf, U[k:k + 1], D, n_sub, Y, H, LV)
         h[k] = H[0, 0]
         z[k] = view.z[0]
+        stuck[k] = view.stuck[0]
     t = np.arange(1, T + 1) * sample_time
     return ValveResponse(label=label, t=t, u=np.clip(u, 0.0, 1.0), h=h, z=z,
-                         z_max=float(valve.z_max))
+                         z_max=float(np.asarray(params.valve.z_max)),
+                         stuck=stuck if params.slip_jump is not None else None)
 
 
 def _n_sub(sample_time: float, dt: float) -> int:
@@ -313,7 +322,7 @@ class ClosedLoopResult(NamedTuple):
 
 def closed_loop_pi(params: ModelParams, sp, Kc, Ti, control_period: float = 1.0,
                    seconds: float = 1000.0, noise_std: float = 0.0,
-                   seed: int | None = None, state=None) -> ClosedLoopResult:
+                   seed: int | None = None, state=None, load=None) -> ClosedLoopResult:
     """Level loop: the PI law of :mod:`valve_gym.control` driving the model.
 
     :func:`valve_gym.loop.run_closed_loop` on a :class:`~valve_gym.plant.Plant`: every
@@ -343,6 +352,9 @@ def closed_loop_pi(params: ModelParams, sp, Kc, Ti, control_period: float = 1.0,
     state : State, optional
         Initial state (default :func:`valve_gym.core.initial_state`: at rest,
         at ``params.process.level0``, stem at the steady opening).
+    load : float or (T,) array_like, m^3/s, optional
+        Extra inflow held over each control sample (negative: an offtake;
+        process units for ``first_order``); default none.
 
     Returns
     -------
@@ -402,7 +414,14 @@ def closed_loop_pi(params: ModelParams, sp, Kc, Ti, control_period: float = 1.0,
         st = plant.state
         start = PlantOutput(pv=(st.level2 if params.process_kind == "cascade" else st.level).copy(),
                             stem=np.clip(st.h, 0.0, 1.0), op=st.u_prev.copy(), y=st.y.copy())
-    run = run_closed_loop(plant, start, spa, pi, noise_std, np.random.default_rng(seed))
+    da = np.zeros(T) if load is None else np.asarray(load, dtype=float)
+    if da.ndim == 0:
+        da = np.full(T, float(da))
+    if da.shape != (T,) or not np.isfinite(da).all():
+        raise ValueError(f"load must be a finite number or a ({T},) profile of inflows (m^3/s), "
+                         f"got shape {da.shape}")
+    run = run_closed_loop(plant, start, spa, pi, noise_std, np.random.default_rng(seed),
+                          d=None if load is None else da)
     t = np.arange(T) * control_period
     return ClosedLoopResult(t=t, sp=spa, pv=run.pv[:T], op=run.op, stem=run.stem[:T], level=run.level[:T])
 
