@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from valve_gym.config import ConfigError, load_config
+from valve_gym.signals import ou_sequence
 
 from .controllers.adaptive import PARAM_NAMES, PARAMS
 
@@ -160,12 +161,11 @@ def draw_loops(cfg: AdaptiveTrainConfig, generation: int) -> TrainLoops:
         r = _loop(rng)
         T = int(round(cfg.episode_s / r["scan"]))
         a = math.exp(-r["scan"] / r["load_tau"])
-        w = rng.standard_normal(T) * r["load"] * math.sqrt(1.0 - a * a)
-        from scipy.signal import lfilter
-
+        w = rng.standard_normal(T)
         flow = r["q_max"] if r["kind"] != "first_order" else r["K"]
         offset = (1.0 if rng.random() < 0.5 else -1.0) * rng.uniform(0.002, 0.03)
-        loads.append((offset + np.asarray(lfilter([0.0, 1.0], [1.0, -a], w), float)) * flow)
+        ou = ou_sequence(np.concatenate([[0.0], w[:-1]]), a, r["load"])   # x_k = a x_(k-1) + g w_(k-1)
+        loads.append((offset + ou) * flow)
         noises.append(rng.standard_normal(T) * r["noise"])
         rows.append(r)
     return TrainLoops(tuple(rows), tuple(loads), tuple(noises))

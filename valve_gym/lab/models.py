@@ -334,7 +334,7 @@ class LoopLab(param.Parameterized):
         return figures.closed_loop_pi(params, sp, self.Kc, self.Ti, self.scan_s, T * self.scan_s, state=st,
                                       load=load)
 
-    def limit_cycle(self, r: figures.ClosedLoopResult):
+    def read_cycle(self, r: figures.ClosedLoopResult):
         """The benchmark's detector (:func:`valve_gym.oscillation.detect_oscillation`) on the error after ``settle``."""
         from ..oscillation import detect_oscillation
 
@@ -353,7 +353,7 @@ class LoopLab(param.Parameterized):
         if self.fig10:
             return self._simulate_fig10()
         r = self._run(self.params())
-        lc = self.limit_cycle(r)
+        lc = self.read_cycle(r)
         unit = "m" if self.process == "level tank" else "-"
         cols = {"sp": r.sp[:, 0], "pv": r.pv[:, 0], "op": r.op[:, 0], "stem": r.stem[:, 0]}
         units = {"sp": unit, "pv": unit, "op": "-", "stem": "-"}
