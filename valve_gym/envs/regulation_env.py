@@ -165,11 +165,10 @@ class ValveTankRegulationEnv(gym.Env):
     * v0: initial version.
     """
 
-    metadata = {"render_modes": []}
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
 
     def __init__(self, config: RegulationConfig | Mapping | str | None = None, render_mode: str | None = None):
-        _no_render(render_mode)
-        self.render_mode = None
+        self.render_mode = _check_render(render_mode, self.metadata)
         self.config = make_regulation_config(config)
         self.observation_space, self.action_space = _spaces(self.config)
         self._loops = RegulationLoops(self.config, 1)
@@ -189,11 +188,31 @@ class ValveTankRegulationEnv(gym.Env):
                                                if np.size(action) == N_ACT else np.asarray(action, dtype=float))
         return obs[0], float(r[0]), False, bool(trunc), {k: float(v[0]) for k, v in info.items()}
 
+    def render(self):
+        """An RGB frame (200, 160, 3) of tank, set point, valve output and stem (``render_mode='rgb_array'``)."""
+        return _render(self, 0)
 
-def _no_render(render_mode) -> None:
-    """Accept ``render_mode=None`` (what wrappers and RL tools pass); refuse any mode: there is none."""
-    if render_mode is not None:
-        raise ValueError(f"render_mode must be None: the regulation env has no render modes, got {render_mode!r}")
+
+def _check_render(render_mode, metadata) -> str | None:
+    """``render_mode`` if it is None or one of ``metadata['render_modes']``, else a one-line ValueError."""
+    if render_mode is not None and render_mode not in metadata["render_modes"]:
+        raise ValueError(f"render_mode must be None or one of {metadata['render_modes']}, got {render_mode!r}")
+    return render_mode
+
+
+def _render(env, i: int):
+    """Frame of loop ``i`` of ``env._loops`` (None, with a warning, without a render mode)."""
+    from .valve_tank import render_frame
+
+    if env.render_mode is None:
+        gym.logger.warn("render() called without a render_mode; create the env with render_mode='rgb_array'")
+        return None
+    loops = env._loops
+    if loops.draw is None:
+        raise RuntimeError("call reset() before render()")
+    lv_max = 1.25 * max(loops.cfg.levels[1], 1.6)
+    return render_frame(float(loops.plants.level[i]), float(loops.draw.sp[i]), float(loops.plants.stem[i]),
+                        float(loops.law.u[i]), lv_max)
 
 
 class ValveTankRegulationVectorEnv(VectorEnv):
@@ -205,12 +224,11 @@ class ValveTankRegulationVectorEnv(VectorEnv):
     a list gives each its seed; generators continue across autoresets.
     """
 
-    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.SAME_STEP}
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10, "autoreset_mode": AutoresetMode.SAME_STEP}
 
     def __init__(self, num_envs: int = 1, config: RegulationConfig | Mapping | str | None = None,
                  max_episode_steps: int | None = None, render_mode: str | None = None):
-        _no_render(render_mode)
-        self.render_mode = None
+        self.render_mode = _check_render(render_mode, self.metadata)
         if not (isinstance(num_envs, (int, np.integer)) and num_envs >= 1):
             raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
         self.config = make_regulation_config(config)
@@ -247,3 +265,9 @@ class ValveTankRegulationVectorEnv(VectorEnv):
             obs = self._loops.reset(self._rngs)
             info.update({f"next_{k}": v for k, v in self._loops.episode_info().items()})
         return obs, r, terminated, truncated, info
+
+    def render(self):
+        """A tuple of one RGB frame (200, 160, 3) per sub-env (``render_mode='rgb_array'``)."""
+        if self.render_mode is None:
+            return _render(self, 0)
+        return tuple(_render(self, i) for i in range(self.num_envs))
