@@ -6,7 +6,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from valve_gym.agents.learned import DEFAULT_POLICY, LearnedBlock, MLPSpec, load_learned, mlp_forward, normalise, save_learned
+from valve_gym.agents.learned import (
+    DEFAULT_POLICY,
+    LearnedBlock,
+    MLPSpec,
+    load_learned,
+    mlp_forward,
+    normalise,
+    save_learned,
+)
 from valve_gym.envs.regulation import N_ACT, N_OBS, BlockSettings, RegulationConfig, pi_action
 from valve_gym.envs.regulation_env import ValveTankRegulationVectorEnv
 
@@ -21,7 +29,8 @@ def _random_block(tmp_path, seed=0, hidden=(8,)):
 
 
 def test_shipped_block_loads_without_torch():
-    code = ("import sys; from valve_gym.agents.learned import load_learned; b = load_learned(); b.reset(1.0, 1.0, 0.5); "
+    code = ("import sys; from valve_gym.agents.learned import load_learned; b = load_learned(); "
+            "b.reset(1.0, 1.0, 0.5); "
             "u = b.step(1.0, 1.002); assert 0 <= u <= 1; assert 'torch' not in sys.modules, 'torch imported'")
     r = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
     assert r.returncode == 0, r.stderr
@@ -66,7 +75,7 @@ def test_bumpless_start_and_output_limits(tmp_path):
 def test_block_equals_env_with_the_same_network(tmp_path):
     """The env's block law (training) and the DCS block (deployment) give the same outputs."""
     blk = _random_block(tmp_path, seed=3)
-    cfg = RegulationConfig(episode_s=120.0)
+    cfg = RegulationConfig(episode_s=120.0, block=blk.block_settings)
     env = ValveTankRegulationVectorEnv(4, cfg)
     obs, info = env.reset(seed=11)
     loops = env._loops

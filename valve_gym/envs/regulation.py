@@ -43,12 +43,17 @@ from ..config import ConfigError, check_episode_steps
 from ..params import ModelParams, SlipJump, ValveParams
 
 __all__ = ["RegulationConfig", "BlockSettings", "RegulationDraw", "draw_scenarios", "friction_params",
-           "LoopPlants", "BlockLaw", "pi_action", "step_reward", "parse_options", "available_friction_models",
+           "LoopPlants", "BlockLaw", "pi_action", "step_reward", "References", "reference_runs", "benchmark_reward",
+           "BENCHMARK_FRICTION_MODELS", "REWARDS", "parse_options", "available_friction_models",
            "FRICTION_MODELS_FALLBACK", "N_OBS", "N_ACT",
            "OBS_NAMES", "STICK_OBS_NAMES", "obs_names"]
 
 #: Friction models available without :mod:`valve_gym.friction` (the core's two models).
 FRICTION_MODELS_FALLBACK = ("riihilahti", "choudhury")
+#: The benchmark's friction models (``configs/benchmark.yaml``), the task's default.
+BENCHMARK_FRICTION_MODELS = ("riihilahti", "choudhury", "kano")
+#: The reward kinds of :class:`RegulationConfig`.
+REWARDS = ("benchmark", "tracking")
 
 Range = tuple[float, float]
 
@@ -135,30 +140,54 @@ class RegulationConfig:
         ``riihilahti`` and ``choudhury`` without it).
     S_bands : list of float, fraction of stroke
         Edges of the stiction bands: with ``[0, 0.005, 0.05, 0.10]`` a band (healthy, sticky,
-        severe) is drawn uniformly, then ``S`` uniformly in it.
+        severe) is drawn with probabilities ``band_weights``, then ``S`` in it.
+    band_weights : list of float
+        Relative probability of each band (default the benchmark's loop counts 30 : 60 : 45).
+    S_log_uniform : list of bool
+        Per band: ``S`` log-uniform in the band (``True``; the benchmark's sticky band) or uniform.
     J_frac : (2,) range
         Slip jump as a fraction of ``S`` (``J = S * U(J_frac)``).
     substeps : int
         Euler steps of the plant per scan.
+    reward : {'benchmark', 'tracking'}
+        ``benchmark`` (default): the episode return is the benchmark's compensation ratio ``R``
+        minus a travel-budget and a limit-cycle penalty (:func:`benchmark_reward`);
+        ``tracking``: the v0 per-step ``-(|SP - L| / error_scale + travel_weight |dh|)``.
+    r_floor : float
+        ``benchmark`` reward: floor of ``R``'s denominator as a fraction of the frictionless IAE.
+    travel_budget : float
+        ``benchmark`` reward: stem travel allowed free, as a multiple of the frictionless PI's travel
+        on the same episode.
+    budget_weight : float
+        ``benchmark`` reward: cost of travel beyond the budget, per frictionless-PI travel.
+    lc_weight : float
+        ``benchmark`` reward: cost of a limit cycle (the benchmark's detector on the episode's error).
     error_scale : float, m
-        Reward: 1 per step at this level error.
+        ``tracking`` reward: 1 per step at this level error.
     travel_weight : float
-        Reward: cost of a full stroke of stem travel, in units of ``error_scale``-seconds.
+        ``tracking`` reward: cost of a full stroke of stem travel, in units of ``error_scale``-seconds.
     block : BlockSettings
     """
 
     episode_s: float = 1800.0
     levels: Range = (0.6, 1.4)
-    noise_std: Range = (0.002, 0.002)
+    noise_std: Range = (0.0003, 0.003)
     load_std: Range = (0.5e-4, 2.0e-4)
     load_tau: Range = (60.0, 300.0)
-    friction_models: tuple[str, ...] = FRICTION_MODELS_FALLBACK
+    friction_models: tuple[str, ...] = BENCHMARK_FRICTION_MODELS
     S_bands: tuple[float, ...] = (0.0, 0.005, 0.05, 0.10)
+    band_weights: tuple[float, ...] = (30.0, 60.0, 45.0)
+    S_log_uniform: tuple[bool, ...] = (False, True, False)
     J_frac: Range = (0.0, 1.0)
     substeps: int = 20
+    reward: str = "benchmark"
+    r_floor: float = 0.1
+    travel_budget: float = 1.5
+    budget_weight: float = 1.0
+    lc_weight: float = 0.5
     error_scale: float = 0.01
     travel_weight: float = 2.0
-    block: BlockSettings = BlockSettings()
+    block: BlockSettings = BlockSettings(stick_features=True)
 
     def __post_init__(self):
         if not (math.isfinite(self.episode_s) and self.episode_s >= self.block.scan_s):
@@ -172,6 +201,7 @@ class RegulationConfig:
         b = [float(x) for x in self.S_bands]
         if len(b) < 2 or any(y <= x for x, y in zip(b, b[1:])) or b[0] < 0 or b[-1] > 0.5:
             raise ConfigError(f"S_bands must be increasing edges within [0, 0.5], at least two, got {b!r}")
+        self._check_bands_and_reward(len(b) - 1, b)
         if not self.friction_models:
             raise ConfigError("friction_models must name at least one friction model")
         known = available_friction_models()
@@ -183,6 +213,28 @@ class RegulationConfig:
             raise ConfigError(f"substeps must be an integer >= 1, got {self.substeps!r}")
         if not self.error_scale > 0 or not self.travel_weight >= 0:
             raise ConfigError("error_scale must be > 0 and travel_weight >= 0")
+
+    def _check_bands_and_reward(self, nb: int, b: list) -> None:
+        """Validate ``band_weights``, ``S_log_uniform`` and the reward settings (``nb`` bands, edges ``b``)."""
+        w = [float(x) for x in self.band_weights]
+        if len(w) != nb or any(not (math.isfinite(x) and x >= 0) for x in w) or sum(w) <= 0:
+            raise ConfigError(f"band_weights must be {nb} non-negative numbers (one per band of S_bands) with a "
+                              f"positive sum, got {list(self.band_weights)!r}")
+        lg = list(self.S_log_uniform)
+        if len(lg) != nb or any(not isinstance(x, (bool, np.bool_)) for x in lg):
+            raise ConfigError(f"S_log_uniform must be {nb} true/false values (one per band), got {lg!r}")
+        if any(x and b[i] <= 0 for i, x in enumerate(lg)):
+            raise ConfigError("S_log_uniform: a band starting at S = 0 cannot be log-uniform")
+        if self.reward not in REWARDS:
+            raise ConfigError(f"reward must be one of {', '.join(REWARDS)}, got {self.reward!r}")
+        for name in ("r_floor", "travel_budget"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ConfigError(f"{name} must be a positive number, got {v!r}")
+        for name in ("budget_weight", "lc_weight"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ConfigError(f"{name} must be a number >= 0, got {v!r}")
 
     @property
     def steps(self) -> int:
@@ -270,6 +322,8 @@ def draw_scenarios(rngs: Sequence[np.random.Generator], cfg: RegulationConfig) -
     """Draw ``len(rngs)`` episodes, row ``j`` from ``rngs[j]`` only (a batch draw equals single draws).
 
     Each generator gives 8 uniforms, then ``2 (H + 1)`` standard normals, whatever the values.
+    The band is drawn with probabilities ``band_weights``, ``S`` uniformly or (``S_log_uniform``)
+    log-uniformly in it.
     """
     n, H = len(rngs), cfg.steps
     U = np.empty((n, 8))
@@ -281,8 +335,16 @@ def draw_scenarios(rngs: Sequence[np.random.Generator], cfg: RegulationConfig) -
     model = np.minimum((U[:, 0] * nm).astype(np.int64), nm - 1)
     edges = np.asarray(cfg.S_bands, float)
     nb = len(edges) - 1
-    band = np.minimum((U[:, 1] * nb).astype(np.int64), nb - 1)
-    S = edges[band] + U[:, 2] * (edges[band + 1] - edges[band])
+    w = np.asarray(cfg.band_weights, float)
+    if np.all(w == w[0]):
+        band = np.minimum((U[:, 1] * nb).astype(np.int64), nb - 1)
+    else:
+        band = np.minimum(np.searchsorted(np.cumsum(w) / w.sum(), U[:, 1], side="right"), nb - 1)
+    lo, hi = edges[band], edges[band + 1]
+    S = lo + U[:, 2] * (hi - lo)
+    lg = np.asarray(cfg.S_log_uniform, bool)[band]
+    if lg.any():
+        S = np.where(lg, np.maximum(lo, 1e-300) * (hi / np.maximum(lo, 1e-300)) ** U[:, 2], S)
     J = S * (cfg.J_frac[0] + U[:, 3] * (cfg.J_frac[1] - cfg.J_frac[0]))
     sp = cfg.levels[0] + U[:, 4] * (cfg.levels[1] - cfg.levels[0])
     nstd = cfg.noise_std[0] + U[:, 5] * (cfg.noise_std[1] - cfg.noise_std[0])
@@ -308,6 +370,8 @@ class LoopPlants:
     cfg : RegulationConfig
     draw : RegulationDraw
         The episodes (their valves and operating points).
+    frictionless : (n,) bool array, optional
+        Loops run on their frictionless valve (``valve_model('none')``: the same actuator, no friction).
 
     Attributes
     ----------
@@ -316,8 +380,9 @@ class LoopPlants:
     op0 : (n,) the steady valve input at the set point [fraction of stroke]
     """
 
-    def __init__(self, cfg: RegulationConfig, draw: RegulationDraw):
+    def __init__(self, cfg: RegulationConfig, draw: RegulationDraw, frictionless=None):
         n = draw.sp.shape[0]
+        free = np.zeros(n, bool) if frictionless is None else np.broadcast_to(np.asarray(frictionless, bool), (n,))
         self.n = n
         self.substeps = cfg.substeps
         dt = cfg.block.scan_s / cfg.substeps
@@ -325,8 +390,11 @@ class LoopPlants:
         self.level = np.empty(n)
         self.stem = np.empty(n)
         self.op0 = np.empty(n)
-        for m, name in enumerate(cfg.friction_models):
-            idx = np.flatnonzero(draw.model == m)
+        groups = [(m, name, False) for m, name in enumerate(cfg.friction_models)]
+        if free.any():
+            groups.append((-1, "none", True))
+        for m, name, fl in groups:
+            idx = np.flatnonzero(free) if fl else np.flatnonzero((draw.model == m) & ~free)
             if idx.size == 0:
                 continue
             params = friction_params(name, draw.S[idx], draw.J[idx], dt=dt)
@@ -495,7 +563,7 @@ def pi_action(n: int) -> np.ndarray:
     return a
 
 
-OPTION_KEYS = ("model", "S", "J", "level")
+OPTION_KEYS = ("model", "S", "J", "level", "frictionless")
 
 
 def parse_options(options, cfg: RegulationConfig, n: int) -> dict:
@@ -529,6 +597,12 @@ def parse_options(options, cfg: RegulationConfig, n: int) -> dict:
         if key not in OPTION_KEYS:
             raise ValueError(f"unknown reset option {key!r}; the options are {', '.join(OPTION_KEYS)} "
                              f"(e.g. reset(options={{'model': 'choudhury', 'S': 0.03, 'J': 0.01}}))")
+        if key == "frictionless":
+            fa = np.broadcast_to(np.asarray(val), (n,)) if np.size(val) in (1, n) else None
+            if fa is None or fa.dtype != bool:
+                raise ValueError(f"reset option 'frictionless' must be true/false (or {n} of them), got {val!r}")
+            pins["frictionless"] = fa.copy()
+            continue
         if key == "model":
             names = [val] * n if isinstance(val, str) else list(val) if isinstance(val, (list, tuple)) else None
             if names is None or len(names) != n or any(m not in cfg.friction_models for m in names):
@@ -569,3 +643,94 @@ def step_reward(cfg: RegulationConfig, level_err: np.ndarray, stem_move: np.ndar
     (privileged signals: only the policy's inputs are restricted).
     """
     return -(np.abs(level_err) / cfg.error_scale + cfg.travel_weight * np.abs(stem_move))
+
+
+class References:
+    """The benchmark's two references of ``n`` episodes, run once at reset with the episodes' noise and load.
+
+    Attributes
+    ----------
+    abs_err_pi : (n, H) ``|SP - PV|`` of the SIMC PI (``pi_action``) on the episode's sticky valve after each scan [m]
+    iae_pi, iae_0 : (n,) summed ``|SP - PV|`` of that PI and of the PI on the frictionless valve [m scans]
+    travel_0 : (n,) stem travel of the PI on the frictionless valve [full strokes]
+    denom : (n,) ``max(iae_pi - iae_0, r_floor iae_0)``: ``R``'s denominator
+    """
+
+    def __init__(self, abs_err_pi, iae_0, travel_0, r_floor: float):
+        self.abs_err_pi = abs_err_pi
+        self.iae_pi = abs_err_pi.sum(axis=1)
+        self.iae_0 = iae_0
+        self.travel_0 = np.maximum(travel_0, 1e-6)
+        self.denom = np.maximum(np.maximum(self.iae_pi - iae_0, r_floor * iae_0), 1e-12)
+
+
+def reference_runs(cfg: RegulationConfig, draw: RegulationDraw) -> References:
+    """Run the SIMC PI on each episode's sticky valve and on its frictionless valve (the benchmark's references).
+
+    Both see the episode's measurement noise and load, so ``R`` of a controller on the episode is the
+    benchmark's paired ratio (:func:`valve_gym.agents.bench.scores.compensation_ratio`).
+    """
+    n, H = draw.sp.shape[0], cfg.steps
+    d2 = RegulationDraw(*(np.concatenate([a, a]) for a in draw))
+    plants = LoopPlants(cfg, d2, frictionless=np.repeat([False, True], n))
+    law = BlockLaw(cfg.block, 2 * n)
+    law.reset(d2.sp, plants.level + d2.noise[:, 0], plants.op0)
+    act = pi_action(2 * n)
+    err = np.empty((2 * n, H))
+    travel = np.zeros(2 * n)
+    for k in range(H):
+        u = law.act(act)
+        stem0 = plants.stem.copy()
+        plants.step(u, d2.load[:, k])
+        travel += np.abs(plants.stem - stem0)
+        pv = plants.level + d2.noise[:, k + 1]
+        err[:, k] = np.abs(d2.sp - pv)
+        law.observe(d2.sp, pv)
+    return References(err[:n], err[n:].sum(axis=1), travel[n:], cfg.r_floor)
+
+
+def benchmark_reward(cfg: RegulationConfig, refs: References, k: int, abs_err: np.ndarray,
+                     excess_prev: np.ndarray, travel: np.ndarray, lc_present: np.ndarray | None = None):
+    r"""Reward of scan ``k`` of the ``benchmark`` reward, and the travel excess after it.
+
+    Parameters
+    ----------
+    cfg : RegulationConfig
+    refs : References
+        The episode's references (:func:`reference_runs`).
+    k : int
+        Scan index (0-based).
+    abs_err : (n,) ``|SP - PV|`` after the scan [m]
+    excess_prev : (n,) travel beyond the budget before the scan [full strokes]
+    travel : (n,) stem travel of the episode so far, this scan included [full strokes]
+    lc_present : (n,) bool, optional
+        The limit-cycle verdict on the episode's error; given on the last scan only.
+
+    Returns
+    -------
+    reward : (n,)
+    excess : (n,)
+
+    Notes
+    -----
+    .. math::
+
+        r_k = \frac{|e^{PI}_k| - |e_k|}{D}
+              - w_b \frac{x_k - x_{k-1}}{T_0}
+              - w_{lc} [\text{LC}]_{k = H-1},\qquad
+        x_k = \max(0, T_k - \beta T_0)
+
+    with ``D = max(IAE_PI - IAE_0, f IAE_0)`` (``f = r_floor``), ``T_k`` the stem travel so far and
+    ``T_0`` the frictionless PI's travel over the episode. The return is therefore
+
+    .. math:: G = R - w_b \max(0, T / T_0 - \beta) - w_{lc} [\text{LC}]
+
+    where ``R`` is the benchmark's compensation ratio of the episode (1: all of stiction's IAE cost
+    removed, 0: the PI's, < 0 worse), ``beta = travel_budget``, ``w_b = budget_weight`` and
+    ``w_lc = lc_weight``.
+    """
+    excess = np.maximum(travel - cfg.travel_budget * refs.travel_0, 0.0)
+    r = (refs.abs_err_pi[:, k] - abs_err) / refs.denom - cfg.budget_weight * (excess - excess_prev) / refs.travel_0
+    if lc_present is not None:
+        r = r - cfg.lc_weight * np.asarray(lc_present, float)
+    return r, excess

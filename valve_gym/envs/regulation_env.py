@@ -22,9 +22,11 @@ from .regulation import (
     LoopPlants,
     RegulationConfig,
     RegulationDraw,
+    benchmark_reward,
     draw_scenarios,
     obs_names,
     parse_options,
+    reference_runs,
     step_reward,
 )
 
@@ -65,14 +67,25 @@ class RegulationLoops:
         self.draw: RegulationDraw | None = None
 
     def reset(self, rngs: Sequence[np.random.Generator], pins: dict | None = None) -> np.ndarray:
-        """Start all loops at steady state; returns the observation (n, n_obs) float32."""
-        d = _apply_pins(draw_scenarios(rngs, self.cfg), pins or {})
+        """Start all loops at steady state; returns the observation (n, n_obs) float32.
+
+        With the ``benchmark`` reward the references (:func:`~valve_gym.envs.regulation.reference_runs`)
+        are run here, on the drawn episodes.
+        """
+        pins = dict(pins or {})
+        free = pins.pop("frictionless", None)
+        d = _apply_pins(draw_scenarios(rngs, self.cfg), pins)
         self.draw = d
-        self.plants = LoopPlants(self.cfg, d)
+        self.plants = LoopPlants(self.cfg, d, frictionless=free)
         self.law = BlockLaw(self.cfg.block, self.n)
         self.k = 0
         pv = self.plants.level + d.noise[:, 0]
         self.law.reset(d.sp, pv, self.plants.op0)
+        if self.cfg.reward == "benchmark":
+            self.refs = reference_runs(self.cfg, d)
+            self.err = np.empty((self.H, self.n))
+            self.travel = np.zeros(self.n)
+            self.excess = np.zeros(self.n)
         return self.law.observe(d.sp, pv).astype(np.float32)
 
     def step(self, actions: np.ndarray):
@@ -97,11 +110,38 @@ class RegulationLoops:
         kn = min(self.k, self.H)
         level = self.plants.level
         pv = level + d.noise[:, kn]
-        reward = step_reward(self.cfg, d.sp - level, self.plants.stem - stem0)
-        obs = self.law.observe(d.sp, pv).astype(np.float32)
         info = {"setpoint": d.sp.copy(), "level": level.copy(), "pv": pv, "stem": self.plants.stem.copy(),
                 "op": u, "load": load.copy(), "t": np.full(self.n, self.k * self.cfg.block.scan_s)}
+        if self.cfg.reward == "benchmark":
+            reward = self._benchmark_reward(k, d.sp - pv, self.plants.stem - stem0, info)
+        else:
+            reward = step_reward(self.cfg, d.sp - level, self.plants.stem - stem0)
+        obs = self.law.observe(d.sp, pv).astype(np.float32)
         return obs, reward, self.k >= self.H, info
+
+    def _benchmark_reward(self, k: int, e: np.ndarray, dh: np.ndarray, info: dict) -> np.ndarray:
+        """The ``benchmark`` reward of scan ``k`` (error ``e = SP - PV`` after it, stem move ``dh``).
+
+        On the last scan of the episode ``info`` gets the episode's ``R``, ``travel_vs_frictionless``
+        and ``lc_present`` (the benchmark's scores of the episode).
+        """
+        if k >= self.H:
+            return np.zeros(self.n)
+        self.err[k] = e
+        self.travel += np.abs(dh)
+        lc = None
+        last = k == self.H - 1
+        if last:
+            from valve_gym.metrics import acf_oscillation
+
+            lc = np.array([acf_oscillation(self.err[:, i], self.cfg.block.scan_s).present for i in range(self.n)])
+        r, self.excess = benchmark_reward(self.cfg, self.refs, k, np.abs(e), self.excess, self.travel, lc)
+        if last:
+            refs = self.refs
+            info["R"] = (refs.iae_pi - np.abs(self.err).sum(axis=0)) / refs.denom
+            info["travel_vs_frictionless"] = self.travel / refs.travel_0
+            info["lc_present"] = np.asarray(lc, float)
+        return r
 
     def episode_info(self) -> dict:
         """The drawn quantities of the episode (friction model name, ``S``, ``J``, set point)."""
@@ -118,31 +158,56 @@ def _spaces(cfg: RegulationConfig):
 
 
 class ValveTankRegulationEnv(gym.Env):
-    """Regulation of a level loop through a sticky valve by a learned DCS block.
+    r"""Regulation of a level loop through a sticky valve by a learned DCS block: the benchmark's regulation task.
 
     ## Description
 
-    The default tank (:class:`valve_gym.params.TankParams`) at a constant set point drawn in
-    ``levels``, fed through a valve whose friction model (``friction_models``) and stiction
-    (stick band ``S`` from the healthy, sticky or severe band; slip jump ``J`` in [0, S]) are
-    drawn each episode; an Ornstein-Uhlenbeck load inflow and white measurement noise (2 mm)
-    disturb it. The agent is the inside of a PI block (:class:`~valve_gym.envs.regulation.BlockLaw`):
-    it gates the integrator and adds a bounded correction to the output.
+    The default tank (:class:`valve_gym.params.TankParams`) at a constant set point, fed through a
+    valve with stiction, disturbed by an Ornstein-Uhlenbeck load inflow and white measurement noise,
+    started at steady state: the regulation part of the compensator benchmark
+    (:mod:`valve_gym.agents.bench`, ``configs/benchmark.yaml``) as a family that contains it. Per
+    episode: friction model uniform in the benchmark's ``riihilahti``, ``choudhury``, ``kano``; band
+    healthy / sticky / severe with the benchmark's weights 30 : 60 : 45 and ``S`` uniform in
+    [0, 0.5] %, log-uniform in [0.5, 5] %, uniform in [5, 10] % of stroke; ``J`` uniform in [0, S];
+    set point uniform in [0.6, 1.4] m (benchmark: 0.6, 1.0, 1.4); noise std uniform in [0.3, 3] mm
+    (benchmark: 2 mm); load std in [0.05, 0.2] L/s (benchmark: 0.1) and correlation time
+    log-uniform in [60, 300] s (benchmark: 120 s). The agent is the inside of a PI block
+    (:class:`~valve_gym.envs.regulation.BlockLaw`): it gates the integrator and adds a bounded
+    correction to the output, so the block keeps integral action whatever the agent does.
 
     ## Action Space
 
-    ``Box(-1, 1, (2,), float32)``: integrator gate and correction (see
-    :mod:`valve_gym.envs.regulation`); ``(1, 0)`` is the plain SIMC PI. Clipped; NaN raises.
+    ``Box(-1, 1, (2,), float32)``: integrator gate ``a_g`` and correction ``a_c``:
+    ``u = clip(Kc e + I + c_max a_c)``, ``I += g Kc Ts / Ti e`` with ``g = g_min + (1 - g_min)(a_g + 1)/2``
+    (:mod:`valve_gym.envs.regulation`); ``(1, 0)`` is the plain SIMC PI. Clipped; NaN raises.
 
     ## Observation Space
 
-    ``Box(-10, 10, (11,), float32)``: the block's own signals (:data:`~valve_gym.envs.regulation.OBS_NAMES`;
-    14 with ``block.stick_features``, :data:`~valve_gym.envs.regulation.STICK_OBS_NAMES` appended)
-    computed from SP, PV and its past output only; never the stem or the friction.
+    ``Box(-10, 10, (14,), float32)``: what a DCS block sees, computed from SP, PV and the block's own
+    past output only, never the stem or the friction: the error and its moving averages, a noise
+    estimate, the output's moves, the last action, and the stickiness features (output move and time
+    since the filtered error last turned, filtered error over noise); names in
+    :data:`~valve_gym.envs.regulation.OBS_NAMES` + :data:`~valve_gym.envs.regulation.STICK_OBS_NAMES`
+    (11 without ``block.stick_features``).
 
     ## Rewards
 
-    ``-(|SP - L| / error_scale + travel_weight * |dh|)`` per scan (true level ``L``, stem ``h``).
+    Aligned with the benchmark's score (``reward: benchmark``, :func:`~valve_gym.envs.regulation.benchmark_reward`).
+    At reset the env runs the benchmark's two references on the episode's noise and load: the SIMC PI
+    on the sticky valve (error ``e^PI``) and on the frictionless valve (IAE ``IAE_0``, travel ``T_0``).
+    Per scan, with ``e_k = SP - PV`` after the scan and ``T_k`` the stem travel so far:
+
+    .. math::
+
+        r_k = \frac{|e^{PI}_k| - |e_k|}{D} - w_b \frac{x_k - x_{k-1}}{T_0} - w_{lc}\,[LC]_{k=H-1},
+        \quad x_k = \max(0, T_k - \beta T_0),\quad D = \max(IAE_{PI} - IAE_0, f\,IAE_0)
+
+    so that the return is :math:`G = R - w_b \max(0, T/T_0 - \beta) - w_{lc}[LC]`: the episode's
+    compensation ratio ``R`` (1: stiction's whole IAE cost removed, 0: the PI, < 0: worse), minus the
+    stem travel beyond ``beta = 1.5`` times the frictionless PI's (``w_b = 1``), minus 0.5 if the
+    benchmark's limit-cycle detector fires on the episode's error (last scan). The plain PI scores 0,
+    the PI on a frictionless valve 1. ``reward: tracking`` gives v0's ``-(|SP - L| / error_scale +
+    travel_weight |dh|)``.
 
     ## Starting State
 
@@ -150,19 +215,30 @@ class ValveTankRegulationEnv(gym.Env):
 
     ## Episode End
 
-    Truncation after ``episode_s / scan_s`` scans (1800 by default, the registration's time limit).
+    Truncation after ``episode_s / scan_s`` scans (1800 by default, the registration's time limit);
+    never terminated. The last step's ``info`` has the episode's ``R``, ``travel_vs_frictionless`` and
+    ``lc_present``.
 
     ## Arguments
 
     config : RegulationConfig, mapping or YAML path, optional
+        The task (:class:`~valve_gym.envs.regulation.RegulationConfig`): ranges of the draw, reward
+        weights, block settings.
+    render_mode : {None, 'rgb_array'}, optional
 
-    ``reset(options={'model': 'choudhury', 'S': 0.03, 'J': 0.01, 'level': 1.0})`` pins any subset.
-    ``info`` has ``setpoint``, ``level``, ``pv``, ``stem``, ``op``, ``load``, ``t`` and, at reset,
-    ``friction_model``, ``S``, ``J``.
+    ``reset(options={'model': 'choudhury', 'S': 0.03, 'J': 0.01, 'level': 1.0, 'frictionless': False})``
+    pins any subset. ``info`` has ``setpoint``, ``level``, ``pv``, ``stem``, ``op``, ``load``, ``t``
+    and, at reset, ``friction_model``, ``S``, ``J``.
 
     ## Version History
 
-    * v0: initial version.
+    * v0 (this release): the default task became the benchmark's regulation part (Kano's model added,
+      band weights and log-uniform sticky band, 0.3-3 mm noise, the 14 observations with the
+      stickiness features) and the reward the benchmark-aligned one; ``render_mode='rgb_array'``.
+      The id keeps ``-v0`` as no release published the earlier default; ``RegulationConfig(
+      friction_models=('riihilahti', 'choudhury'), noise_std=(0.002, 0.002), band_weights=(1, 1, 1),
+      S_log_uniform=(False, False, False), reward='tracking', block=BlockSettings())`` is the earlier one.
+    * v0 (first): two friction models, 2 mm noise, 11 observations, tracking reward.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
