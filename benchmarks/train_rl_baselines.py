@@ -29,6 +29,8 @@ def main(argv=None) -> int:
     p.add_argument("--timesteps", type=int, default=None, help="override every config's n_timesteps")
     p.add_argument("--max-wall-s", type=float, default=None, help="stop each training after this many seconds")
     p.add_argument("--tar", default=None, help="pack the runs into this .tar.gz")
+    p.add_argument("--deadline-s", type=float, default=None,
+                   help="stop runs still going after this many seconds (they write nothing; the rest are packed)")
     a = p.parse_args(argv)
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -51,7 +53,13 @@ def main(argv=None) -> int:
                                                           cwd=ROOT), log))
     failed = 0
     for name, pr, log in procs:
-        rc = pr.wait()
+        left = None if a.deadline_s is None else max(a.deadline_s - (time.perf_counter() - t0), 0.1)
+        try:
+            rc = pr.wait(timeout=left)
+        except subprocess.TimeoutExpired:
+            pr.terminate()
+            rc = pr.wait()
+            print(f"{name}: stopped at the deadline ({a.deadline_s:.0f} s)", flush=True)
         log.close()
         failed += rc != 0
         tail = (out / name / "log.txt").read_text().strip().splitlines()[-1:] or [""]
