@@ -105,7 +105,8 @@ def _by_model(res: dict) -> str:
 
 def main(argv=None) -> int:
     """Command line; exit 0 done, 1 failed, 2 bad usage."""
-    p = argparse.ArgumentParser(prog="python -m valve_gym.agents.learned_eval", description=(__doc__ or "").split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="python -m valve_gym.agents.learned_eval",
+                                description=(__doc__ or "").split("\n\n")[0])
     p.add_argument("--policy", default=None, help="learned block (.json or training folder); default the shipped")
     p.add_argument("--n", type=int, default=90, help="loops (default 90)")
     p.add_argument("--seed", type=int, default=424242, help="scenario seed (not the benchmark's)")

@@ -84,6 +84,7 @@ class ObsNormaliser:
         self.epsilon = float(epsilon)
 
     def __call__(self, obs: np.ndarray) -> np.ndarray:
+        """Normalised observations ``(n, n_obs)``."""
         return np.clip((obs - self.mean) / np.sqrt(self.var + self.epsilon), -self.clip_obs, self.clip_obs)
 
     @classmethod
