@@ -39,6 +39,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import core
+from .._numba import njit
 from ..config import ConfigError, check_episode_steps
 from ..params import ModelParams, SlipJump, ValveParams
 
@@ -437,6 +438,79 @@ def obs_names(settings: BlockSettings) -> tuple[str, ...]:
 _E_TAUS = (4.0, 16.0, 64.0, 256.0)
 
 
+# state rows of BlockLaw.X and parameter slots of BlockLaw.LP (the compiled law reads them by index)
+_XE, _XEP, _XEMA, _XDE, _XU, _XU64, _XU256, _XDU, _XC, _XG, _XI, _XUF, _XTF = 0, 1, 2, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15
+_NX = 16
+_PKC, _PKI, _PTS, _PCM, _PGM, _PLO, _PHI, _PER, _PUR, _PAE, _PA64, _PA256, _PA16, _PSTICK = \
+    0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 13, 14, 15, 16
+_NP = 17
+
+
+@njit(cache=True, nogil=True)
+def _law_observe(X, LP, sp, pv, obs):  # pragma: no cover - compiled
+    """:meth:`BlockLaw.observe` for every loop (columns of ``X``); writes ``obs`` (n, n_obs)."""
+    n = X.shape[1]
+    e_ref, u_ref, cm, gm = LP[_PER], LP[_PUR], LP[_PCM], LP[_PGM]
+    for i in range(n):
+        e = sp[i] - pv[i]
+        X[_XEP, i] = X[_XE, i]
+        X[_XE, i] = e
+        e16_prev = X[_XEMA + 1, i]
+        for j in range(4):
+            X[_XEMA + j, i] += LP[_PAE + j] * (e - X[_XEMA + j, i])
+        X[_XDE, i] += LP[_PA64] * (abs(e - X[_XEP, i]) - X[_XDE, i])
+        obs[i, 0] = e / e_ref
+        for j in range(4):
+            obs[i, 1 + j] = X[_XEMA + j, i] / e_ref
+        obs[i, 5] = X[_XDE, i] / e_ref
+        obs[i, 6] = (X[_XU, i] - X[_XU64, i]) / u_ref
+        obs[i, 7] = (X[_XU, i] - X[_XU256, i]) / u_ref
+        obs[i, 8] = X[_XDU, i] / (0.1 * u_ref)
+        obs[i, 9] = X[_XC, i] / cm if cm > 0 else 0.0
+        obs[i, 10] = 2.0 * (X[_XG, i] - gm) / (1.0 - gm) - 1.0 if gm < 1 else 1.0
+        if LP[_PSTICK] > 0:
+            e16 = X[_XEMA + 1, i]
+            if np.sign(e16) != np.sign(e16_prev):
+                X[_XUF, i] = X[_XU, i]
+                X[_XTF, i] = 0.0
+            else:
+                X[_XTF, i] = X[_XTF, i] + LP[_PTS]
+            obs[i, 11] = (X[_XU, i] - X[_XUF, i]) / u_ref
+            obs[i, 12] = X[_XTF, i] / 100.0
+            obs[i, 13] = e16 / max(X[_XDE, i], 1e-4)
+        for j in range(obs.shape[1]):
+            obs[i, j] = min(max(obs[i, j], -10.0), 10.0)
+
+
+@njit(cache=True, nogil=True)
+def _law_act(X, LP, action, first, u_out):  # pragma: no cover - compiled
+    """:meth:`BlockLaw.act` for every loop: applies ``action`` (n, 2), writes the output ``u_out`` (n,)."""
+    n = X.shape[1]
+    kc, ki, cm, gm, lo, hi = LP[_PKC], LP[_PKI], LP[_PCM], LP[_PGM], LP[_PLO], LP[_PHI]
+    for i in range(n):
+        ag = min(max(action[i, 0], -1.0), 1.0)
+        ac = min(max(action[i, 1], -1.0), 1.0)
+        g = gm + (1.0 - gm) * 0.5 * (ag + 1.0)
+        c = cm * ac
+        e = X[_XE, i]
+        if first:
+            X[_XI, i] = X[_XI, i] - c
+        v = kc * e + X[_XI, i] + c
+        u = min(max(v, lo), hi)
+        if u != v:
+            X[_XI, i] = u - kc * e - c
+        else:
+            X[_XI, i] = X[_XI, i] + g * ki * e
+        du = u - X[_XU, i]
+        X[_XDU, i] += LP[_PA16] * (du - X[_XDU, i])
+        X[_XU64, i] += LP[_PA64] * (u - X[_XU64, i])
+        X[_XU256, i] += LP[_PA256] * (u - X[_XU256, i])
+        X[_XU, i] = u
+        X[_XC, i] = c
+        X[_XG, i] = g
+        u_out[i] = u
+
+
 class BlockLaw:
     """Observation and output law of the regulation block for ``n`` loops (explicit state arrays).
 
@@ -457,7 +531,8 @@ class BlockLaw:
     mapped to [-1, 1]. With ``stick_features``: ``(u - u_f) / u_ref`` with ``u_f`` the output
     when the 16-scan average of ``e`` last changed sign, the scans since then over 100, and that
     average over ``max(de_abs, 1e-4)``. All clipped to [-10, 10]. The action law is in the module
-    Notes.
+    Notes. The state is one ``(16, n)`` array ``X`` (the attributes ``e``, ``I``, ``u``, ... are
+    views of its rows) advanced by two compiled functions, one call per scan each.
     """
 
     def __init__(self, settings: BlockSettings, n: int):
@@ -469,6 +544,26 @@ class BlockLaw:
         self._a256 = 1.0 - math.exp(-settings.scan_s / 256.0)
         self._a16 = 1.0 - math.exp(-settings.scan_s / 16.0)
         self.n_obs = len(obs_names(settings))
+        LP = np.zeros(_NP)
+        LP[[_PKC, _PKI, _PTS, _PCM, _PGM, _PLO, _PHI, _PER, _PUR]] = (
+            settings.Kc, self.ki, settings.scan_s, settings.c_max, settings.g_min, settings.op_lo, settings.op_hi,
+            settings.e_ref, settings.u_ref)
+        LP[_PAE:_PAE + 4] = self._alpha_e
+        LP[_PA64], LP[_PA256], LP[_PA16] = self._a64, self._a256, self._a16
+        LP[_PSTICK] = 1.0 if settings.stick_features else 0.0
+        self.LP = LP
+        self.X = np.zeros((_NX, self.n))
+        self._obs = np.empty((self.n, self.n_obs))
+        self._u = np.empty(self.n)
+        self._views()
+
+    def _views(self) -> None:
+        X = self.X
+        for name, row in (("e", _XE), ("e_prev", _XEP), ("de_abs", _XDE), ("u", _XU), ("u_ema64", _XU64),
+                          ("u_ema256", _XU256), ("du_ema", _XDU), ("c", _XC), ("g", _XG), ("I", _XI),
+                          ("u_flip", _XUF), ("t_flip", _XTF)):
+            setattr(self, name, X[row])
+        self.ema_e = X[_XEMA:_XEMA + 4].T
 
     def reset(self, sp, pv, op) -> None:
         """Bumpless start: the output stays at ``op`` on the first scan if ``pv`` does not move.
@@ -479,75 +574,33 @@ class BlockLaw:
         pv = np.broadcast_to(np.asarray(pv, float), (self.n,))
         op = np.broadcast_to(np.asarray(op, float), (self.n,)).astype(float)
         e = sp - pv
-        self.e = e.copy()
-        self.e_prev = e.copy()
-        self.ema_e = np.zeros((self.n, len(_E_TAUS))) + e[:, None]
-        self.de_abs = np.zeros(self.n)
-        self.u = op.copy()
-        self.u_ema64 = op.copy()
-        self.u_ema256 = op.copy()
-        self.du_ema = np.zeros(self.n)
-        self.c = np.zeros(self.n)
-        self.g = np.ones(self.n)
-        self.I = op - self.s.Kc * e
-        self.u_flip = op.copy()
-        self.t_flip = np.zeros(self.n)
+        X = self.X
+        X[:] = 0.0
+        X[_XE] = e
+        X[_XEP] = e
+        X[_XEMA:_XEMA + 4] = e
+        for row in (_XU, _XU64, _XU256, _XUF):
+            X[row] = op
+        X[_XG] = 1.0
+        X[_XI] = op - self.s.Kc * e
         self._first = True
 
-    def observe(self, sp, pv) -> np.ndarray:
-        """Take a measurement; returns the observation ``(n, N_OBS)`` float64 for this scan."""
-        s = self.s
-        e = np.asarray(sp, float) - np.asarray(pv, float)
-        e = np.broadcast_to(e, (self.n,))
-        self.e_prev = self.e
-        self.e = e
-        e16_prev = self.ema_e[:, 1].copy()
-        self.ema_e += self._alpha_e * (e[:, None] - self.ema_e)
-        self.de_abs += self._a64 * (np.abs(e - self.e_prev) - self.de_abs)
-        obs = np.empty((self.n, self.n_obs))
-        obs[:, 0] = e / s.e_ref
-        obs[:, 1:5] = self.ema_e / s.e_ref
-        obs[:, 5] = self.de_abs / s.e_ref
-        obs[:, 6] = (self.u - self.u_ema64) / s.u_ref
-        obs[:, 7] = (self.u - self.u_ema256) / s.u_ref
-        obs[:, 8] = self.du_ema / (0.1 * s.u_ref)
-        obs[:, 9] = self.c / s.c_max if s.c_max > 0 else 0.0
-        obs[:, 10] = 2.0 * (self.g - s.g_min) / (1.0 - s.g_min) - 1.0 if s.g_min < 1 else 1.0
-        if s.stick_features:
-            flip = np.sign(self.ema_e[:, 1]) != np.sign(e16_prev)
-            self.u_flip = np.where(flip, self.u, self.u_flip)
-            self.t_flip = np.where(flip, 0.0, self.t_flip + s.scan_s)
-            obs[:, N_OBS] = (self.u - self.u_flip) / s.u_ref
-            obs[:, N_OBS + 1] = self.t_flip / 100.0
-            obs[:, N_OBS + 2] = self.ema_e[:, 1] / np.maximum(self.de_abs, 1e-4)
-        np.clip(obs, -10.0, 10.0, out=obs)
+    def observe(self, sp, pv, out: np.ndarray | None = None) -> np.ndarray:
+        """Take a measurement; returns the observation ``(n, n_obs)`` float64 for this scan (a new array,
+        or ``out``)."""
+        sp = np.broadcast_to(np.asarray(sp, float), (self.n,))
+        pv = np.broadcast_to(np.asarray(pv, float), (self.n,))
+        obs = np.empty((self.n, self.n_obs)) if out is None else out
+        _law_observe(self.X, self.LP, sp, pv, obs)
         return obs
 
     def act(self, action: np.ndarray) -> np.ndarray:
         """Apply ``action`` (n, 2) in [-1, 1] (clipped) to this scan; returns the output ``u`` (n,)."""
-        s = self.s
-        a = np.clip(np.asarray(action, float).reshape(self.n, N_ACT), -1.0, 1.0)
-        g = s.g_min + (1.0 - s.g_min) * 0.5 * (a[:, 0] + 1.0)
-        c = s.c_max * a[:, 1]
-        e = self.e
-        if self._first:          # bumpless: the integrator absorbs the correction of the first scan
-            self.I = self.I - c
-            self._first = False
-        v = s.Kc * e + self.I + c
-        u = np.clip(v, s.op_lo, s.op_hi)
-        I_new = self.I + g * self.ki * e
-        sat = u != v
-        if sat.any():            # back-calculation: the integrator tracks the limited output
-            I_new = np.where(sat, u - s.Kc * e - c, I_new)
-        self.I = I_new
-        du = u - self.u
-        self.du_ema += self._a16 * (du - self.du_ema)
-        self.u_ema64 += self._a64 * (u - self.u_ema64)
-        self.u_ema256 += self._a256 * (u - self.u_ema256)
-        self.u = u
-        self.c = c
-        self.g = g
-        return u.copy()
+        a = np.asarray(action, float).reshape(self.n, N_ACT)
+        u = np.empty(self.n)
+        _law_act(self.X, self.LP, a, self._first, u)
+        self._first = False
+        return u
 
     def state_arrays(self) -> dict:
         """Copies of the state arrays (for tests and checkpoints)."""
@@ -664,28 +717,60 @@ class References:
         self.denom = np.maximum(np.maximum(self.iae_pi - iae_0, r_floor * iae_0), 1e-12)
 
 
+@njit(cache=True, nogil=True)
+def _pi_loops(X, LP, S, P, flags, buf, n_sub, dt, stem0, sp, noise, load, obs, err, travel):  # pragma: no cover
+    """The SIMC PI (gate 1, no correction) in closed loop with one packed plant group over ``err.shape[1]`` scans.
+
+    Writes ``err[:, k] = |sp - pv|`` after scan ``k`` and the stem travel ``travel`` (n,).
+    """
+    n, H = err.shape
+    act = np.zeros((n, 2))
+    act[:, 0] = 1.0
+    U = np.empty((1, n))
+    D = np.empty((1, n))
+    Y = np.empty((1, n))
+    Hh = np.empty((1, n))
+    LV = np.empty((1, n))
+    u = np.empty(n)
+    pv = np.empty(n)
+    stem = stem0.copy()
+    for k in range(H):
+        _law_act(X, LP, act, k == 0, u)
+        for i in range(n):
+            U[0, i] = u[i]
+            D[0, i] = load[i, k]
+        core._kernel(S, P, U, D, flags, buf, n_sub, dt, Y, Hh, LV)
+        for i in range(n):
+            travel[i] += abs(Hh[0, i] - stem[i])
+            stem[i] = Hh[0, i]
+            pv[i] = LV[0, i] + noise[i, k + 1]
+            err[i, k] = abs(sp[i] - pv[i])
+        _law_observe(X, LP, sp, pv, obs)
+
+
 def reference_runs(cfg: RegulationConfig, draw: RegulationDraw) -> References:
     """Run the SIMC PI on each episode's sticky valve and on its frictionless valve (the benchmark's references).
 
     Both see the episode's measurement noise and load, so ``R`` of a controller on the episode is the
-    benchmark's paired ratio (:func:`valve_gym.agents.bench.scores.compensation_ratio`).
+    benchmark's paired ratio (:func:`valve_gym.agents.bench.scores.compensation_ratio`). One compiled
+    closed-loop run per plant group (:class:`BlockLaw` with the PI action and the core kernel).
     """
     n, H = draw.sp.shape[0], cfg.steps
     d2 = RegulationDraw(*(np.concatenate([a, a]) for a in draw))
     plants = LoopPlants(cfg, d2, frictionless=np.repeat([False, True], n))
-    law = BlockLaw(cfg.block, 2 * n)
-    law.reset(d2.sp, plants.level + d2.noise[:, 0], plants.op0)
-    act = pi_action(2 * n)
     err = np.empty((2 * n, H))
     travel = np.zeros(2 * n)
-    for k in range(H):
-        u = law.act(act)
-        stem0 = plants.stem.copy()
-        plants.step(u, d2.load[:, k])
-        travel += np.abs(plants.stem - stem0)
-        pv = plants.level + d2.noise[:, k + 1]
-        err[:, k] = np.abs(d2.sp - pv)
-        law.observe(d2.sp, pv)
+    noise = np.ascontiguousarray(d2.noise)
+    load = np.ascontiguousarray(d2.load)
+    for idx, pk, S, buf, _U, _D, _out in plants.groups:
+        m = idx.size
+        law = BlockLaw(cfg.block, m)
+        sp = np.ascontiguousarray(d2.sp[idx])
+        law.reset(sp, plants.level[idx] + noise[idx, 0], plants.op0[idx])
+        e_g, t_g = np.empty((m, H)), np.zeros(m)
+        _pi_loops(law.X, law.LP, S, pk.P, pk.flags, buf, plants.substeps, pk.dt, plants.stem[idx].copy(), sp,
+                  noise[idx], load[idx], np.empty((m, law.n_obs)), e_g, t_g)
+        err[idx], travel[idx] = e_g, t_g
     return References(err[:n], err[n:].sum(axis=1), travel[n:], cfg.r_floor)
 
 
