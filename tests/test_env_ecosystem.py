@@ -143,3 +143,28 @@ def test_env_class_docstring_has_gymnasium_sections(env_id):
     for section in ("## Description", "## Action Space", "## Observation Space", "## Rewards",
                     "## Starting State", "## Episode End", "## Arguments", "## Version History"):
         assert section in doc, (type(env).__name__, section)
+
+
+def test_sb3_regulation_adapter_equals_dummy_vec_env():
+    from valve_gym.envs.sb3 import SB3RegulationVecEnv
+
+    cfg = {"episode_s": 20.0}
+    a = SB3RegulationVecEnv(3, cfg)
+    b = DummyVecEnv([lambda: gym.make("valve_gym/ValveTankRegulation-v0", config=cfg, max_episode_steps=20)
+                     for _ in range(3)])
+    a.seed(4)
+    b.seed(4)
+    np.testing.assert_array_equal(a.reset(), b.reset())
+    rng = np.random.default_rng(0)
+    for t in range(45):
+        act = rng.uniform(-1, 1, (3, 2)).astype(np.float32)
+        oa, ra, da, ia = a.step(act)
+        ob, rb, db, ib = b.step(act)
+        np.testing.assert_array_equal(oa, ob)
+        np.testing.assert_allclose(ra, rb, rtol=1e-6, atol=1e-7)
+        np.testing.assert_array_equal(da, db)
+        for x, y in zip(ia, ib):
+            if "terminal_observation" in y:
+                np.testing.assert_array_equal(x["terminal_observation"], y["terminal_observation"])
+                assert x["TimeLimit.truncated"] is True
+    assert VecNormalize(a).reset().shape == (3, 14)
