@@ -439,7 +439,8 @@ _E_TAUS = (4.0, 16.0, 64.0, 256.0)
 
 
 # state rows of BlockLaw.X and parameter slots of BlockLaw.LP (the compiled law reads them by index)
-_XE, _XEP, _XEMA, _XDE, _XU, _XU64, _XU256, _XDU, _XC, _XG, _XI, _XUF, _XTF = 0, 1, 2, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15
+_XE, _XEP, _XEMA, _XDE, _XU, _XU64, _XU256, _XDU, _XC, _XG, _XI, _XUF, _XTF = \
+    0, 1, 2, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15
 _NX = 16
 _PKC, _PKI, _PTS, _PCM, _PGM, _PLO, _PHI, _PER, _PUR, _PAE, _PA64, _PA256, _PA16, _PSTICK = \
     0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 13, 14, 15, 16
@@ -586,8 +587,10 @@ class BlockLaw:
         self._first = True
 
     def observe(self, sp, pv, out: np.ndarray | None = None) -> np.ndarray:
-        """Take a measurement; returns the observation ``(n, n_obs)`` float64 for this scan (a new array,
-        or ``out``)."""
+        """Take a measurement; returns the observation ``(n, n_obs)`` float64 for this scan.
+
+        A new array, or ``out`` when given.
+        """
         sp = np.broadcast_to(np.asarray(sp, float), (self.n,))
         pv = np.broadcast_to(np.asarray(pv, float), (self.n,))
         obs = np.empty((self.n, self.n_obs)) if out is None else out
