@@ -127,7 +127,7 @@ def make_model(cfg: dict, seed: int, tb_dir: str | None = None):
     env_kwargs = h.pop("env_kwargs", None) or {}
     venv = make_vec_env(cfg["env_id"], n_envs=n_envs, seed=seed, env_kwargs=env_kwargs)
     if normalize:
-        nk = {"gamma": float(h.get("gamma", 0.99))}
+        nk: dict = {"gamma": float(h.get("gamma", 0.99))}
         if isinstance(normalize, str):
             import ast
 

@@ -751,6 +751,27 @@ def _pi_loops(X, LP, S, P, flags, buf, n_sub, dt, stem0, sp, noise, load, obs, e
         _law_observe(X, LP, sp, pv, obs)
 
 
+@njit(cache=True, nogil=True)
+def _scan1(X, LP, A, first, S, P, flags, buf, n_sub, dt, W, load_k, noise_k1, sp, obs):  # pragma: no cover
+    """One scan of one loop (one plant group): block law, plant, measurement, observation in one call.
+
+    ``W`` (5, 1) holds the kernel's ``U, D, Y, H, LV`` rows. Returns ``(u, level, stem, pv)``.
+    """
+    u = np.empty(1)
+    _law_act(X, LP, A, first, u)
+    W[0, 0] = u[0]
+    W[1, 0] = load_k
+    core._kernel(S, P, W[0:1], W[1:2], flags, buf, n_sub, dt, W[2:3], W[3:4], W[4:5])
+    level = W[4, 0]
+    pv = level + noise_k1
+    spa = np.empty(1)
+    spa[0] = sp
+    pva = np.empty(1)
+    pva[0] = pv
+    _law_observe(X, LP, spa, pva, obs)
+    return u[0], level, W[3, 0], pv
+
+
 def reference_runs(cfg: RegulationConfig, draw: RegulationDraw) -> References:
     """Run the SIMC PI on each episode's sticky valve and on its frictionless valve (the benchmark's references).
 

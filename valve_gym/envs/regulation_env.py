@@ -6,6 +6,7 @@ sub-env seeded with ``s`` is step-for-step the single env reset with ``seed=s``.
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 
 import gymnasium as gym
@@ -22,6 +23,7 @@ from .regulation import (
     LoopPlants,
     RegulationConfig,
     RegulationDraw,
+    _scan1,
     benchmark_reward,
     draw_scenarios,
     obs_names,
@@ -86,6 +88,18 @@ class RegulationLoops:
             self.err = np.empty((self.H, self.n))
             self.travel = np.zeros(self.n)
             self.excess = np.zeros(self.n)
+        self._one = None
+        if self.n == 1 and len(self.plants.groups) == 1:      # the single env's compiled scan (step1)
+            _idx, pk, S, buf, _U, _D, _out = self.plants.groups[0]
+            self._one = (self.law.X, self.law.LP, S, pk.P, pk.flags, buf, self.plants.substeps, pk.dt,
+                         np.zeros((5, 1)), self.law._obs)
+            self._one_state = [float(self.plants.stem[0]), 0.0, 0.0]    # stem, travel, excess
+            c = self.cfg
+            self._one_lists = (d.load[0].tolist(), d.noise[0].tolist(), float(d.sp[0]))
+            if c.reward == "benchmark":
+                t0 = float(self.refs.travel_0[0])
+                self._one_refs = (self.refs.abs_err_pi[0].tolist(), float(self.refs.denom[0]), t0,
+                                  c.travel_budget * t0, c.budget_weight)
         return self.law.observe(d.sp, pv).astype(np.float32)
 
     def step(self, actions: np.ndarray):
@@ -119,6 +133,75 @@ class RegulationLoops:
         obs = self.law.observe(d.sp, pv).astype(np.float32)
         return obs, reward, self.k >= self.H, info
 
+    def step1(self, action):
+        """:meth:`step` of one loop (``n == 1``) in one compiled call, the numbers of :meth:`step` bit for bit.
+
+        Returns ``(obs (n_obs,), reward, truncated, info of floats)``.
+        """
+        one = self._one
+        if one is None:
+            raise RuntimeError("call reset() before step()")
+        a = np.asarray(action, dtype=float)
+        if a.size != N_ACT:
+            raise ValueError(f"actions must have shape ({self.n}, {N_ACT}) (gate, correction per loop), "
+                             f"got an array of shape {np.shape(action)}")
+        a = a.reshape(1, N_ACT)
+        if not (math.isfinite(a[0, 0]) and math.isfinite(a[0, 1])):
+            raise ValueError("an action is NaN or inf; pass numbers in [-1, 1] (check the policy for NaN "
+                             "outputs, e.g. from diverging training)")
+        H = self.H
+        k = self.k
+        kk = k if k < H else H
+        X, LP, S, P, flags, buf, n_sub, dt, W, obs = one
+        law = self.law
+        loads, noises, sp = self._one_lists
+        load = loads[kk]
+        self.k = k + 1
+        kn = self.k if self.k < H else H
+        u, level, stem, pv = _scan1(X, LP, a, law._first, S, P, flags, buf, n_sub, dt, W, load, noises[kn], sp, obs)
+        law._first = False
+        self.plants.level[0] = level
+        self.plants.stem[0] = stem
+        st = self._one_state
+        dh = stem - st[0]
+        st[0] = stem
+        info = {"setpoint": sp, "level": level, "pv": pv, "stem": stem, "op": u, "load": load,
+                "t": self.k * self.cfg.block.scan_s}
+        if self.cfg.reward == "benchmark":
+            if k >= H:
+                r = 0.0
+            else:
+                e = sp - pv
+                self.err[k, 0] = e
+                st[1] = st[1] + abs(dh)
+                err_pi, denom, t0, budget, wb = self._one_refs
+                excess = max(st[1] - budget, 0.0)
+                r = (err_pi[k] - abs(e)) / denom - wb * (excess - st[2]) / t0
+                st[2] = excess
+                self.travel[0], self.excess[0] = st[1], excess
+                if k == H - 1:
+                    extra: dict = {}
+                    lc = self._last_scan(extra)
+                    r = r - self.cfg.lc_weight * float(lc[0])
+                    info.update({key: float(v[0]) for key, v in extra.items()})
+        else:
+            r = -(abs(sp - level) / self.cfg.error_scale + self.cfg.travel_weight * abs(dh))
+        return obs[0].astype(np.float32), float(r), self.k >= H, info
+
+    def _last_scan(self, info: dict) -> np.ndarray:
+        """The limit-cycle verdict of the episode's error (per loop).
+
+        Puts ``R``, ``travel_vs_frictionless`` and ``lc_present`` into ``info``.
+        """
+        from valve_gym.metrics import acf_oscillation
+
+        lc = np.array([acf_oscillation(self.err[:, i], self.cfg.block.scan_s).present for i in range(self.n)])
+        refs = self.refs
+        info["R"] = (refs.iae_pi - np.abs(self.err).sum(axis=0)) / refs.denom
+        info["travel_vs_frictionless"] = self.travel / refs.travel_0
+        info["lc_present"] = np.asarray(lc, float)
+        return lc
+
     def _benchmark_reward(self, k: int, e: np.ndarray, dh: np.ndarray, info: dict) -> np.ndarray:
         """The ``benchmark`` reward of scan ``k`` (error ``e = SP - PV`` after it, stem move ``dh``).
 
@@ -129,18 +212,8 @@ class RegulationLoops:
             return np.zeros(self.n)
         self.err[k] = e
         self.travel += np.abs(dh)
-        lc = None
-        last = k == self.H - 1
-        if last:
-            from valve_gym.metrics import acf_oscillation
-
-            lc = np.array([acf_oscillation(self.err[:, i], self.cfg.block.scan_s).present for i in range(self.n)])
+        lc = self._last_scan(info) if k == self.H - 1 else None
         r, self.excess = benchmark_reward(self.cfg, self.refs, k, np.abs(e), self.excess, self.travel, lc)
-        if last:
-            refs = self.refs
-            info["R"] = (refs.iae_pi - np.abs(self.err).sum(axis=0)) / refs.denom
-            info["travel_vs_frictionless"] = self.travel / refs.travel_0
-            info["lc_present"] = np.asarray(lc, float)
         return r
 
     def episode_info(self) -> dict:
@@ -260,8 +333,12 @@ class ValveTankRegulationEnv(gym.Env):
 
     def step(self, action):
         """One scan: returns ``(obs, reward, False, truncated, info)``."""
-        obs, r, trunc, info = self._loops.step(np.asarray(action, dtype=float).reshape(1, -1)
-                                               if np.size(action) == N_ACT else np.asarray(action, dtype=float))
+        loops = self._loops
+        if getattr(loops, "_one", None) is not None:
+            obs, r, trunc, info = loops.step1(action)
+            return obs, r, False, trunc, info
+        obs, r, trunc, info = loops.step(np.asarray(action, dtype=float).reshape(1, -1)
+                                         if np.size(action) == N_ACT else np.asarray(action, dtype=float))
         return obs[0], float(r[0]), False, bool(trunc), {k: float(v[0]) for k, v in info.items()}
 
     def render(self):

@@ -289,4 +289,5 @@ class SB3RegulationVecEnv(VecEnv):
         """The RGB frame of each sub-environment (``render_mode='rgb_array'``)."""
         if self.venv.render_mode != "rgb_array":
             return [None] * self.num_envs
-        return list(self.venv.render())
+        frames = self.venv.render()
+        return [None] * self.num_envs if frames is None else list(frames)
