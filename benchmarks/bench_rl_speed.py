@@ -91,7 +91,7 @@ def ppo(kind: str, total: int, n_envs: int):
         venv.seed(0)
     else:
         venv = make_vec_env("CartPole-v1", n_envs=n_envs, seed=0)
-    kw = dict(n_steps=256, batch_size=256, n_epochs=4, policy_kwargs={"net_arch": [64, 64]}, device="cpu", seed=0)
+    kw: dict = dict(n_steps=256, batch_size=256, n_epochs=4, policy_kwargs={"net_arch": [64, 64]}, device="cpu", seed=0)
 
     def run():
         PPO("MlpPolicy", venv, **kw).learn(total)
