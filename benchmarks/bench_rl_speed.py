@@ -5,8 +5,9 @@
 (a) steps/s of ``gymnasium.make("valve_gym/ValveTankRegulation-v0")`` and of ``gymnasium.make("CartPole-v1")``
     (default wrappers), random actions, resets inside the timed loop;
 (b) env-steps/s of the native regulation vector env through the SB3 adapter
-    (:class:`valve_gym.envs.sb3.SB3RegulationVecEnv`) at N = 1024, resets included (one per 1800 steps),
-    and of Gymnasium's native ``CartPoleVectorEnv`` at N = 1024;
+    (:class:`valve_gym.envs.sb3.SB3RegulationVecEnv`) at N = 1024, resets included (one per 1800 steps; a
+    reset runs the reward's two reference loops per sub-env), and of Gymnasium's native ``CartPoleVectorEnv``
+    at N = 1024; then both over 200 steps without a reset;
 (c) SB3 PPO training throughput (env steps/s of ``learn``) on the regulation adapter and on CartPole-v1
     (``make_vec_env``, DummyVecEnv), same ``n_envs``, ``n_steps``, batch, epochs and network.
 
@@ -111,13 +112,18 @@ def main(argv=None) -> int:
     N, vs = 1024, (40 if a.quick else 1800)   # full: one reset (with its reference runs) per timed run
     t = _best({"reg": vector_reg(N, vs), "cp": vector_cartpole(N, vs)}, rep)
     res["vector1024_regulation_sb3_steps_s"], res["vector1024_cartpole_steps_s"] = N * vs / t["reg"], N * vs / t["cp"]
+    t = _best({"reg": vector_reg(N, 200), "cp": vector_cartpole(N, 200)}, rep)    # 200 steps: no reset
+    res["vector1024_noreset_regulation_sb3_steps_s"] = N * 200 / t["reg"]
+    res["vector1024_noreset_cartpole_steps_s"] = N * 200 / t["cp"]
     tot, ne = (8192, 8) if a.quick else (65536, 16)
     t = _best({"reg": ppo("regulation", tot, ne), "cp": ppo("cartpole", tot, ne)}, 1 if a.quick else 2)
     res["ppo_regulation_steps_s"], res["ppo_cartpole_steps_s"] = tot / t["reg"], tot / t["cp"]
     print("| measure | regulation | CartPole-v1 | ratio |\n|---|---|---|---|")
     for name, r, c in (("gymnasium.make, one env [steps/s]", "single_regulation_steps_s", "single_cartpole_steps_s"),
-                       ("native vector env, N = 1024 (regulation through the SB3 adapter) [env-steps/s]",
-                        "vector1024_regulation_sb3_steps_s", "vector1024_cartpole_steps_s"),
+                       ("native vector env, N = 1024 (regulation through the SB3 adapter), resets included "
+                        "[env-steps/s]", "vector1024_regulation_sb3_steps_s", "vector1024_cartpole_steps_s"),
+                       ("the same, 200 steps without a reset [env-steps/s]",
+                        "vector1024_noreset_regulation_sb3_steps_s", "vector1024_noreset_cartpole_steps_s"),
                        (f"SB3 PPO learn, {ne} envs [env-steps/s]", "ppo_regulation_steps_s", "ppo_cartpole_steps_s")):
         print(f"| {name} | {res[r]:,.0f} | {res[c]:,.0f} | {res[r] / res[c]:.2f}x |")
     if a.json:
