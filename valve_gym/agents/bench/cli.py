@@ -94,7 +94,8 @@ def main(argv=None) -> int:
     command = "valve-gym benchmark " + " ".join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[2:]))
     t0 = time.perf_counter()
     try:
-        res = run_benchmark(cfg, jobs=jobs, progress=None if args.no_progress else print_progress, policies=blocks)
+        res = run_benchmark(cfg, jobs=jobs, progress=None if args.no_progress else print_progress,
+                            **({"policies": blocks} if blocks else {}))
     except ConfigError as exc:
         print(f"valve-gym benchmark: {exc}", file=sys.stderr)
         return 2
