@@ -177,3 +177,16 @@ def test_shipped_baseline_policies_load_and_fit_the_registered_env():
         blk = load_policy_block(f)
         a = blk.act(obs[None, :])
         assert a.shape == (1, 2) and np.all(np.abs(a) <= 1.0)
+
+
+def test_a_folder_of_exports_is_the_seeds_of_one_row_and_names_pair_with_policies(trained, tmp_path):
+    from valve_gym.agents.bench.policies import as_blocks
+
+    folder = tmp_path / "my_sac"
+    folder.mkdir()
+    for i, algo in enumerate(("SAC", "TD3")):
+        export_policy(trained[algo][0], folder / f"seed{i}")
+    rows = as_blocks([str(folder), str(folder / "seed0.json")], names=[None, "single"])
+    assert list(rows) == ["my_sac", "single"] and len(rows["my_sac"]) == 2 and len(rows["single"]) == 1
+    with pytest.raises(FileNotFoundError, match="no policy files"):
+        as_blocks([str(tmp_path / "nothing_here")] if (tmp_path / "nothing_here").mkdir() is None else [])
