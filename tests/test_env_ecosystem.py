@@ -137,8 +137,10 @@ def test_import_valve_gym_registers_every_id_like_rl_zoo3_gym_packages():
 
 
 @pytest.mark.parametrize("env_id", ENV_IDS)
-def test_env_class_docstring_has_gymnasium_sections(env_id):
-    env = gym.make(env_id).unwrapped
+@pytest.mark.parametrize("vector", [False, True])
+def test_env_class_docstring_has_gymnasium_sections(env_id, vector):
+    env = (gym.make_vec(env_id, num_envs=1, vectorization_mode="vector_entry_point") if vector
+           else gym.make(env_id).unwrapped)
     doc = type(env).__doc__ or ""
     for section in ("## Description", "## Action Space", "## Observation Space", "## Rewards",
                     "## Starting State", "## Episode End", "## Arguments", "## Version History"):

@@ -375,6 +375,44 @@ class ValveTankRegulationVectorEnv(VectorEnv):
     the step that truncates returns the first observation of the next episodes, with the last
     ones in ``info['final_obs']``. Sub-env ``i`` reset with ``seed=s`` (int) is seeded ``s + i``;
     a list gives each its seed; generators continue across autoresets.
+
+    ## Description
+
+    The task of :class:`ValveTankRegulationEnv` for ``num_envs`` loops, one compiled block-law call
+    and one plant call per friction model per step.
+
+    ## Action Space
+
+    ``Box(-1, 1, (N, 2), float32)``: gate and correction per sub-env.
+
+    ## Observation Space
+
+    ``Box(-10, 10, (N, 14), float32)``: the block's observation per sub-env.
+
+    ## Rewards
+
+    :class:`ValveTankRegulationEnv`'s (the return is the episode's ``R`` minus the travel-budget and
+    limit-cycle penalties), per sub-env; the truncating step's ``info['final_info']`` has ``R``,
+    ``travel_vs_frictionless`` and ``lc_present``.
+
+    ## Starting State
+
+    Steady state; sub-env ``i`` with seed ``s`` equals the single env reset with ``seed=s``.
+
+    ## Episode End
+
+    Truncation of all sub-envs together after ``episode_s / scan_s`` scans (1800).
+
+    ## Arguments
+
+    num_envs : int
+    config : RegulationConfig, mapping or YAML path, optional
+    max_episode_steps : int, optional (must equal the config's episode)
+    render_mode : {None, 'rgb_array'}
+
+    ## Version History
+
+    * v0: as :class:`ValveTankRegulationEnv`'s.
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10, "autoreset_mode": AutoresetMode.SAME_STEP}
