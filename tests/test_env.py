@@ -340,7 +340,7 @@ def test_regulation_env_registered_and_checkers():
         sb3_check(ValveTankRegulationEnv(_reg_cfg()), warn=True)
     venv = gym.make_vec("valve_gym/ValveTankRegulation-v0", num_envs=3, vectorization_mode="vector_entry_point")
     obs, info = venv.reset(seed=0)
-    assert obs.shape == (3, 11) and venv.action_space.shape == (3, 2)
+    assert obs.shape == (3, 14) and venv.action_space.shape == (3, 2)   # 11 + the 3 stickiness features
 
 
 def test_regulation_single_equals_vector_and_is_deterministic():
@@ -379,7 +379,7 @@ def test_regulation_starts_at_steady_state_and_pi_action_is_the_pi():
 
 
 @pytest.mark.parametrize("options,msg", [
-    ({"S": 0.6}, "'S'"), ({"J": 0.05, "S": 0.01}, "must not exceed"), ({"model": "kano"}, "model"),
+    ({"S": 0.6}, "'S'"), ({"J": 0.05, "S": 0.01}, "must not exceed"), ({"model": "karnopp"}, "model"),
     ({"zz": 1}, "unknown reset option"), ({"level": float("nan")}, "'level'"), ({"S": [0.1, 0.2]}, "'S'"),
 ])
 def test_regulation_bad_options(options, msg):

@@ -75,7 +75,7 @@ def test_bumpless_start_and_output_limits(tmp_path):
 def test_block_equals_env_with_the_same_network(tmp_path):
     """The env's block law (training) and the DCS block (deployment) give the same outputs."""
     blk = _random_block(tmp_path, seed=3)
-    cfg = RegulationConfig(episode_s=120.0)
+    cfg = RegulationConfig(episode_s=120.0, block=blk.block_settings)
     env = ValveTankRegulationVectorEnv(4, cfg)
     obs, info = env.reset(seed=11)
     loops = env._loops

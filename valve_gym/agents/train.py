@@ -906,6 +906,31 @@ def _raw_algorithm(path: str) -> str:
     return "ppo"
 
 
+def _is_baseline(path: str) -> bool:
+    """A config of :mod:`valve_gym.agents.baselines` (it names ``env_id``)."""
+    data = read_yaml(Path(path), "training config", empty_hint=_TRAIN_EMPTY_HINT)
+    return isinstance(data, Mapping) and "env_id" in data
+
+
+def _main_baseline(args, command: str) -> int:
+    """SB3 PPO / A2C / SAC / TD3 on the regulation env (:mod:`valve_gym.agents.baselines`)."""
+    from .baselines import load_baseline_config, train_baseline
+
+    cfg = load_baseline_config(args.config)
+    for flag, val in (("--resume", args.resume), ("--generations", args.generations), ("--vec-env", args.vec_env)):
+        if val is not None:
+            raise UsageError(f"{flag} is not used by {cfg['algorithm']} baselines ({args.config})")
+    seed = 0 if args.seed is None else int(args.seed)
+    out = Path(args.out) if args.out else Path("runs") / f"{cfg['name']}_{seed}"
+    prepare_out(out, None, args.overwrite)
+    s = train_baseline(cfg, out, seed, args.timesteps, not args.no_progress, command)
+    f = s["final"]
+    print(f"{cfg['name']} seed {seed}: {s['env_steps']} env steps in {s['train_wall_s']:.0f} s; median R "
+          f"{f['R']:.2f}, travel / frictionless PI {f['travel_vs_frictionless']:.2f}, LC share {f['lc_share']:.2f}; "
+          f"policy {out / 'policy.json'}")
+    return 0
+
+
 def _main_learned(args, command: str) -> int:
     from valve_gym._io import write_atomic
 
@@ -950,9 +975,11 @@ def main(argv=None) -> int:
     command = "valve-gym train " + " ".join(shlex.quote(a) for a in argv_list)
     try:
         check_options(args)
-        algo = _raw_algorithm(args.config)
+        algo = _raw_algorithm(args.config).lower()
         if algo == "es":
             return _main_learned(args, command)
+        if algo in ("sac", "td3", "a2c") or (algo == "ppo" and _is_baseline(args.config)):
+            return _main_baseline(args, command)
         return _main_ppo(args, command)
     except (ConfigError, UsageError) as exc:
         print(f"valve-gym train: {exc}", file=sys.stderr)

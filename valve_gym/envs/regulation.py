@@ -39,17 +39,23 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import core
+from .._numba import njit
 from ..config import ConfigError, check_episode_steps
 from ..params import ModelParams, SlipJump, ValveParams
 from ..signals import ou_sequence
 
 __all__ = ["RegulationConfig", "BlockSettings", "RegulationDraw", "draw_scenarios", "friction_params",
-           "LoopPlants", "BlockLaw", "pi_action", "step_reward", "parse_options", "available_friction_models",
+           "LoopPlants", "BlockLaw", "pi_action", "step_reward", "References", "reference_runs", "benchmark_reward",
+           "BENCHMARK_FRICTION_MODELS", "REWARDS", "parse_options", "available_friction_models",
            "FRICTION_MODELS_FALLBACK", "N_OBS", "N_ACT",
            "OBS_NAMES", "STICK_OBS_NAMES", "obs_names"]
 
 #: Friction models available without :mod:`valve_gym.friction` (the core's two models).
 FRICTION_MODELS_FALLBACK = ("riihilahti", "choudhury")
+#: The benchmark's friction models (``configs/benchmark.yaml``), the task's default.
+BENCHMARK_FRICTION_MODELS = ("riihilahti", "choudhury", "kano")
+#: The reward kinds of :class:`RegulationConfig`.
+REWARDS = ("benchmark", "tracking")
 
 Range = tuple[float, float]
 
@@ -136,30 +142,54 @@ class RegulationConfig:
         ``riihilahti`` and ``choudhury`` without it).
     S_bands : list of float, fraction of stroke
         Edges of the stiction bands: with ``[0, 0.005, 0.05, 0.10]`` a band (healthy, sticky,
-        severe) is drawn uniformly, then ``S`` uniformly in it.
+        severe) is drawn with probabilities ``band_weights``, then ``S`` in it.
+    band_weights : list of float
+        Relative probability of each band (default the benchmark's loop counts 30 : 60 : 45).
+    S_log_uniform : list of bool
+        Per band: ``S`` log-uniform in the band (``True``; the benchmark's sticky band) or uniform.
     J_frac : (2,) range
         Slip jump as a fraction of ``S`` (``J = S * U(J_frac)``).
     substeps : int
         Euler steps of the plant per scan.
+    reward : {'benchmark', 'tracking'}
+        ``benchmark`` (default): the episode return is the benchmark's compensation ratio ``R``
+        minus a travel-budget and a limit-cycle penalty (:func:`benchmark_reward`);
+        ``tracking``: the v0 per-step ``-(|SP - L| / error_scale + travel_weight |dh|)``.
+    r_floor : float
+        ``benchmark`` reward: floor of ``R``'s denominator as a fraction of the frictionless IAE.
+    travel_budget : float
+        ``benchmark`` reward: stem travel allowed free, as a multiple of the frictionless PI's travel
+        on the same episode.
+    budget_weight : float
+        ``benchmark`` reward: cost of travel beyond the budget, per frictionless-PI travel.
+    lc_weight : float
+        ``benchmark`` reward: cost of a limit cycle (the benchmark's detector on the episode's error).
     error_scale : float, m
-        Reward: 1 per step at this level error.
+        ``tracking`` reward: 1 per step at this level error.
     travel_weight : float
-        Reward: cost of a full stroke of stem travel, in units of ``error_scale``-seconds.
+        ``tracking`` reward: cost of a full stroke of stem travel, in units of ``error_scale``-seconds.
     block : BlockSettings
     """
 
     episode_s: float = 1800.0
     levels: Range = (0.6, 1.4)
-    noise_std: Range = (0.002, 0.002)
+    noise_std: Range = (0.0003, 0.003)
     load_std: Range = (0.5e-4, 2.0e-4)
     load_tau: Range = (60.0, 300.0)
-    friction_models: tuple[str, ...] = FRICTION_MODELS_FALLBACK
+    friction_models: tuple[str, ...] = BENCHMARK_FRICTION_MODELS
     S_bands: tuple[float, ...] = (0.0, 0.005, 0.05, 0.10)
+    band_weights: tuple[float, ...] = (30.0, 60.0, 45.0)
+    S_log_uniform: tuple[bool, ...] = (False, True, False)
     J_frac: Range = (0.0, 1.0)
     substeps: int = 20
+    reward: str = "benchmark"
+    r_floor: float = 0.1
+    travel_budget: float = 1.5
+    budget_weight: float = 1.0
+    lc_weight: float = 0.5
     error_scale: float = 0.01
     travel_weight: float = 2.0
-    block: BlockSettings = BlockSettings()
+    block: BlockSettings = BlockSettings(stick_features=True)
 
     def __post_init__(self):
         if not (math.isfinite(self.episode_s) and self.episode_s >= self.block.scan_s):
@@ -173,6 +203,7 @@ class RegulationConfig:
         b = [float(x) for x in self.S_bands]
         if len(b) < 2 or any(y <= x for x, y in zip(b, b[1:])) or b[0] < 0 or b[-1] > 0.5:
             raise ConfigError(f"S_bands must be increasing edges within [0, 0.5], at least two, got {b!r}")
+        self._check_bands_and_reward(len(b) - 1, b)
         if not self.friction_models:
             raise ConfigError("friction_models must name at least one friction model")
         known = available_friction_models()
@@ -184,6 +215,28 @@ class RegulationConfig:
             raise ConfigError(f"substeps must be an integer >= 1, got {self.substeps!r}")
         if not self.error_scale > 0 or not self.travel_weight >= 0:
             raise ConfigError("error_scale must be > 0 and travel_weight >= 0")
+
+    def _check_bands_and_reward(self, nb: int, b: list) -> None:
+        """Validate ``band_weights``, ``S_log_uniform`` and the reward settings (``nb`` bands, edges ``b``)."""
+        w = [float(x) for x in self.band_weights]
+        if len(w) != nb or any(not (math.isfinite(x) and x >= 0) for x in w) or sum(w) <= 0:
+            raise ConfigError(f"band_weights must be {nb} non-negative numbers (one per band of S_bands) with a "
+                              f"positive sum, got {list(self.band_weights)!r}")
+        lg = list(self.S_log_uniform)
+        if len(lg) != nb or any(not isinstance(x, (bool, np.bool_)) for x in lg):
+            raise ConfigError(f"S_log_uniform must be {nb} true/false values (one per band), got {lg!r}")
+        if any(x and b[i] <= 0 for i, x in enumerate(lg)):
+            raise ConfigError("S_log_uniform: a band starting at S = 0 cannot be log-uniform")
+        if self.reward not in REWARDS:
+            raise ConfigError(f"reward must be one of {', '.join(REWARDS)}, got {self.reward!r}")
+        for name in ("r_floor", "travel_budget"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ConfigError(f"{name} must be a positive number, got {v!r}")
+        for name in ("budget_weight", "lc_weight"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise ConfigError(f"{name} must be a number >= 0, got {v!r}")
 
     @property
     def steps(self) -> int:
@@ -271,6 +324,8 @@ def draw_scenarios(rngs: Sequence[np.random.Generator], cfg: RegulationConfig) -
     """Draw ``len(rngs)`` episodes, row ``j`` from ``rngs[j]`` only (a batch draw equals single draws).
 
     Each generator gives 8 uniforms, then ``2 (H + 1)`` standard normals, whatever the values.
+    The band is drawn with probabilities ``band_weights``, ``S`` uniformly or (``S_log_uniform``)
+    log-uniformly in it.
     """
     n, H = len(rngs), cfg.steps
     U = np.empty((n, 8))
@@ -282,8 +337,16 @@ def draw_scenarios(rngs: Sequence[np.random.Generator], cfg: RegulationConfig) -
     model = np.minimum((U[:, 0] * nm).astype(np.int64), nm - 1)
     edges = np.asarray(cfg.S_bands, float)
     nb = len(edges) - 1
-    band = np.minimum((U[:, 1] * nb).astype(np.int64), nb - 1)
-    S = edges[band] + U[:, 2] * (edges[band + 1] - edges[band])
+    w = np.asarray(cfg.band_weights, float)
+    if np.all(w == w[0]):
+        band = np.minimum((U[:, 1] * nb).astype(np.int64), nb - 1)
+    else:
+        band = np.minimum(np.searchsorted(np.cumsum(w) / w.sum(), U[:, 1], side="right"), nb - 1)
+    lo, hi = edges[band], edges[band + 1]
+    S = lo + U[:, 2] * (hi - lo)
+    lg = np.asarray(cfg.S_log_uniform, bool)[band]
+    if lg.any():
+        S = np.where(lg, np.maximum(lo, 1e-300) * (hi / np.maximum(lo, 1e-300)) ** U[:, 2], S)
     J = S * (cfg.J_frac[0] + U[:, 3] * (cfg.J_frac[1] - cfg.J_frac[0]))
     sp = cfg.levels[0] + U[:, 4] * (cfg.levels[1] - cfg.levels[0])
     nstd = cfg.noise_std[0] + U[:, 5] * (cfg.noise_std[1] - cfg.noise_std[0])
@@ -304,6 +367,8 @@ class LoopPlants:
     cfg : RegulationConfig
     draw : RegulationDraw
         The episodes (their valves and operating points).
+    frictionless : (n,) bool array, optional
+        Loops run on their frictionless valve (``valve_model('none')``: the same actuator, no friction).
 
     Attributes
     ----------
@@ -312,8 +377,9 @@ class LoopPlants:
     op0 : (n,) the steady valve input at the set point [fraction of stroke]
     """
 
-    def __init__(self, cfg: RegulationConfig, draw: RegulationDraw):
+    def __init__(self, cfg: RegulationConfig, draw: RegulationDraw, frictionless=None):
         n = draw.sp.shape[0]
+        free = np.zeros(n, bool) if frictionless is None else np.broadcast_to(np.asarray(frictionless, bool), (n,))
         self.n = n
         self.substeps = cfg.substeps
         dt = cfg.block.scan_s / cfg.substeps
@@ -321,8 +387,11 @@ class LoopPlants:
         self.level = np.empty(n)
         self.stem = np.empty(n)
         self.op0 = np.empty(n)
-        for m, name in enumerate(cfg.friction_models):
-            idx = np.flatnonzero(draw.model == m)
+        groups = [(m, name, False) for m, name in enumerate(cfg.friction_models)]
+        if free.any():
+            groups.append((-1, "none", True))
+        for m, name, fl in groups:
+            idx = np.flatnonzero(free) if fl else np.flatnonzero((draw.model == m) & ~free)
             if idx.size == 0:
                 continue
             params = friction_params(name, draw.S[idx], draw.J[idx], dt=dt)
@@ -365,6 +434,80 @@ def obs_names(settings: BlockSettings) -> tuple[str, ...]:
 _E_TAUS = (4.0, 16.0, 64.0, 256.0)
 
 
+# state rows of BlockLaw.X and parameter slots of BlockLaw.LP (the compiled law reads them by index)
+_XE, _XEP, _XEMA, _XDE, _XU, _XU64, _XU256, _XDU, _XC, _XG, _XI, _XUF, _XTF = \
+    0, 1, 2, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15
+_NX = 16
+_PKC, _PKI, _PTS, _PCM, _PGM, _PLO, _PHI, _PER, _PUR, _PAE, _PA64, _PA256, _PA16, _PSTICK = \
+    0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 13, 14, 15, 16
+_NP = 17
+
+
+@njit(cache=True, nogil=True)
+def _law_observe(X, LP, sp, pv, obs):  # pragma: no cover - compiled
+    """:meth:`BlockLaw.observe` for every loop (columns of ``X``); writes ``obs`` (n, n_obs)."""
+    n = X.shape[1]
+    e_ref, u_ref, cm, gm = LP[_PER], LP[_PUR], LP[_PCM], LP[_PGM]
+    for i in range(n):
+        e = sp[i] - pv[i]
+        X[_XEP, i] = X[_XE, i]
+        X[_XE, i] = e
+        e16_prev = X[_XEMA + 1, i]
+        for j in range(4):
+            X[_XEMA + j, i] += LP[_PAE + j] * (e - X[_XEMA + j, i])
+        X[_XDE, i] += LP[_PA64] * (abs(e - X[_XEP, i]) - X[_XDE, i])
+        obs[i, 0] = e / e_ref
+        for j in range(4):
+            obs[i, 1 + j] = X[_XEMA + j, i] / e_ref
+        obs[i, 5] = X[_XDE, i] / e_ref
+        obs[i, 6] = (X[_XU, i] - X[_XU64, i]) / u_ref
+        obs[i, 7] = (X[_XU, i] - X[_XU256, i]) / u_ref
+        obs[i, 8] = X[_XDU, i] / (0.1 * u_ref)
+        obs[i, 9] = X[_XC, i] / cm if cm > 0 else 0.0
+        obs[i, 10] = 2.0 * (X[_XG, i] - gm) / (1.0 - gm) - 1.0 if gm < 1 else 1.0
+        if LP[_PSTICK] > 0:
+            e16 = X[_XEMA + 1, i]
+            if np.sign(e16) != np.sign(e16_prev):
+                X[_XUF, i] = X[_XU, i]
+                X[_XTF, i] = 0.0
+            else:
+                X[_XTF, i] = X[_XTF, i] + LP[_PTS]
+            obs[i, 11] = (X[_XU, i] - X[_XUF, i]) / u_ref
+            obs[i, 12] = X[_XTF, i] / 100.0
+            obs[i, 13] = e16 / max(X[_XDE, i], 1e-4)
+        for j in range(obs.shape[1]):
+            obs[i, j] = min(max(obs[i, j], -10.0), 10.0)
+
+
+@njit(cache=True, nogil=True)
+def _law_act(X, LP, action, first, u_out):  # pragma: no cover - compiled
+    """:meth:`BlockLaw.act` for every loop: applies ``action`` (n, 2), writes the output ``u_out`` (n,)."""
+    n = X.shape[1]
+    kc, ki, cm, gm, lo, hi = LP[_PKC], LP[_PKI], LP[_PCM], LP[_PGM], LP[_PLO], LP[_PHI]
+    for i in range(n):
+        ag = min(max(action[i, 0], -1.0), 1.0)
+        ac = min(max(action[i, 1], -1.0), 1.0)
+        g = gm + (1.0 - gm) * 0.5 * (ag + 1.0)
+        c = cm * ac
+        e = X[_XE, i]
+        if first:
+            X[_XI, i] = X[_XI, i] - c
+        v = kc * e + X[_XI, i] + c
+        u = min(max(v, lo), hi)
+        if u != v:
+            X[_XI, i] = u - kc * e - c
+        else:
+            X[_XI, i] = X[_XI, i] + g * ki * e
+        du = u - X[_XU, i]
+        X[_XDU, i] += LP[_PA16] * (du - X[_XDU, i])
+        X[_XU64, i] += LP[_PA64] * (u - X[_XU64, i])
+        X[_XU256, i] += LP[_PA256] * (u - X[_XU256, i])
+        X[_XU, i] = u
+        X[_XC, i] = c
+        X[_XG, i] = g
+        u_out[i] = u
+
+
 class BlockLaw:
     """Observation and output law of the regulation block for ``n`` loops (explicit state arrays).
 
@@ -385,7 +528,8 @@ class BlockLaw:
     mapped to [-1, 1]. With ``stick_features``: ``(u - u_f) / u_ref`` with ``u_f`` the output
     when the 16-scan average of ``e`` last changed sign, the scans since then over 100, and that
     average over ``max(de_abs, 1e-4)``. All clipped to [-10, 10]. The action law is in the module
-    Notes.
+    Notes. The state is one ``(16, n)`` array ``X`` (the attributes ``e``, ``I``, ``u``, ... are
+    views of its rows) advanced by two compiled functions, one call per scan each.
     """
 
     def __init__(self, settings: BlockSettings, n: int):
@@ -397,6 +541,26 @@ class BlockLaw:
         self._a256 = 1.0 - math.exp(-settings.scan_s / 256.0)
         self._a16 = 1.0 - math.exp(-settings.scan_s / 16.0)
         self.n_obs = len(obs_names(settings))
+        LP = np.zeros(_NP)
+        LP[[_PKC, _PKI, _PTS, _PCM, _PGM, _PLO, _PHI, _PER, _PUR]] = (
+            settings.Kc, self.ki, settings.scan_s, settings.c_max, settings.g_min, settings.op_lo, settings.op_hi,
+            settings.e_ref, settings.u_ref)
+        LP[_PAE:_PAE + 4] = self._alpha_e
+        LP[_PA64], LP[_PA256], LP[_PA16] = self._a64, self._a256, self._a16
+        LP[_PSTICK] = 1.0 if settings.stick_features else 0.0
+        self.LP = LP
+        self.X = np.zeros((_NX, self.n))
+        self._obs = np.empty((self.n, self.n_obs))
+        self._u = np.empty(self.n)
+        self._views()
+
+    def _views(self) -> None:
+        X = self.X
+        for name, row in (("e", _XE), ("e_prev", _XEP), ("de_abs", _XDE), ("u", _XU), ("u_ema64", _XU64),
+                          ("u_ema256", _XU256), ("du_ema", _XDU), ("c", _XC), ("g", _XG), ("I", _XI),
+                          ("u_flip", _XUF), ("t_flip", _XTF)):
+            setattr(self, name, X[row])
+        self.ema_e = X[_XEMA:_XEMA + 4].T
 
     def reset(self, sp, pv, op) -> None:
         """Bumpless start: the output stays at ``op`` on the first scan if ``pv`` does not move.
@@ -407,75 +571,35 @@ class BlockLaw:
         pv = np.broadcast_to(np.asarray(pv, float), (self.n,))
         op = np.broadcast_to(np.asarray(op, float), (self.n,)).astype(float)
         e = sp - pv
-        self.e = e.copy()
-        self.e_prev = e.copy()
-        self.ema_e = np.zeros((self.n, len(_E_TAUS))) + e[:, None]
-        self.de_abs = np.zeros(self.n)
-        self.u = op.copy()
-        self.u_ema64 = op.copy()
-        self.u_ema256 = op.copy()
-        self.du_ema = np.zeros(self.n)
-        self.c = np.zeros(self.n)
-        self.g = np.ones(self.n)
-        self.I = op - self.s.Kc * e
-        self.u_flip = op.copy()
-        self.t_flip = np.zeros(self.n)
+        X = self.X
+        X[:] = 0.0
+        X[_XE] = e
+        X[_XEP] = e
+        X[_XEMA:_XEMA + 4] = e
+        for row in (_XU, _XU64, _XU256, _XUF):
+            X[row] = op
+        X[_XG] = 1.0
+        X[_XI] = op - self.s.Kc * e
         self._first = True
 
-    def observe(self, sp, pv) -> np.ndarray:
-        """Take a measurement; returns the observation ``(n, N_OBS)`` float64 for this scan."""
-        s = self.s
-        e = np.asarray(sp, float) - np.asarray(pv, float)
-        e = np.broadcast_to(e, (self.n,))
-        self.e_prev = self.e
-        self.e = e
-        e16_prev = self.ema_e[:, 1].copy()
-        self.ema_e += self._alpha_e * (e[:, None] - self.ema_e)
-        self.de_abs += self._a64 * (np.abs(e - self.e_prev) - self.de_abs)
-        obs = np.empty((self.n, self.n_obs))
-        obs[:, 0] = e / s.e_ref
-        obs[:, 1:5] = self.ema_e / s.e_ref
-        obs[:, 5] = self.de_abs / s.e_ref
-        obs[:, 6] = (self.u - self.u_ema64) / s.u_ref
-        obs[:, 7] = (self.u - self.u_ema256) / s.u_ref
-        obs[:, 8] = self.du_ema / (0.1 * s.u_ref)
-        obs[:, 9] = self.c / s.c_max if s.c_max > 0 else 0.0
-        obs[:, 10] = 2.0 * (self.g - s.g_min) / (1.0 - s.g_min) - 1.0 if s.g_min < 1 else 1.0
-        if s.stick_features:
-            flip = np.sign(self.ema_e[:, 1]) != np.sign(e16_prev)
-            self.u_flip = np.where(flip, self.u, self.u_flip)
-            self.t_flip = np.where(flip, 0.0, self.t_flip + s.scan_s)
-            obs[:, N_OBS] = (self.u - self.u_flip) / s.u_ref
-            obs[:, N_OBS + 1] = self.t_flip / 100.0
-            obs[:, N_OBS + 2] = self.ema_e[:, 1] / np.maximum(self.de_abs, 1e-4)
-        np.clip(obs, -10.0, 10.0, out=obs)
+    def observe(self, sp, pv, out: np.ndarray | None = None) -> np.ndarray:
+        """Take a measurement; returns the observation ``(n, n_obs)`` float64 for this scan.
+
+        A new array, or ``out`` when given.
+        """
+        sp = np.broadcast_to(np.asarray(sp, float), (self.n,))
+        pv = np.broadcast_to(np.asarray(pv, float), (self.n,))
+        obs = np.empty((self.n, self.n_obs)) if out is None else out
+        _law_observe(self.X, self.LP, sp, pv, obs)
         return obs
 
     def act(self, action: np.ndarray) -> np.ndarray:
         """Apply ``action`` (n, 2) in [-1, 1] (clipped) to this scan; returns the output ``u`` (n,)."""
-        s = self.s
-        a = np.clip(np.asarray(action, float).reshape(self.n, N_ACT), -1.0, 1.0)
-        g = s.g_min + (1.0 - s.g_min) * 0.5 * (a[:, 0] + 1.0)
-        c = s.c_max * a[:, 1]
-        e = self.e
-        if self._first:          # bumpless: the integrator absorbs the correction of the first scan
-            self.I = self.I - c
-            self._first = False
-        v = s.Kc * e + self.I + c
-        u = np.clip(v, s.op_lo, s.op_hi)
-        I_new = self.I + g * self.ki * e
-        sat = u != v
-        if sat.any():            # back-calculation: the integrator tracks the limited output
-            I_new = np.where(sat, u - s.Kc * e - c, I_new)
-        self.I = I_new
-        du = u - self.u
-        self.du_ema += self._a16 * (du - self.du_ema)
-        self.u_ema64 += self._a64 * (u - self.u_ema64)
-        self.u_ema256 += self._a256 * (u - self.u_ema256)
-        self.u = u
-        self.c = c
-        self.g = g
-        return u.copy()
+        a = np.asarray(action, float).reshape(self.n, N_ACT)
+        u = np.empty(self.n)
+        _law_act(self.X, self.LP, a, self._first, u)
+        self._first = False
+        return u
 
     def state_arrays(self) -> dict:
         """Copies of the state arrays (for tests and checkpoints)."""
@@ -491,7 +615,7 @@ def pi_action(n: int) -> np.ndarray:
     return a
 
 
-OPTION_KEYS = ("model", "S", "J", "level")
+OPTION_KEYS = ("model", "S", "J", "level", "frictionless")
 
 
 def parse_options(options, cfg: RegulationConfig, n: int) -> dict:
@@ -525,6 +649,12 @@ def parse_options(options, cfg: RegulationConfig, n: int) -> dict:
         if key not in OPTION_KEYS:
             raise ValueError(f"unknown reset option {key!r}; the options are {', '.join(OPTION_KEYS)} "
                              f"(e.g. reset(options={{'model': 'choudhury', 'S': 0.03, 'J': 0.01}}))")
+        if key == "frictionless":
+            fa = np.broadcast_to(np.asarray(val), (n,)) if np.size(val) in (1, n) else None
+            if fa is None or fa.dtype != bool:
+                raise ValueError(f"reset option 'frictionless' must be true/false (or {n} of them), got {val!r}")
+            pins["frictionless"] = fa.copy()
+            continue
         if key == "model":
             names = [val] * n if isinstance(val, str) else list(val) if isinstance(val, (list, tuple)) else None
             if names is None or len(names) != n or any(m not in cfg.friction_models for m in names):
@@ -565,3 +695,147 @@ def step_reward(cfg: RegulationConfig, level_err: np.ndarray, stem_move: np.ndar
     (privileged signals: only the policy's inputs are restricted).
     """
     return -(np.abs(level_err) / cfg.error_scale + cfg.travel_weight * np.abs(stem_move))
+
+
+class References:
+    """The benchmark's two references of ``n`` episodes, run once at reset with the episodes' noise and load.
+
+    Attributes
+    ----------
+    abs_err_pi : (n, H) ``|SP - PV|`` of the SIMC PI (``pi_action``) on the episode's sticky valve after each scan [m]
+    iae_pi, iae_0 : (n,) summed ``|SP - PV|`` of that PI and of the PI on the frictionless valve [m scans]
+    travel_0 : (n,) stem travel of the PI on the frictionless valve [full strokes]
+    denom : (n,) ``max(iae_pi - iae_0, r_floor iae_0)``: ``R``'s denominator
+    """
+
+    def __init__(self, abs_err_pi, iae_0, travel_0, r_floor: float):
+        self.abs_err_pi = abs_err_pi
+        self.iae_pi = abs_err_pi.sum(axis=1)
+        self.iae_0 = iae_0
+        self.travel_0 = np.maximum(travel_0, 1e-6)
+        self.denom = np.maximum(np.maximum(self.iae_pi - iae_0, r_floor * iae_0), 1e-12)
+
+
+@njit(cache=True, nogil=True)
+def _pi_loops(X, LP, S, P, flags, buf, n_sub, dt, stem0, sp, noise, load, obs, err, travel):  # pragma: no cover
+    """The SIMC PI (gate 1, no correction) in closed loop with one packed plant group over ``err.shape[1]`` scans.
+
+    Writes ``err[:, k] = |sp - pv|`` after scan ``k`` and the stem travel ``travel`` (n,).
+    """
+    n, H = err.shape
+    act = np.zeros((n, 2))
+    act[:, 0] = 1.0
+    U = np.empty((1, n))
+    D = np.empty((1, n))
+    Y = np.empty((1, n))
+    Hh = np.empty((1, n))
+    LV = np.empty((1, n))
+    u = np.empty(n)
+    pv = np.empty(n)
+    stem = stem0.copy()
+    for k in range(H):
+        _law_act(X, LP, act, k == 0, u)
+        for i in range(n):
+            U[0, i] = u[i]
+            D[0, i] = load[i, k]
+        core._kernel(S, P, U, D, flags, buf, n_sub, dt, Y, Hh, LV)
+        for i in range(n):
+            travel[i] += abs(Hh[0, i] - stem[i])
+            stem[i] = Hh[0, i]
+            pv[i] = LV[0, i] + noise[i, k + 1]
+            err[i, k] = abs(sp[i] - pv[i])
+        _law_observe(X, LP, sp, pv, obs)
+
+
+@njit(cache=True, nogil=True)
+def _scan1(X, LP, A, first, S, P, flags, buf, n_sub, dt, W, load_k, noise_k1, sp, obs):  # pragma: no cover
+    """One scan of one loop (one plant group): block law, plant, measurement, observation in one call.
+
+    ``W`` (5, 1) holds the kernel's ``U, D, Y, H, LV`` rows. Returns ``(u, level, stem, pv)``.
+    """
+    u = np.empty(1)
+    _law_act(X, LP, A, first, u)
+    W[0, 0] = u[0]
+    W[1, 0] = load_k
+    core._kernel(S, P, W[0:1], W[1:2], flags, buf, n_sub, dt, W[2:3], W[3:4], W[4:5])
+    level = W[4, 0]
+    pv = level + noise_k1
+    spa = np.empty(1)
+    spa[0] = sp
+    pva = np.empty(1)
+    pva[0] = pv
+    _law_observe(X, LP, spa, pva, obs)
+    return u[0], level, W[3, 0], pv
+
+
+def reference_runs(cfg: RegulationConfig, draw: RegulationDraw) -> References:
+    """Run the SIMC PI on each episode's sticky valve and on its frictionless valve (the benchmark's references).
+
+    Both see the episode's measurement noise and load, so ``R`` of a controller on the episode is the
+    benchmark's paired ratio (:func:`valve_gym.agents.bench.scores.compensation_ratio`). One compiled
+    closed-loop run per plant group (:class:`BlockLaw` with the PI action and the core kernel).
+    """
+    n, H = draw.sp.shape[0], cfg.steps
+    d2 = RegulationDraw(*(np.concatenate([a, a]) for a in draw))
+    plants = LoopPlants(cfg, d2, frictionless=np.repeat([False, True], n))
+    err = np.empty((2 * n, H))
+    travel = np.zeros(2 * n)
+    noise = np.ascontiguousarray(d2.noise)
+    load = np.ascontiguousarray(d2.load)
+    for idx, pk, S, buf, _U, _D, _out in plants.groups:
+        m = idx.size
+        law = BlockLaw(cfg.block, m)
+        sp = np.ascontiguousarray(d2.sp[idx])
+        law.reset(sp, plants.level[idx] + noise[idx, 0], plants.op0[idx])
+        e_g, t_g = np.empty((m, H)), np.zeros(m)
+        _pi_loops(law.X, law.LP, S, pk.P, pk.flags, buf, plants.substeps, pk.dt, plants.stem[idx].copy(), sp,
+                  noise[idx], load[idx], np.empty((m, law.n_obs)), e_g, t_g)
+        err[idx], travel[idx] = e_g, t_g
+    return References(err[:n], err[n:].sum(axis=1), travel[n:], cfg.r_floor)
+
+
+def benchmark_reward(cfg: RegulationConfig, refs: References, k: int, abs_err: np.ndarray,
+                     excess_prev: np.ndarray, travel: np.ndarray, lc_present: np.ndarray | None = None):
+    r"""Reward of scan ``k`` of the ``benchmark`` reward, and the travel excess after it.
+
+    Parameters
+    ----------
+    cfg : RegulationConfig
+    refs : References
+        The episode's references (:func:`reference_runs`).
+    k : int
+        Scan index (0-based).
+    abs_err : (n,) ``|SP - PV|`` after the scan [m]
+    excess_prev : (n,) travel beyond the budget before the scan [full strokes]
+    travel : (n,) stem travel of the episode so far, this scan included [full strokes]
+    lc_present : (n,) bool, optional
+        The limit-cycle verdict on the episode's error; given on the last scan only.
+
+    Returns
+    -------
+    reward : (n,)
+    excess : (n,)
+
+    Notes
+    -----
+    .. math::
+
+        r_k = \frac{|e^{PI}_k| - |e_k|}{D}
+              - w_b \frac{x_k - x_{k-1}}{T_0}
+              - w_{lc} [\text{LC}]_{k = H-1},\qquad
+        x_k = \max(0, T_k - \beta T_0)
+
+    with ``D = max(IAE_PI - IAE_0, f IAE_0)`` (``f = r_floor``), ``T_k`` the stem travel so far and
+    ``T_0`` the frictionless PI's travel over the episode. The return is therefore
+
+    .. math:: G = R - w_b \max(0, T / T_0 - \beta) - w_{lc} [\text{LC}]
+
+    where ``R`` is the benchmark's compensation ratio of the episode (1: all of stiction's IAE cost
+    removed, 0: the PI's, < 0 worse), ``beta = travel_budget``, ``w_b = budget_weight`` and
+    ``w_lc = lc_weight``.
+    """
+    excess = np.maximum(travel - cfg.travel_budget * refs.travel_0, 0.0)
+    r = (refs.abs_err_pi[:, k] - abs_err) / refs.denom - cfg.budget_weight * (excess - excess_prev) / refs.travel_0
+    if lc_present is not None:
+        r = r - cfg.lc_weight * np.asarray(lc_present, float)
+    return r, excess

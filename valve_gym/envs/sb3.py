@@ -32,7 +32,7 @@ from ..config import EnvConfig
 from .valve_tank import VALVE_KEYS
 from .vector import ValveTankVectorEnv
 
-__all__ = ["SB3VecEnv"]
+__all__ = ["SB3VecEnv", "SB3RegulationVecEnv"]
 
 
 class SB3VecEnv(VecEnv):
@@ -192,3 +192,102 @@ def _split(info: dict, n: int) -> list:
             for i in np.flatnonzero(m):
                 out[i][k] = col[i]
     return out
+
+
+class SB3RegulationVecEnv(VecEnv):
+    """The native regulation vector env (:class:`~valve_gym.envs.ValveTankRegulationVectorEnv`) as an SB3 ``VecEnv``.
+
+    Parameters
+    ----------
+    num_envs : int
+    config : RegulationConfig, mapping or YAML path, optional
+
+    Notes
+    -----
+    All sub-environments end together (one horizon); at the step that ends them ``infos[i]`` has
+    ``terminal_observation``, ``TimeLimit.truncated`` (True) and the episode's benchmark scores ``R``,
+    ``travel_vs_frictionless`` and ``lc_present``; on other steps the infos are empty (the per-loop
+    signals are in :attr:`last_info`, a dict of ``(N,)`` arrays). ``seed(s)`` seeds sub-env ``i`` with
+    ``s + i`` at the next reset, as :class:`~stable_baselines3.common.vec_env.DummyVecEnv` of
+    ``gymnasium.make`` envs does: the observations and rewards are the same.
+
+    Examples
+    --------
+    >>> from valve_gym.envs.sb3 import SB3RegulationVecEnv
+    >>> venv = SB3RegulationVecEnv(num_envs=4, config={"episode_s": 60.0})
+    >>> _ = venv.seed(0)
+    >>> venv.reset().shape
+    (4, 14)
+    """
+
+    def __init__(self, num_envs: int = 1, config=None, render_mode: str | None = None):
+        from .regulation_env import ValveTankRegulationVectorEnv
+
+        self.venv = ValveTankRegulationVectorEnv(num_envs, config, render_mode=render_mode)
+        super().__init__(self.venv.num_envs, self.venv.single_observation_space, self.venv.single_action_space)
+        self._actions = None
+        self._started = False
+        self.last_info: dict = {}
+
+    def reset(self):
+        """Reset all sub-environments with the pending seeds; returns ``(N, n_obs)`` observations."""
+        seeds = self._seeds if any(s is not None for s in self._seeds) else None
+        opts = [o for o in self._options if o]
+        obs, info = self.venv.reset(seed=seeds, options=opts[0] if opts else None)
+        self.reset_infos = [{} for _ in range(self.num_envs)]
+        self._reset_seeds()
+        self._reset_options()
+        self._started = True
+        return obs
+
+    def step_async(self, actions: np.ndarray) -> None:
+        """Store the actions of the next :meth:`step_wait`."""
+        self._actions = actions
+
+    def step_wait(self):
+        """Step every loop; returns SB3's ``(obs, rewards, dones, infos)``."""
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        obs, rew, term, trunc, info = self.venv.step(np.asarray(self._actions, dtype=np.float32))
+        dones = term | trunc
+        self.last_info = info
+        if dones.any():
+            fi, fo = info["final_info"], info["final_obs"]
+            extra = [k for k in ("R", "travel_vs_frictionless", "lc_present") if k in fi]
+            infos = [{"terminal_observation": fo[i], "TimeLimit.truncated": True,
+                      **{k: float(fi[k][i]) for k in extra}} for i in range(self.num_envs)]
+        else:
+            infos = [{} for _ in range(self.num_envs)]
+        return obs, rew.astype(np.float32), dones, infos
+
+    def close(self) -> None:
+        """Close the wrapped vector env."""
+        self.venv.close()
+
+    def get_attr(self, attr_name: str, indices=None) -> list:
+        """Attribute of the vector env (the same for every index)."""
+        value = getattr(self.venv, attr_name)
+        return [value for _ in self._get_indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+        """Set an attribute of the vector env (shared by all indices)."""
+        setattr(self.venv, attr_name, value)
+
+    def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list:
+        """Call a method of the vector env once; ``render`` gives each index its frame."""
+        idx = list(self._get_indices(indices))
+        result = getattr(self.venv, method_name)(*method_args, **method_kwargs)
+        if method_name == "render" and result is not None:
+            return [result[i] for i in idx]
+        return [result for _ in idx]
+
+    def env_is_wrapped(self, wrapper_class, indices=None) -> list:
+        """No Gymnasium wrappers are involved: False for every index."""
+        return [False for _ in self._get_indices(indices)]
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        """The RGB frame of each sub-environment (``render_mode='rgb_array'``)."""
+        if self.venv.render_mode != "rgb_array":
+            return [None] * self.num_envs
+        frames = self.venv.render()
+        return [None] * self.num_envs if frames is None else list(frames)

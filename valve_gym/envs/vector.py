@@ -130,6 +130,39 @@ class ValveTankVectorEnv(VectorEnv):
     ``(N,)`` float64, ``info`` a dict of ``(N,)`` arrays, each key ``k`` with
     Gymnasium's mask ``_k`` (all True: every key is always present).
 
+    ## Description
+
+    The task of :class:`~valve_gym.envs.ValveTankEnv` (``valve_gym/ValveTank-v0``, ``ValveTankFixed-v0``
+    with ``preset='fixed'``) for ``N`` loops in one kernel call per step.
+
+    ## Action Space
+
+    ``Box(-1, 1, (N, 1), float32)``: the single env's action per sub-env.
+
+    ## Observation Space
+
+    ``Box((N, 4|5), float32)``: the single env's observation per sub-env.
+
+    ## Rewards
+
+    The single env's per-step reward (its docstring has the formula), per sub-env.
+
+    ## Starting State
+
+    As the single env; sub-env ``i`` reset with seed ``s + i`` equals the single env reset with ``s + i``.
+
+    ## Episode End
+
+    Truncation after ``max_episode_steps`` (600 registered); autoreset as ``autoreset_mode`` says.
+
+    ## Arguments
+
+    See Parameters.
+
+    ## Version History
+
+    * v0: initial version.
+
     Parameters
     ----------
     num_envs : int

@@ -1,4 +1,9 @@
-"""``valve-gym benchmark --out DIR [--quick] [--config FILE] [--jobs N]``: the compensator benchmark."""
+"""``valve-gym benchmark --out DIR [--quick] [--config FILE] [--jobs N] [--policy FILE --name NAME ...]``.
+
+The compensator benchmark; ``--policy`` adds one's own policies (a regulation-env policy exported with
+:func:`valve_gym.agents.bench.policies.export_policy` or ``valve-gym convert-policy``, a learned-block file,
+or a folder of them = the seeds of one row) beside the classical rows.
+"""
 from __future__ import annotations
 
 import argparse
@@ -29,6 +34,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--jobs", type=int, default=None, help="worker processes (default: the cores available)")
     p.add_argument("--no-figures", action="store_true", help="skip the PNG figures")
     p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
+    p.add_argument("--policy", action="append", default=[], metavar="FILE",
+                   help="a policy of valve_gym/ValveTankRegulation-v0 to add as a row: NAME.json (+ NAME.safetensors) "
+                        "from export_policy / convert-policy, a learned-block file, or a folder of them (the seeds "
+                        "of one row); repeat for more rows. SB3 .zip files are refused: convert a trusted one with "
+                        "`valve-gym convert-policy --trust-pickle IN.zip OUT`")
+    p.add_argument("--name", action="append", default=[], metavar="NAME",
+                   help="row label of the --policy of the same position (default: the file or folder name); "
+                        "--policy files given the same --name are the seeds of one row")
     return p
 
 
@@ -52,13 +65,26 @@ def _load(args) -> BenchConfig:
     return cfg.quick_version() if args.quick else cfg
 
 
+def _policies(args) -> dict | None:
+    """The ``--policy`` rows as ``{label: [block, ...]}`` (loaded and shape-checked before anything runs)."""
+    if len(args.name) > len(args.policy):
+        raise ValueError(f"{len(args.name)} --name for {len(args.policy)} --policy; give one --name per --policy "
+                         "(or fewer: the rest are named after their files)")
+    if not args.policy:
+        return None
+    from .policies import as_blocks
+
+    return as_blocks(args.policy, args.name)
+
+
 def main(argv=None) -> int:
     """Run the benchmark; 0 on success, 2 on a bad config or option (message on stderr)."""
     args = build_parser().parse_args(argv)
     try:
         check_out(args.out)
         cfg = _load(args)
-    except (ConfigError, OSError) as exc:  # bad file or value: one line, no traceback
+        blocks = _policies(args)
+    except (ConfigError, OSError, ValueError, TypeError) as exc:  # bad file or value: one line, no traceback
         print(f"valve-gym benchmark: {exc}", file=sys.stderr)
         return 2
     jobs = default_jobs() if args.jobs is None else args.jobs
@@ -68,7 +94,8 @@ def main(argv=None) -> int:
     command = "valve-gym benchmark " + " ".join(shlex.quote(a) for a in (argv if argv is not None else sys.argv[2:]))
     t0 = time.perf_counter()
     try:
-        res = run_benchmark(cfg, jobs=jobs, progress=None if args.no_progress else print_progress)
+        res = run_benchmark(cfg, jobs=jobs, progress=None if args.no_progress else print_progress,
+                            **({"policies": blocks} if blocks else {}))
     except ConfigError as exc:
         print(f"valve-gym benchmark: {exc}", file=sys.stderr)
         return 2

@@ -110,7 +110,8 @@ def _pareto(res: BenchmarkResult, path: Path) -> Path:
     colours = plt.get_cmap("tab20")
     for k, s in enumerate(others):
         t, e = rows[(s.label, "travel_per_h")], rows[(s.label, "iae_per_h")]
-        mk = {"frictionless": "s", "learned": "*", "compensator": "^" if s.estimate == 1.0 else "o"}[s.family]
+        mk = {"frictionless": "s", "learned": "*", "policy": "P",
+              "compensator": "^" if s.estimate == 1.0 else "o"}[s.family]
         ax.errorbar(t.value, e.value, xerr=[[t.value - t.lo], [t.hi - t.value]],
                     yerr=[[e.value - e.lo], [e.hi - e.value]], fmt=mk, ms=12 if mk == "*" else 6,
                     color="k" if s.family == "learned" else colours(k % 20), label=s.label)

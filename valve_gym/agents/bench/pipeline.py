@@ -20,7 +20,7 @@ import numpy as np
 from valve_gym.config import ConfigError
 
 from .config import BenchConfig
-from .runner import ControllerSpec, lineup, make_controller, run_spec, valve_model
+from .runner import ControllerSpec, lineup, make_controller, run_loops, run_spec, valve_model
 from .scenarios import PARTS, BenchScenarios, Scenarios, benchmark_scenarios
 from .scores import Comparison, LoopScores, SummaryRow, compare_learned, score_runs, summarise
 
@@ -134,7 +134,10 @@ def _task(spec: ControllerSpec, part: str) -> TaskResult:
     t0, c0 = time.perf_counter(), time.process_time()
     cfg: BenchConfig = _STATE["config"]
     scen: Scenarios = _STATE["scenarios"].part(part)
-    runs = run_spec(spec, scen)
+    if spec.family == "policy":      # a user's policy (valve_gym.agents.bench.policies): the block itself
+        runs = run_loops(_STATE["policies"][spec.label], scen, label=spec.label)
+    else:
+        runs = run_spec(spec, scen)
     trend = None
     if part == "regulation":
         i = _STATE["example"]
@@ -217,8 +220,56 @@ def _execute(tasks, jobs: int, progress: Callable[[str], None] | None) -> list:
     return out
 
 
+def _policy_specs(policies) -> tuple[list, dict, dict]:
+    """Specs of the policy rows: one task per seed (``label [i]``), and ``{label: [seed labels]}``."""
+    specs, blocks, groups = [], {}, {}
+    for label, seeds in (policies or {}).items():
+        names = [label] if len(seeds) == 1 else [f"{label} [seed {i}]" for i in range(len(seeds))]
+        for nm, blk in zip(names, seeds):
+            specs.append(ControllerSpec(nm, "policy", "policy"))
+            blocks[nm] = blk
+        groups[label] = names
+    return specs, blocks, groups
+
+
+def _median_over_seeds(label: str, part: str, runs: list[TaskResult]) -> TaskResult:
+    """One row from the seeds of a policy: per-loop medians of each score (LC: present on most seeds)."""
+    from dataclasses import fields
+
+    arrays = {}
+    for f in fields(LoopScores):
+        if f.name in ("label", "part"):
+            continue
+        stack = np.stack([np.asarray(getattr(r.scores, f.name), float) for r in runs])
+        arrays[f.name] = (stack.mean(axis=0) > 0.5) if f.name == "lc_present" else np.median(stack, axis=0)
+    sc = LoopScores(label=label, part=part, **arrays)
+    r0 = runs[0]
+    trend = None if r0.trend is None else Trend(label, r0.trend.t, r0.trend.sp, r0.trend.pv, r0.trend.op,
+                                                r0.trend.stem)
+    return TaskResult(ControllerSpec(label, "policy", "policy"), part, sc, trend,
+                      sum(r.seconds for r in runs), sum(r.cpu_seconds for r in runs))
+
+
+def _seed_spread(label: str, names: list, results, scen: Scenarios, config: BenchConfig) -> str:
+    """Note: each seed's median R on the sticky + severe regulation loops."""
+    from .scores import REFERENCE_FRICTIONLESS, REFERENCE_PI, compensation_ratio
+
+    by = {r.spec.label: r.scores for r in results if r.part == "regulation"}
+    if REFERENCE_PI not in by or REFERENCE_FRICTIONLESS not in by:
+        return f"{label}: median over {len(names)} seeds"
+    m = scen.band != "healthy"
+    rs = [float(np.median(compensation_ratio(by[REFERENCE_PI].iae_per_h[m], by[n].iae_per_h[m],
+                                             by[REFERENCE_FRICTIONLESS].iae_per_h[m], config.scores.r_floor)))
+          for n in names]
+    tr = [float(np.median(by[n].travel_per_h[m] / np.maximum(by[REFERENCE_FRICTIONLESS].travel_per_h[m], 1e-12)))
+          for n in names]
+    return (f"{label}: per-loop medians over {len(names)} seeds; seed spread on the sticky + severe regulation loops: "
+            f"median R {min(rs):.2f} .. {max(rs):.2f} ({', '.join(f'{x:.2f}' for x in rs)}), travel / frictionless "
+            f"PI {min(tr):.2f} .. {max(tr):.2f}")
+
+
 def run_benchmark(config: BenchConfig, jobs: int = 1, progress: Callable[[str], None] | None = None,
-                  ) -> BenchmarkResult:
+                  policies=None) -> BenchmarkResult:
     """Run every controller of ``config`` on both parts and score them.
 
     Parameters
@@ -230,6 +281,10 @@ def run_benchmark(config: BenchConfig, jobs: int = 1, progress: Callable[[str], 
         (``BenchmarkResult.jobs``: the number used, ``jobs_asked``: this number).
     progress : callable, optional
         Called with one line of text per finished task.
+    policies : mapping of str to list of blocks, optional
+        Rows of one's own policies (:func:`valve_gym.agents.bench.policies.as_blocks`): each label runs
+        on both parts beside the classical rows; a label with several blocks (seeds) becomes one row of
+        per-loop medians over them, its seed spread in ``notes``.
 
     Returns
     -------
@@ -241,12 +296,22 @@ def run_benchmark(config: BenchConfig, jobs: int = 1, progress: Callable[[str], 
     _check_models(config)
     scen = benchmark_scenarios(config)
     specs, notes = _available(lineup(config), scen.regulation)
-    _STATE.update(config=config, scenarios=scen, example=example_loop(scen.regulation))
-    tasks = [(s, p) for p in PARTS for s in specs]
+    pspecs, pblocks, groups = _policy_specs(policies)
+    _STATE.update(config=config, scenarios=scen, example=example_loop(scen.regulation), policies=pblocks)
+    tasks = [(s, p) for p in PARTS for s in specs + tuple(pspecs)]
     # the slowest tasks (banks of compensators) first, so that the workers finish together
     tasks.sort(key=lambda sp: sp[0].estimate <= 0.0)
     used = jobs_used(jobs, len(tasks))
-    results = tuple(_execute(tasks, used, progress))
+    results = list(_execute(tasks, used, progress))
+    for label, names in groups.items():
+        if names == [label]:
+            specs = specs + (ControllerSpec(label, "policy", "policy"),)
+            continue
+        notes = notes + (_seed_spread(label, names, results, scen.regulation, config),)
+        for p in PARTS:
+            results.append(_median_over_seeds(label, p, [r for r in results if r.part == p and r.spec.label in names]))
+        specs = specs + (ControllerSpec(label, "policy", "policy"),)
+    results = tuple(results)
     res = BenchmarkResult(config, scen, specs, results, (), None, _STATE["example"], notes, 0.0, used,
                           int(jobs), len(tasks))
     summary = tuple(row for p in PARTS for row in summarise(res.part_scores(p), scen.part(p), config))

@@ -1,0 +1,26 @@
+"""The README's "Train your own agent" example runs end to end on a tiny budget."""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("stable_baselines3")
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.mark.slow
+def test_train_agent_example_trains_exports_and_scores(tmp_path):
+    env = {**os.environ, "TRAIN_STEPS": "2048", "QUICK": "1", "OMP_NUM_THREADS": "1",
+           "PYTHONPATH": os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")])}
+    r = subprocess.run([sys.executable, str(ROOT / "docs" / "examples" / "train_agent.py")], cwd=tmp_path, env=env,
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert (tmp_path / "my_ppo.safetensors").is_file() and (tmp_path / "my_ppo.json").is_file()
+    rows = [ln for ln in r.stdout.splitlines() if " R = " in ln]
+    labels = [ln.split(" R = ")[0].strip() for ln in rows]
+    assert "my PPO" in labels and "PI (SIMC)" in labels and "knocker" in labels
