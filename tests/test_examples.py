@@ -24,3 +24,9 @@ def test_train_agent_example_trains_exports_and_scores(tmp_path):
     rows = [ln for ln in r.stdout.splitlines() if " R = " in ln]
     labels = [ln.split(" R = ")[0].strip() for ln in rows]
     assert "my PPO" in labels and "PI (SIMC)" in labels and "knocker" in labels
+
+
+def test_readme_shows_the_example_that_runs():
+    """The README's training tour is docs/examples/train_agent.py (less its first line), so the test above runs it."""
+    code = (ROOT / "docs" / "examples" / "train_agent.py").read_text(encoding="utf-8").split("\n", 1)[1].lstrip("\n")
+    assert "```python\n" + code + "```" in (ROOT / "README.md").read_text(encoding="utf-8")

@@ -35,7 +35,38 @@ from .vector import ValveTankVectorEnv
 __all__ = ["SB3VecEnv", "SB3RegulationVecEnv"]
 
 
-class SB3VecEnv(VecEnv):
+class _OneVectorEnv:
+    """What both adapters do the same way: one vector env behind every index (``self.venv``)."""
+
+    venv: Any
+    num_envs: int
+    _get_indices: Any          # VecEnv's (annotation only: the mixin comes first in the MRO)
+
+    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
+        """Set an attribute of the vector env (shared by all indices)."""
+        setattr(self.venv, attr_name, value)
+
+    def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list:
+        """Call a method of the vector env once; ``render`` gives each index its frame."""
+        idx = list(self._get_indices(indices))
+        result = getattr(self.venv, method_name)(*method_args, **method_kwargs)
+        if method_name == "render" and result is not None:
+            return [result[i] for i in idx]
+        return [result for _ in idx]
+
+    def env_is_wrapped(self, wrapper_class, indices=None) -> list:
+        """No Gymnasium wrappers are involved: False for every index."""
+        return [False for _ in self._get_indices(indices)]
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        """The RGB frame of each sub-environment (``render_mode='rgb_array'``)."""
+        if self.venv.render_mode != "rgb_array":
+            return [None] * self.num_envs
+        frames = self.venv.render()
+        return [None] * self.num_envs if frames is None else list(frames)
+
+
+class SB3VecEnv(_OneVectorEnv, VecEnv):
     """The native vector env as a Stable-Baselines3 ``VecEnv``.
 
     Parameters
@@ -153,28 +184,6 @@ class SB3VecEnv(VecEnv):
         value = getattr(self.venv, attr_name)
         return [value for _ in idx]
 
-    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
-        """Set an attribute of the vector env (shared by all indices)."""
-        setattr(self.venv, attr_name, value)
-
-    def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list:
-        """Call a method of the vector env once; ``render`` gives each index its frame."""
-        idx = list(self._get_indices(indices))
-        result = getattr(self.venv, method_name)(*method_args, **method_kwargs)
-        if method_name == "render" and result is not None:
-            return [result[i] for i in idx]
-        return [result for _ in idx]
-
-    def env_is_wrapped(self, wrapper_class, indices=None) -> list:
-        """No Gymnasium wrappers are involved: False for every index."""
-        return [False for _ in self._get_indices(indices)]
-
-    def get_images(self) -> Sequence[np.ndarray | None]:
-        """The RGB frame of each sub-environment (``render_mode='rgb_array'``)."""
-        if self.venv.render_mode != "rgb_array":
-            return [None] * self.num_envs
-        frames = self.venv.render()
-        return [None] * self.num_envs if frames is None else list(frames)
 
 
 def _split(info: dict, n: int) -> list:
@@ -194,7 +203,7 @@ def _split(info: dict, n: int) -> list:
     return out
 
 
-class SB3RegulationVecEnv(VecEnv):
+class SB3RegulationVecEnv(_OneVectorEnv, VecEnv):
     """The native regulation vector env (:class:`~valve_gym.envs.ValveTankRegulationVectorEnv`) as an SB3 ``VecEnv``.
 
     Parameters
@@ -269,25 +278,3 @@ class SB3RegulationVecEnv(VecEnv):
         value = getattr(self.venv, attr_name)
         return [value for _ in self._get_indices(indices)]
 
-    def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
-        """Set an attribute of the vector env (shared by all indices)."""
-        setattr(self.venv, attr_name, value)
-
-    def env_method(self, method_name: str, *method_args, indices=None, **method_kwargs) -> list:
-        """Call a method of the vector env once; ``render`` gives each index its frame."""
-        idx = list(self._get_indices(indices))
-        result = getattr(self.venv, method_name)(*method_args, **method_kwargs)
-        if method_name == "render" and result is not None:
-            return [result[i] for i in idx]
-        return [result for _ in idx]
-
-    def env_is_wrapped(self, wrapper_class, indices=None) -> list:
-        """No Gymnasium wrappers are involved: False for every index."""
-        return [False for _ in self._get_indices(indices)]
-
-    def get_images(self) -> Sequence[np.ndarray | None]:
-        """The RGB frame of each sub-environment (``render_mode='rgb_array'``)."""
-        if self.venv.render_mode != "rgb_array":
-            return [None] * self.num_envs
-        frames = self.venv.render()
-        return [None] * self.num_envs if frames is None else list(frames)
