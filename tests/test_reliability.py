@@ -22,6 +22,17 @@ ROOT = Path(__file__).resolve().parents[1]
 needs_fifo = pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs on this system")
 
 
+def _char_device(tmp_path):
+    """A private character device (a copy of /dev/null) in ``tmp_path``, so that no real device is ever at risk."""
+    import stat
+    dev = tmp_path / "null"
+    try:
+        os.mknod(dev, stat.S_IFCHR | 0o666, os.makedev(1, 3))
+    except (OSError, AttributeError):
+        pytest.skip("cannot make a device node here (needs root)")
+    return dev
+
+
 # ------------------------------------------------------------------ output paths
 def test_write_atomic_writes_through_a_symlink(tmp_path):
     target = tmp_path / "real.txt"
@@ -49,9 +60,11 @@ def test_write_atomic_refuses_a_fifo(tmp_path):
     assert fifo.is_fifo(), "the FIFO must not be replaced by a plain file"
 
 
-def test_write_atomic_refuses_a_device():
+def test_write_atomic_refuses_a_device(tmp_path):
+    dev = _char_device(tmp_path)
     with pytest.raises(OutputPathError, match="character device"):
-        write_atomic("/dev/null", lambda f: f.write(b"x"))
+        write_atomic(dev, lambda f: f.write(b"x"))
+    assert dev.is_char_device(), "the device must not be replaced by a plain file"
 
 
 def test_staged_folder_writes_through_links_and_refuses_fifos(tmp_path):
@@ -191,7 +204,7 @@ def test_a_fifo_given_as_a_recording_is_refused(tmp_path):
     with pytest.raises(RecordingError, match="is a FIFO"):
         load_recording(str(fifo))        # hung before
     with pytest.raises(RecordingError, match="is a character device"):
-        load_recording("/dev/zero")
+        load_recording(str(_char_device(tmp_path)))
 
 
 # ------------------------------------------------------------------ unusable --out

@@ -111,7 +111,7 @@ def moving_average(x, w: int) -> np.ndarray:
     return (c[w:] - c[:-w]) / w
 
 
-def ou_sequence(w, a, sigma=1.0) -> np.ndarray:
+def ou_sequence(w, a: float | np.ndarray, sigma: float | np.ndarray = 1.0) -> np.ndarray:
     r"""Ornstein-Uhlenbeck (first-order autoregressive) sequence driven by white noise ``w``.
 
     .. math:: x_0 = 0, \qquad x_k = a\,x_{k-1} + \sigma\sqrt{1 - a^2}\;w_k \quad (k \ge 1)
