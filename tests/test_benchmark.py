@@ -19,6 +19,7 @@ def quick_run(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_quick_run_writes_every_file(quick_run):
     for name in FILES:
         p = quick_run / name

@@ -49,6 +49,7 @@ def trained():
     return {cls.__name__: (_model(cls, venv), venv) for cls in (PPO, SAC, TD3)}
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("algo", ["PPO", "SAC", "TD3"])
 def test_model_in_memory_and_safe_export_act_as_sb3_predicts(trained, tmp_path, algo):
     model, venv = trained[algo]
@@ -73,6 +74,7 @@ def test_block_runs_as_a_dcs_block_on_scalars_and_arrays(trained):
     assert blk.step(np.array([1.0, 0.8]), np.array([1.001, 0.79])).shape == (2,)
 
 
+@pytest.mark.slow
 def test_sb3_zip_is_refused_in_one_line_and_converts_only_when_trusted(trained, tmp_path):
     model, venv = trained["SAC"]
     zpath = tmp_path / "sac.zip"

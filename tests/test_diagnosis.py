@@ -109,6 +109,7 @@ def overflow_result():
                     validate=rec, effort="fast")
 
 
+@pytest.mark.slow
 def test_overflow_is_named(overflow_result):
     res = overflow_result
     assert res.effects == ["overflow"]
@@ -119,6 +120,7 @@ def test_overflow_is_named(overflow_result):
     assert abs(top - make_case("overflow", seed=32, n=600).truth["overflow.L_max"]) < 0.01
 
 
+@pytest.mark.slow
 def test_dead_time_is_named():
     # a dead time of a few seconds needs about 20 set-point moves to be told from a friction band at
     # the cheap search budget (at 600 samples it was named on 1 of 5 seeds): four consecutive seeds
@@ -219,6 +221,7 @@ def test_fitter_simulations_are_the_same_in_kernel_threads():
     ("none", 0.0, 5, False),           # frictionless valve
     ("none", 0.0, 6, False),
 ])
+@pytest.mark.slow
 def test_friction_verdict_on_known_valves(effect, friction, seed, sticks):
     case = make_case(effect, seed=seed, n=1200, friction=friction)
     res = diagnose(case.recording, plant="tank", candidates=(), effort="fast")
@@ -241,6 +244,7 @@ def test_synthetic_friction_scale_is_checked():
         make_case("none", seed=1, n=100, friction=-1.0)
 
 
+@pytest.mark.slow
 def test_auto_effort_follows_the_record_length():
     from valve_gym.diagnosis.diagnose import AUTO_THOROUGH_SAMPLES, resolve_effort
 
@@ -328,6 +332,7 @@ def test_serial_blas_is_restored():
     assert [fn(b) for fn, b in zip(libs, before)] == [2] * len(libs)
 
 
+@pytest.mark.slow
 def test_search_is_checked():
     rec = make_recording("none", seed=4, n=300)
     with pytest.raises(ValueError, match="search must be one of fast, full"):
@@ -464,6 +469,7 @@ def test_too_few_samples_after_the_holdout_says_what_to_do():
         diagnose(short, plant="tank", candidates=())
 
 
+@pytest.mark.slow
 def test_candidates_may_be_a_string_and_bad_seed_or_sensor_range_are_named():
     rec = make_recording("overflow", seed=32, n=300)
     res = diagnose(rec, plant="tank", candidates="overflow", effort="fast")        # one effect, not 'o','v',...

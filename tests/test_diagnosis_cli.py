@@ -27,6 +27,7 @@ def run(argv, capsys):
     return rc, out, err
 
 
+@pytest.mark.slow
 def test_end_to_end(small_csv, tmp_path, capsys):
     js = tmp_path / "out.json"
     rep = tmp_path / "rep"
@@ -46,6 +47,7 @@ def test_end_to_end(small_csv, tmp_path, capsys):
     assert not [f for f in os.listdir(rep) if f.endswith(".tmp")]
 
 
+@pytest.mark.slow
 def test_folder(small_csv, tmp_path, capsys):
     folder = tmp_path / "recs"
     folder.mkdir()
@@ -117,6 +119,7 @@ def test_bad_input_exit_2(tmp_path, capsys, case, argv_extra, message):
     assert message.lower() in err.lower(), err
 
 
+@pytest.mark.slow
 def test_fleet_mode(tmp_path, capsys):
     from valve_gym.fleet.simulate import simulate_loop
     folder = tmp_path / "recs"

@@ -130,6 +130,7 @@ def test_max_gap_and_gaps(rec_dir, tmp_path, capsys):
     assert code == 2 and "not in fleet mode" in err and "longest stretch" in err
 
 
+@pytest.mark.slow
 def test_plant(rec_dir, tmp_path, capsys):
     d, out, _ = run_json(rec_dir, tmp_path, capsys, "--plant", "first_order")
     assert d["settings"]["plant"] == "first_order" and "plant first_order" in out

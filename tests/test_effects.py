@@ -87,6 +87,7 @@ def sensor_drift(repo_module):
     unregister_effect("sensor_drift")
 
 
+@pytest.mark.slow
 def test_one_file_effect_is_found_fitted_and_explained(sensor_drift):
     assert "sensor_drift" in candidate_effects() and "sensor_drift" not in CANDIDATE_EFFECTS
     rec = make_case("none", seed=1, n=1200).recording

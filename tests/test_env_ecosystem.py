@@ -96,6 +96,7 @@ def test_sb3_dummy_vec_env_and_vec_normalize(env_id):
     venv.close()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("env_id", ENV_IDS)
 def test_sb3_subproc_vec_env(env_id):
     """A spawned worker has not run ``import valve_gym``: the ``valve_gym:`` prefix makes ``gym.make`` import it

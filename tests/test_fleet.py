@@ -153,6 +153,7 @@ def _table(out):
     return df.drop(columns=["seconds", "cpu_seconds"]).sort_values("loop").reset_index(drop=True)
 
 
+@pytest.mark.slow
 def test_interrupted_and_resumed_equals_uninterrupted(ray_session, folder, tmp_path):
     whole = run_fleet(folder, str(tmp_path / "whole"), SETTINGS, stream=None, top=2)
     assert whole.n_loops == 6 and whole.done == 6 and not whole.interrupted and whole.remaining == 0
@@ -320,6 +321,7 @@ def test_check_address_refuses_at_once_what_cannot_be_a_cluster():
         check_address("ray://127.0.0.1:port")
 
 
+@pytest.mark.slow
 def test_in_process_ray_ignores_a_cluster_named_in_the_environment(folder, tmp_path):
     """``RAY_ADDRESS`` (or a cluster started with ``ray start`` on this machine) must not capture the
     default in-process run: plain ``ray.init(num_cpus=...)`` would join it and refuse ``num_cpus``."""

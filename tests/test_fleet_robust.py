@@ -100,6 +100,7 @@ sys.exit(main(sys.argv[1:]))
 """
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads the processes from /proc (Linux)")
 def test_ctrl_c_while_ray_starts_stops_cleanly_and_leaves_no_process(recs, tmp_path):
     """A Ctrl-C that cut ``ray.init`` short left Ray's dashboard and runtime-env agents running after the
@@ -134,6 +135,7 @@ sys.exit(main(sys.argv[1:]))
 """
 
 
+@pytest.mark.slow
 @pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="reads the processes from /proc (Linux)")
 def test_sigterm_as_ray_shuts_down_is_noted(recs, tmp_path):
     """Ray's driver starts without its own crash handler, so a SIGTERM while Ray shuts down reaches the

@@ -527,6 +527,7 @@ def _nonfinite_paths(o, path=""):
 @given(scale=st.sampled_from([1e-9, 1e-3, 1.0, 1e6]), offset=st.sampled_from([0.0, 5.0, 1e9]),
        dt=st.sampled_from([1e-3, 1.0, 3600.0]), op_gain=st.sampled_from([0.2, 1.0, 5.0]),
        plant=st.sampled_from(["tank", "first_order", "integrating"]), seed=st.integers(0, 50))
+@pytest.mark.slow
 def test_fuzz_diagnose_finite(scale, offset, dt, op_gain, plant, seed):
     import json
 

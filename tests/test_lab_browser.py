@@ -106,6 +106,7 @@ class Page:
         self.page.close()
 
 
+@pytest.mark.slow
 def test_each_page_loads_without_errors(server, browser):
     pg = Page(browser, server).open(server, "valve_source")
     try:
@@ -146,6 +147,7 @@ def _stick_slip(u: np.ndarray, h: np.ndarray) -> tuple[int, float]:
     return int(np.sum(ramp & (dh < 1e-9))), float(dh[ramp].max())
 
 
+@pytest.mark.slow
 def test_fig7_preset_shows_stick_slip_and_downloads_its_traces(server, browser, tmp_path):
     pg = Page(browser, server).open(server + "?v_input=sine&v_seconds=200", "valve_source")
     try:

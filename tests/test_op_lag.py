@@ -86,6 +86,7 @@ def test_auto_takes_the_process_sign_from_the_base_fit(flip):
     assert test["method"] == "controller reaction" and res.settings["op_lag"] == 1
 
 
+@pytest.mark.slow
 def test_data_driven_evidence_reads_the_record_as_logged():
     # the pairing is the model's business: the shape methods (Horch, bicoherence, ellipse, waveform,
     # stick episodes) read the record as logged, so their features do not move with op_lag

@@ -83,6 +83,7 @@ def test_crafted_pickles_never_execute(tmp_path):
     assert not marker.exists()
 
 
+@pytest.mark.slow
 def test_cli_refuses_pickles_without_running_them(tmp_path):
     marker = tmp_path / "MARKER"
     files = _crafted_files(tmp_path, marker)

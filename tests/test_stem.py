@@ -182,6 +182,7 @@ def test_a_position_that_never_moves_seized_or_frozen():
     assert _seized(moving, dict(s)) is None and _seized(None, dict(s)) is None
 
 
+@pytest.mark.slow
 def test_report_shows_the_stem(sticky_loop, tmp_path):
     from valve_gym.diagnosis.report import write_report
 

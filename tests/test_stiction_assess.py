@@ -17,6 +17,7 @@ def sticky_result():
     return diagnose(simulate_loop(STICKY, seed=3), plant="integrating", candidates=(), effort="fast")
 
 
+@pytest.mark.slow
 def test_diagnosis_reports_probability_and_sizes(sticky_result):
     s = sticky_result.to_dict()["stiction"]
     for k in ("probability", "verdict", "S", "J", "S_interval", "J_interval", "evidence", "model_based_present"):
@@ -90,6 +91,7 @@ def slip_fit():
     return seen["fit"], rec
 
 
+@pytest.mark.slow
 def test_profile_reoptimises_the_other_parameters(slip_fit):
     fit, rec = slip_fit
     st = fit.structure
@@ -149,6 +151,7 @@ def _benchmark_loop(repo_module, i: int, seed=None):
                            name=loop["name"])
 
 
+@pytest.mark.slow
 def test_kstep_test_finds_a_sticky_valve_under_a_drifting_load(repo_module):
     """The compensator benchmark's cycling Choudhury valve (S 9.3 %) under its Ornstein-Uhlenbeck load: the
     free-run friction test is blind to it (the load's error outweighs the friction's), the k-step one is not
@@ -163,6 +166,7 @@ def test_kstep_test_finds_a_sticky_valve_under_a_drifting_load(repo_module):
     assert ks["verdict"] == "stiction"              # its own verdict; the public one reads it as a check only
 
 
+@pytest.mark.slow
 def test_kstep_fit_that_holds_the_valve_still_does_not_call_alone(repo_module):
     """A sticky Riihilahti valve under the benchmark's Ornstein-Uhlenbeck load: neither the free run (criterion up
     with friction) nor the methods combined call it.  Where the k-step predictions want friction (criterion below

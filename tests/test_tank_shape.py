@@ -69,6 +69,7 @@ def test_the_shape_needs_a_level():
         TankShape(L_ref=0.0)
 
 
+@pytest.mark.slow
 def test_diagnosis_names_a_cone_and_leaves_a_cylinder():
     """Loops of the independent textbook simulator: a conical tank is named with its taper, a cylinder is not."""
     spec = LoopSpec(process="tank", valve="linear", S=0.0, J=0.0, theta=0.0, area=0.25, q_max=0.011,

@@ -3,7 +3,10 @@ from __future__ import annotations
 
 import copy
 
+import pytest
 
+
+@pytest.mark.slow
 def test_refresh_reproduces_the_features_of_diagnose(repo_module):
     vs = repo_module("benchmarks/validate_stiction.py", "validate_stiction")
     # a sticky textbook loop logged as the simulator scans (pairing 1): the model reads it re-paired,
