@@ -44,6 +44,9 @@ class FleetSettings:
     op_range : (lo, hi), optional, raw controller-output range mapped to 0..1
     mv_range : (lo, hi), optional, raw valve-position range mapped to 0..1 (default: ``op_range``)
     max_gap : int, longest stretch without samples bridged, in scans
+    dayfirst : bool or None, dates ``D/M/Y`` (True) or ``M/D/Y`` (False); None reads it from the data
+    time_unit : str or None, unit of a numeric time column (``'s'``, ``'ms'``, ``'us'``, ``'days'``); None
+        reads it from the data
     report_dir : str, optional, folder for a full report per fully diagnosed loop
     """
 
@@ -60,6 +63,8 @@ class FleetSettings:
     op_range: tuple[float, float] | None = None
     max_gap: int = 5
     mv_range: tuple[float, float] | None = None
+    dayfirst: bool | None = None
+    time_unit: str | None = None
     report_dir: str | None = field(default=None, compare=False)
 
     def hash_text(self) -> str:
@@ -70,8 +75,9 @@ class FleetSettings:
             d.pop("search")
         if d["op_lag"] == 0:                # the default before auto: those runs keep their keys
             d.pop("op_lag")
-        if d["mv_range"] is None:           # the default: the position read like the output
-            d.pop("mv_range")
+        for k in ("mv_range", "dayfirst", "time_unit"):     # the defaults: read from the data
+            if d[k] is None:
+                d.pop(k)
         d["version"] = RESULT_VERSION
         return json.dumps(d, sort_keys=True, default=list)
 
