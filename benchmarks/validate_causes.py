@@ -45,6 +45,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))     # this checkout's valve_gym
 
 from causes_other_sim import CAUSES, make_loop  # noqa: E402
 

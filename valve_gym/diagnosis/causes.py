@@ -298,12 +298,111 @@ def _at_limit(op: np.ndarray, span_known: bool) -> tuple[float, str]:
         lo, hi = float(np.mean(op <= 0.005)), float(np.mean(op >= 0.995))
         return (hi, "its maximum (100 %)") if hi >= lo else (lo, "its minimum (0 %)")
     top, bot = float(np.max(op)), float(np.min(op))
-    hi, lo = float(np.mean(op >= top - 1e-9 * max(1.0, abs(top)))), float(np.mean(op <= bot + 1e-9 * max(1.0, abs(bot))))
+    hi = float(np.mean(op >= top - 1e-9 * max(1.0, abs(top))))
+    lo = float(np.mean(op <= bot + 1e-9 * max(1.0, abs(bot))))
     return (hi, "the top of its range") if hi >= lo else (lo, "the bottom of its range")
 
 
-def oscillation_cause(op, pv, dt: float, *, sp=None, plant: str = "first_order", p_stiction: float = math.nan,
-                      physical: Mapping[str, float] | None = None, y_model=None,
+def _tuning_evidence(u, y, s, dt: float, period: float, plant: str, physical, op_span: float,
+                     ev: list[CauseEvidence], scores: dict[str, float]):
+    """Aggressive tuning: the gain margin of the fitted loop and its -180 deg period (adds to ``ev``, ``scores``)."""
+    ctrl = estimate_pi(u, y, s, dt)
+    gm, p180 = math.nan, math.nan
+    if physical is not None and math.isfinite(ctrl["Kc"]):
+        gm, p180 = gain_margin(physical, plant, ctrl["Kc"], ctrl["Ti"], dt)
+    ctrl = {**ctrl, "Kc_raw": ctrl["Kc"] * op_span}
+    T_s = period * dt
+    suggested = math.nan
+    if math.isfinite(gm) and ctrl["r2"] >= 0.3:
+        match = math.isfinite(p180) and abs(T_s / p180 - 1.0) <= PERIOD_MATCH
+        if gm < GM_LOW and match:
+            pull = 3.0 + (1.0 if gm < 1.2 else 0.0)
+            ev.append(CauseEvidence("tuning", pull,
+                                    f"The fitted loop (process model and the PI law fitted to the output, Kc "
+                                    f"{ctrl['Kc']:.3g} stroke/PV unit, Ti {ctrl['Ti']:.3g} s, R2 {ctrl['r2']:.2f}) "
+                                    f"has a gain margin of {gm:.2f}, and it cycles at {T_s:.3g} s, the period where "
+                                    f"its phase is -180 deg ({p180:.3g} s): the loop's own mode."))
+            scores["tuning"] += pull
+        elif gm < GM_LOW:
+            ev.append(CauseEvidence("tuning", 1.0,
+                                    f"The fitted loop has a small gain margin ({gm:.2f}), but its -180 deg period "
+                                    f"({p180:.3g} s) is not the oscillation's ({T_s:.3g} s)."))
+            scores["tuning"] += 1.0
+        elif gm > 2.5:
+            ev.append(CauseEvidence("tuning", -1.5,
+                                    f"The fitted loop has a comfortable gain margin ({gm:.2f}): not a tuning "
+                                    f"oscillation."))
+            scores["tuning"] -= 1.5
+        if gm < GM_LOW:
+            suggested = ctrl["Kc"] * gm / GM_TARGET
+    elif physical is not None:
+        ev.append(CauseEvidence("tuning", 0.0, f"The PI law could not be read from the output (R2 "
+                                               f"{ctrl['r2']:.2f}): no gain margin."))
+    return ctrl, gm, p180, suggested
+
+
+def _disturbance_evidence(y, s, period: float, y_model, evidence, ev: list[CauseEvidence],
+                          scores: dict[str, float]) -> None:
+    """External disturbance: the set point, the PV's oscillation the model leaves, linearity."""
+    pv_band = _band_rms(y, period)
+    if s is not None and np.ptp(s) > 0:
+        ratio = _band_rms(s, period) / pv_band if pv_band > 0 else 0.0
+        if ratio >= SP_RATIO:
+            ev.append(CauseEvidence("disturbance", 3.0,
+                                    f"The set point oscillates at the same period ({100 * ratio:.0f} % of the PV's "
+                                    f"swing): the oscillation is imposed from outside the loop (a cascade master "
+                                    f"or an upstream unit)."))
+            scores["disturbance"] += 3.0
+    if y_model is not None and pv_band > 0:
+        un = _band_rms(y - np.asarray(y_model, float), period) / pv_band
+        if un >= UNEXPLAINED:
+            ev.append(CauseEvidence("disturbance", 1.5,
+                                    f"The fitted model (friction included) reproduces little of the PV's "
+                                    f"oscillation from the output ({100 * (1 - min(un, 1.0)):.0f} % explained): "
+                                    f"it enters through the load."))
+            scores["disturbance"] += 1.5
+        elif un <= 0.4:
+            ev.append(CauseEvidence("disturbance", -1.0,
+                                    f"The fitted model reproduces the PV's oscillation from the output "
+                                    f"({100 * (1 - un):.0f} % explained): it passes through the valve."))
+            scores["disturbance"] -= 1.0
+    bic = next((x for x in evidence if _get(x, "method") == "bicoherence"), None)
+    if bic is not None and _get(bic, "applicable") and (_get(bic, "reliability") or 0.0) > 0.3:
+        if _get(bic, "verdict") == "no stiction":
+            ev.append(CauseEvidence("disturbance", 1.0,
+                                    "The oscillation is linear (no quadratic phase coupling in the bicoherence, "
+                                    "Choudhury et al. 2004): a sinusoidal disturbance or a tuning mode, not a "
+                                    "friction limit cycle."))
+            scores["disturbance"] += 1.0
+            scores["tuning"] += 0.5
+
+
+def _fault_evidence(u, y, period: float, span_known: bool, ev: list[CauseEvidence],
+                    scores: dict[str, float]) -> None:
+    """Sensor quantisation and an output at a limit."""
+    q, nlev = _quantisation(y)
+    if math.isfinite(q):
+        amp = 0.5 * float(np.ptp(bandpass(y, period)))
+        steps = amp / q
+        if steps <= QUANT_STEPS:
+            pull = 5.0 if steps <= 1.5 else 3.5
+            ev.append(CauseEvidence("sensor", pull,
+                                    f"The PV takes only {nlev} levels {q:.3g} apart, and it oscillates over "
+                                    f"{steps:.1f} of those steps: the transmitter's resolution drives the cycle."))
+            scores["sensor"] += pull
+    # ---- saturation: output at a limit
+    share, where = _at_limit(u, span_known)
+    if share >= SATURATED and (span_known or share >= 2 * SATURATED):
+        pull = 5.0 if share >= 3 * SATURATED else 3.5
+        ev.append(CauseEvidence("saturation", pull,
+                                f"The output sits at {where} for {100 * share:.0f} % of the record: it cannot "
+                                f"act further, and integral wind-up makes the loop cycle."))
+        scores["saturation"] += pull
+        scores["tuning"] -= 1.0
+
+
+def oscillation_cause(op, pv, dt: float, *, sp=None, plant: str = "first_order",
+                      p_stiction: float = math.nan, physical: Mapping[str, float] | None = None, y_model=None,
                       evidence: Sequence = (), op_span: float = 1.0, span_known: bool = True) -> OscillationCause:
     """Probabilities of the causes of the oscillation of one loop, each with its evidence in words.
 
@@ -358,91 +457,10 @@ def oscillation_cause(op, pv, dt: float, *, sp=None, plant: str = "first_order",
     ev.append(CauseEvidence("stiction", scores["stiction"],
                             f"The stiction methods combined (OP-PV shape and phase tests, friction fits) give "
                             f"p = {p:.2f} that the valve sticks."))
-    # ---- tuning: the gain margin of the fitted loop
-    ctrl = estimate_pi(u, y, s, dt)
-    gm, p180 = math.nan, math.nan
-    if physical is not None and math.isfinite(ctrl["Kc"]):
-        gm, p180 = gain_margin(physical, plant, ctrl["Kc"], ctrl["Ti"], dt)
-    ctrl = {**ctrl, "Kc_raw": ctrl["Kc"] * op_span}
+    ctrl, gm, p180, suggested = _tuning_evidence(u, y, s, dt, period, plant, physical, op_span, ev, scores)
+    _disturbance_evidence(y, s, period, y_model, evidence, ev, scores)
+    _fault_evidence(u, y, period, span_known, ev, scores)
     T_s = period * dt
-    suggested = math.nan
-    if math.isfinite(gm) and ctrl["r2"] >= 0.3:
-        match = math.isfinite(p180) and abs(T_s / p180 - 1.0) <= PERIOD_MATCH
-        if gm < GM_LOW and match:
-            pull = 3.0 + (1.0 if gm < 1.2 else 0.0)
-            ev.append(CauseEvidence("tuning", pull,
-                                    f"The fitted loop (process model and the PI law fitted to the output, Kc "
-                                    f"{ctrl['Kc']:.3g} stroke/PV unit, Ti {ctrl['Ti']:.3g} s, R2 {ctrl['r2']:.2f}) "
-                                    f"has a gain margin of {gm:.2f}, and it cycles at {T_s:.3g} s, the period where "
-                                    f"its phase is -180 deg ({p180:.3g} s): the loop's own mode."))
-            scores["tuning"] += pull
-        elif gm < GM_LOW:
-            ev.append(CauseEvidence("tuning", 1.0,
-                                    f"The fitted loop has a small gain margin ({gm:.2f}), but its -180 deg period "
-                                    f"({p180:.3g} s) is not the oscillation's ({T_s:.3g} s)."))
-            scores["tuning"] += 1.0
-        elif gm > 2.5:
-            ev.append(CauseEvidence("tuning", -1.5,
-                                    f"The fitted loop has a comfortable gain margin ({gm:.2f}): not a tuning "
-                                    f"oscillation."))
-            scores["tuning"] -= 1.5
-        if gm < GM_LOW:
-            suggested = ctrl["Kc"] * gm / GM_TARGET
-    elif physical is not None:
-        ev.append(CauseEvidence("tuning", 0.0, f"The PI law could not be read from the output (R2 "
-                                               f"{ctrl['r2']:.2f}): no gain margin."))
-    # ---- disturbance: set point, unexplained PV oscillation, linearity
-    pv_band = _band_rms(y, period)
-    if s is not None and np.ptp(s) > 0:
-        ratio = _band_rms(s, period) / pv_band if pv_band > 0 else 0.0
-        if ratio >= SP_RATIO:
-            ev.append(CauseEvidence("disturbance", 3.0,
-                                    f"The set point oscillates at the same period ({100 * ratio:.0f} % of the PV's "
-                                    f"swing): the oscillation is imposed from outside the loop (a cascade master "
-                                    f"or an upstream unit)."))
-            scores["disturbance"] += 3.0
-    if y_model is not None and pv_band > 0:
-        un = _band_rms(y - np.asarray(y_model, float), period) / pv_band
-        if un >= UNEXPLAINED:
-            ev.append(CauseEvidence("disturbance", 1.5,
-                                    f"The fitted model (friction included) reproduces little of the PV's "
-                                    f"oscillation from the output ({100 * (1 - min(un, 1.0)):.0f} % explained): "
-                                    f"it enters through the load."))
-            scores["disturbance"] += 1.5
-        elif un <= 0.4:
-            ev.append(CauseEvidence("disturbance", -1.0,
-                                    f"The fitted model reproduces the PV's oscillation from the output "
-                                    f"({100 * (1 - un):.0f} % explained): it passes through the valve."))
-            scores["disturbance"] -= 1.0
-    bic = next((x for x in evidence if _get(x, "method") == "bicoherence"), None)
-    if bic is not None and _get(bic, "applicable") and (_get(bic, "reliability") or 0.0) > 0.3:
-        if _get(bic, "verdict") == "no stiction":
-            ev.append(CauseEvidence("disturbance", 1.0,
-                                    "The oscillation is linear (no quadratic phase coupling in the bicoherence, "
-                                    "Choudhury et al. 2004): a sinusoidal disturbance or a tuning mode, not a "
-                                    "friction limit cycle."))
-            scores["disturbance"] += 1.0
-            scores["tuning"] += 0.5
-    # ---- sensor: quantisation
-    q, nlev = _quantisation(y)
-    if math.isfinite(q):
-        amp = 0.5 * float(np.ptp(bandpass(y, period))) if pv_band > 0 else 0.0
-        steps = amp / q
-        if steps <= QUANT_STEPS:
-            pull = 5.0 if steps <= 1.5 else 3.5
-            ev.append(CauseEvidence("sensor", pull,
-                                    f"The PV takes only {nlev} levels {q:.3g} apart, and it oscillates over "
-                                    f"{steps:.1f} of those steps: the transmitter's resolution drives the cycle."))
-            scores["sensor"] += pull
-    # ---- saturation: output at a limit
-    share, where = _at_limit(u, span_known)
-    if share >= SATURATED and (span_known or share >= 2 * SATURATED):
-        pull = 5.0 if share >= 3 * SATURATED else 3.5
-        ev.append(CauseEvidence("saturation", pull,
-                                f"The output sits at {where} for {100 * share:.0f} % of the record: it cannot "
-                                f"act further, and integral wind-up makes the loop cycle."))
-        scores["saturation"] += pull
-        scores["tuning"] -= 1.0
     probs = _softmax(scores)
     return OscillationCause(True, T_s, probs, max(probs, key=lambda c: probs[c]), tuple(ev), gm, p180, ctrl,
                             suggested, suggested * op_span if math.isfinite(suggested) else math.nan, (), scores)

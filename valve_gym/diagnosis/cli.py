@@ -414,6 +414,8 @@ def _print_summary(res) -> None:
     choice = res.settings.get("plant_choice", {})
     how = f" ({choice['reason']})" if choice.get("asked") == "auto" else ""
     print(f"{d['recording']['name']}: plant {res.plant}{how}, actuator {res.actuator}")
+    for note in d["recording"].get("notes") or []:
+        print(f"  read: {note}")
     reps = d["recording"].get("repairs") or []
     if reps:
         print(f"  recording repaired ({len(reps)}): " + "; ".join(reps[:3]) + ("; ..." if len(reps) > 3 else ""))
@@ -449,5 +451,9 @@ def _print_summary(res) -> None:
         r = d["mismatch"][0]
         print(f"  largest mismatch: {r['t_start']:g}-{r['t_end']:g} s "
               f"({100 * r['share_sse']:.0f} % of the squared error); {len(d['mismatch'])} region(s)")
+    c = d.get("cause")
+    if c and c.get("oscillating"):
+        print("  cause of the oscillation: " + c["summary"])
+        print("  action: " + c["action"])
     for p in d["explanation"]:
         print("  - " + p)

@@ -156,8 +156,8 @@ def plant_from_data(op, pv, dt: float = 1.0) -> tuple[str, str, dict]:
     coef = best["first_order"][2]
     roots = np.roots([1.0, -coef[0], -coef[1]])
     pole = float(np.max(np.abs(roots)))
-    why = (f"a pole at 1 explains the record as well as a free one (BIC {b_int:.1f} against {b_sr:.1f}; free model's slowest "
-           f"pole {pole:.4f}): the process integrates" if plant == "integrating" else
+    why = (f"a pole at 1 explains the record as well as a free one (BIC {b_int:.1f} against {b_sr:.1f}; "
+           f"free model's slowest pole {pole:.4f}): the process integrates" if plant == "integrating" else
            f"the free model's poles lie inside the unit circle (slowest {pole:.4f}) and beat one at 1 (BIC {b_sr:.1f} "
            f"against {b_int:.1f}): the process settles")
     dead = (f"dead time about {d} sample(s) ({d * dt:g} s), found as the dead_time effect where it pays" if d else

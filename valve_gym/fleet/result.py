@@ -14,13 +14,16 @@ __all__ = ["FleetSettings", "LoopResult", "TABLE_COLUMNS", "RESULT_VERSION", "lo
 #: 2: a recorded valve position (``mv``) sends a loop to the full diagnosis and decides its verdict.
 #: 3: a wide export's tags read status texts as missing samples, refuse duplicated columns and time stamps
 #: that go back, and ``--columns mode=`` switches the mode column off (it was read regardless).
-RESULT_VERSION = 3
+#: 4: the OP's range and the time stamps' format read from the data, the process model chosen from the data
+#: where no tag says it, and the cause of an oscillation (``cause``, ``p_*``, ``cause_evidence``).
+RESULT_VERSION = 4
 
 #: Columns of ``loops.parquet`` / ``loops.csv``, in order (the first eleven are the issue's minimum).
 TABLE_COLUMNS = ("loop", "status", "message", "stiction", "S", "J", "effects", "rmse_base", "rmse_final",
                  "oscillation", "seconds", "cpu_seconds", "p_stiction", "weight", "score", "action", "stage",
                  "oscillating", "regularity", "period_s", "amplitude_op", "horch", "horch_index", "n", "dt", "gaps",
-                 "source", "tag", "key")
+                 "source", "tag", "key", "cause", "p_valve", "p_tuning", "p_disturbance", "p_sensor", "p_saturation",
+                 "suggested_kc", "cause_evidence", "cause_scores")
 
 
 @dataclass(frozen=True)
@@ -129,6 +132,13 @@ class LoopResult:
     notes : tuple of str, repairs and resampling done
     source : str, file; tag : str, tag of a wide export
     key : str, resume key (content + settings hash)
+    cause : str, most probable cause of the oscillation (``'stiction'``, ``'tuning'``, ``'disturbance'``,
+        ``'sensor'``, ``'saturation'``; ``'none'`` when it does not oscillate; ``''`` when not diagnosed),
+        :mod:`valve_gym.diagnosis.causes`
+    p_valve, p_tuning, p_disturbance, p_sensor, p_saturation : float, probability of each cause (NaN without one)
+    suggested_kc : float, controller gain for a gain margin of 2 [OP units per PV unit] (NaN unless tuning)
+    cause_evidence : str, the cause and its evidence in words
+    cause_scores : str, the causes' log-odds scores as JSON (for the fleet's shared-period evidence)
     """
 
     loop: str
@@ -161,6 +171,15 @@ class LoopResult:
     source: str = ""
     tag: str = ""
     key: str = ""
+    cause: str = ""
+    p_valve: float = math.nan
+    p_tuning: float = math.nan
+    p_disturbance: float = math.nan
+    p_sensor: float = math.nan
+    p_saturation: float = math.nan
+    suggested_kc: float = math.nan
+    cause_evidence: str = ""
+    cause_scores: str = ""
 
     def to_dict(self) -> dict:
         """JSON-ready dict (NaN -> None, tuples -> lists)."""

@@ -234,7 +234,7 @@ def _text_time(raw: RawColumns, src: str, decimal_comma: bool = False,
 
 
 def _numeric_time(t: np.ndarray, time_unit: str | None, src: str, name: str):
-    """Seconds, first stamp, its POSIX seconds and a note for a numeric time column (:func:`~.units.numeric_time_unit`)."""
+    """Seconds, first stamp, its POSIX seconds, a note: a numeric time column (:func:`~.units.numeric_time_unit`)."""
     try:
         f, epoch0, note = numeric_time_unit(t, time_unit)
     except RecordingError as e:
@@ -256,7 +256,7 @@ def _time(raw: RawColumns, src: str, decimal_comma: bool = False, dayfirst: bool
         ns = cells.astype("datetime64[ns]")
         ok = np.flatnonzero(~np.isnat(ns))
         if ok.size == 0:
-            return np.full(len(ns), np.nan), None, None, []
+            return np.full(len(ns), np.nan), None, None, [], None
         sec = np.where(np.isnat(ns), np.nan, ns.astype(np.int64) / 1e9)
         epoch0 = float(sec[ok[0]])
         start = str(ns[ok[0]].astype("datetime64[s]")).replace("T", " ")

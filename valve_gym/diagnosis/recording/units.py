@@ -6,9 +6,10 @@ engineering or deviation units; time stamps as day-first or month-first dates, w
 and says what it read (one sentence each, for the recording's notes):
 
 * :func:`infer_op_range` -- the output's scale: every value in 0..1 is a fraction; values in
-  -5..105 that reach above 1 are percent; anything else (negative values, values far above 100:
-  a deviation or an engineering unit) has an unknown span, and the output's own observed range is
-  read as its span (sizes such as the stick band S are then fractions of the travel seen).
+  -5..105 that reach above 1 are percent (a few negative values only where the output also reaches
+  20 %: a deviation variable swings around 0); anything else (a deviation or an engineering unit)
+  has an unknown span, and the output's own observed range is read as its span (sizes such as the
+  stick band S are then fractions of the travel seen).
 * :func:`parse_stamps` -- date strings: ISO 8601, ``D/M/Y`` or ``M/D/Y`` (``/``, ``-`` or ``.``
   between the fields, two- or four-digit years), month names (``18-Jul-2024``), an optional
   ``AM``/``PM``.  Day-first or month-first is read from the data: a first field above 12 means
@@ -71,7 +72,7 @@ def infer_op_range(op: np.ndarray) -> tuple[tuple[float, float], str]:
     lo, hi = float(x.min()), float(x.max())
     if lo >= 0.0 and hi <= 1.0:
         return (0.0, 1.0), f"OP read as a fraction of the stroke (values {lo:.4g}..{hi:.4g} lie in 0..1)"
-    if lo >= -PERCENT_SLACK and hi <= 100.0 + PERCENT_SLACK:
+    if lo >= -PERCENT_SLACK and hi <= 100.0 + PERCENT_SLACK and (lo >= 0.0 or hi >= 20.0):
         return (0.0, 100.0), (f"OP read in percent (values {lo:.4g}..{hi:.4g} lie in 0..100 and reach above 1); "
                               f"--op-range LO,HI says otherwise")
     if hi - lo <= 0.0:
@@ -208,7 +209,9 @@ def _regularity(sec: np.ndarray) -> float:
     med = float(np.median(d))
     if med <= 0:
         return 0.0
-    return float(np.mean(np.abs(d - med) <= 0.1 * med))
+    share = float(np.mean(np.abs(d - med) <= 0.1 * med))
+    # a jump of more than 1.5 steps (a day or a month skipped by the wrong reading) counts against it
+    return share - (0.5 if float(np.max(d)) > 1.5 * med else 0.0)
 
 
 def parse_stamps(cells, idx, dayfirst: bool | None = None) -> tuple[np.ndarray, list[int], str | None]:
@@ -321,8 +324,7 @@ def _day_month(pending, out: np.ndarray, bad: list[int], dayfirst: bool | None, 
                        "date), so only the date named in messages depends on it; --monthfirst reads M/D/Y")
             elif r_d > r_m + 0.05 or r_m > r_d + 0.05:
                 dayfirst = r_d > r_m
-                why = (f"only that reading gives a regular sample interval ({100 * max(r_d, r_m):.0f} % of the "
-                       f"steps equal, against {100 * min(r_d, r_m):.0f} %)")
+                why = "only that reading gives a regular sample interval (no jump between the samples)"
             else:
                 raise RecordingError(
                     f"time stamps such as {ex!r} read as well day-first as month-first (every field up to 12, "
