@@ -166,6 +166,31 @@ def _simc(kind: str, K: float, tau: float, tau2: float, theta: float, dt: float)
     return t1 / (K * 2 * th_eff), min(t1, 8 * th_eff)
 
 
+def _run(valve, proc: _Process, Kc: float, Ti: float, dt: float, sp: np.ndarray, load: np.ndarray, offset: float,
+         noise_std: float, q: float, x0: float, sign: float, rng) -> tuple[np.ndarray, np.ndarray]:
+    """The closed loop, sample by sample: PI (velocity form, output limited to 0..1), valve, process, sensor."""
+    n = len(sp)
+    op = np.zeros(n)
+    pv = np.zeros(n)
+    u = x0
+    e_prev = 0.0
+    y_meas = sp[0]
+    for k in range(n):
+        e = sp[k] - y_meas
+        u = u + sign * Kc * ((e - e_prev) + dt / Ti * e)
+        u = min(max(u, 0.0), 1.0)                              # the output's limits; the integral winds up
+        e_prev = e
+        op[k] = u
+        x = valve.step(u)
+        x = min(max(x, 0.0), 1.0)
+        y = proc.step(x + load[k]) + offset
+        y_meas = y + rng.normal(0, noise_std) if noise_std > 0 else y
+        if q > 0:
+            y_meas = math.floor((y_meas - offset) / q + 0.5) * q + offset
+        pv[k] = y_meas
+    return op, pv
+
+
 def make_loop(cause: str, seed: int, n: int = 1500) -> dict:
     """One closed loop oscillating for ``cause`` (module docstring), at a constant set point.
 
@@ -249,25 +274,7 @@ def make_loop(cause: str, seed: int, n: int = 1500) -> dict:
         sp = np.round((sp - offset) / q) * q + offset + 0.5 * q     # between two steps
     else:
         q = 0.0
-    op = np.zeros(n)
-    pv = np.zeros(n)
-    u = x0
-    e_prev = 0.0
-    y_meas = sp[0]
-    for k in range(n):
-        e = sp[k] - y_meas
-        sign = 1.0 if K > 0 else -1.0
-        u = u + sign * Kc * ((e - e_prev) + dt / Ti * e)
-        u = min(max(u, 0.0), 1.0)                              # the output's limits; the integral winds up
-        e_prev = e
-        op[k] = u
-        x = valve.step(u)
-        x = min(max(x, 0.0), 1.0)
-        y = proc.step(x + load[k]) + offset
-        y_meas = y + rng.normal(0, noise_std) if noise_std > 0 else y
-        if q > 0:
-            y_meas = math.floor((y_meas - offset) / q + 0.5) * q + offset
-        pv[k] = y_meas
+    op, pv = _run(valve, proc, Kc, Ti, dt, sp, load, offset, noise_std, q, x0, 1.0 if K > 0 else -1.0, rng)
     op_scale = 100.0 if rng.random() < 0.5 else 1.0
     return {"t": t, "op": op * op_scale, "pv": pv, "sp": sp, "cause": cause, "S": S, "J": J, "valve": valve_name,
             "process": kind, "op_scale": op_scale, "dt": dt}
