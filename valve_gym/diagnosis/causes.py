@@ -37,8 +37,8 @@ import numpy as np
 
 from .stiction._base import bandpass, oscillation
 
-__all__ = ["CAUSES", "CauseEvidence", "OscillationCause", "estimate_pi", "gain_margin", "oscillation_cause",
-           "shared_periods"]
+__all__ = ["CAUSES", "CauseEvidence", "OscillationCause", "cause_from_data", "estimate_pi", "gain_margin",
+           "oscillation_cause", "shared_periods"]
 
 #: The causes, in the order reported.
 CAUSES = ("stiction", "tuning", "disturbance", "sensor", "saturation")
@@ -464,6 +464,24 @@ def oscillation_cause(op, pv, dt: float, *, sp=None, plant: str = "first_order",
     probs = _softmax(scores)
     return OscillationCause(True, T_s, probs, max(probs, key=lambda c: probs[c]), tuple(ev), gm, p180, ctrl,
                             suggested, suggested * op_span if math.isfinite(suggested) else math.nan, (), scores)
+
+
+def cause_from_data(rec) -> OscillationCause:
+    """The cause of a recording's oscillation from its data alone, where no model can be fitted to it.
+
+    A PV that takes only a few values (a coarsely quantised transmitter) leaves the process model
+    nothing to identify (:func:`~valve_gym.diagnosis.diagnose.diagnose` refuses it), but the
+    quantisation itself, the output's limits and the set point are still read; the stiction
+    evidence counts as undecided (p = 0.5) and no gain margin is read.
+
+    Parameters
+    ----------
+    rec : Recording
+    """
+    said = tuple(rec.notes) + tuple(rec.repairs)
+    return oscillation_cause(rec.op, rec.pv, float(rec.dt or 1.0), sp=rec.sp,
+                             op_span=float(rec.op_range[1] - rec.op_range[0]),
+                             span_known=not any("OP span unknown" in x for x in said))
 
 
 def shared_periods(periods: Mapping[str, float], tol: float = SHARED_PERIOD) -> dict[str, tuple[str, ...]]:

@@ -141,13 +141,15 @@ def _cause_fields(cause) -> dict:
             "cause_scores": json.dumps(dict(cause.scores)) if cause.scores else ""}
 
 
-def _ok_result(src: LoopSource, key: str, loaded, sc: Screen, res, seconds: float, cpu: float) -> LoopResult:
+def _ok_result(src: LoopSource, key: str, loaded, sc: Screen, res, seconds: float, cpu: float,
+               cause=None) -> LoopResult:
     rec = loaded.recording
     o = sc.oscillation
     sn = stiction_numbers(res) if res is not None else None
     verdict = sn.verdict if sn else "not tested"
     p = sn.p if sn else math.nan
-    cause = getattr(res, "cause", None) if res is not None else None
+    if res is not None:
+        cause = getattr(res, "cause", None)
     w, w_src = evidence_weight(p, verdict, sc.horch.phase_index)
     if cause is not None and cause.oscillating:
         w, w_src = cause.p_stiction, "probability that the valve causes the oscillation"
@@ -199,10 +201,17 @@ def analyse_loop(src: LoopSource, settings: FleetSettings, key: str = "") -> Loo
         rec = loaded.recording
         sc = screen_recording(rec, resolve_plant(settings.plant, rec.name, rec.columns.get("pv"), rec.op, rec.pv,
                                                  float(rec.dt or 1.0))[0])
-        res = None
+        res, cause = None, None
         if settings.full or sc.oscillation.oscillating or position_sticks(rec):
-            res = _full(loaded.recording, settings, src.name)
-        return _ok_result(src, key, loaded, sc, res, time.perf_counter() - t0, time.process_time() - c0)
+            try:
+                res = _full(loaded.recording, settings, src.name)
+            except ValueError as e:
+                if "takes only" not in str(e):
+                    raise
+                # a PV of a few levels: no model to fit, but its quantisation is the evidence
+                from ..diagnosis.causes import cause_from_data
+                cause = cause_from_data(rec)
+        return _ok_result(src, key, loaded, sc, res, time.perf_counter() - t0, time.process_time() - c0, cause)
     except (RecordingError, ValueError) as e:
         return failed_result(src, key, "failed", str(e).splitlines()[0] if str(e) else type(e).__name__,
                              time.perf_counter() - t0)
