@@ -35,6 +35,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..metrics import acf_oscillation
 from .stiction._base import bandpass, oscillation
 
 __all__ = ["CAUSES", "CauseEvidence", "OscillationCause", "cause_from_data", "estimate_pi", "gain_margin",
@@ -64,6 +65,10 @@ UNEXPLAINED = 0.6
 QUANT_STEPS = 3.0
 #: Share of the samples with the output at a limit (within 0.5 % of 0 or 100 % of the stroke) that counts.
 SATURATED = 0.05
+#: Miao & Seborg's ACF decay ratio of a lightly damped loop mode (tuning): a damping ratio of 0.02..0.11
+#: decays the ACF by exp(-2 pi zeta / sqrt(1 - zeta^2)) = 0.9..0.5 per cycle; and of a sustained cycle.
+DECAY_MODE = (0.5, 0.9)
+DECAY_SUSTAINED = 0.95
 #: Relative difference of two loops' periods for them to share one (Thornhill et al. 2003 use 10 %...20 %).
 SHARED_PERIOD = 0.15
 
@@ -338,7 +343,32 @@ def _tuning_evidence(u, y, s, dt: float, period: float, plant: str, physical, op
     elif physical is not None:
         ev.append(CauseEvidence("tuning", 0.0, f"The PI law could not be read from the output (R2 "
                                                f"{ctrl['r2']:.2f}): no gain margin."))
+    _damping_evidence(s - y if s is not None else y - float(np.mean(y)), dt, ev, scores)
     return ctrl, gm, p180, suggested
+
+
+def _damping_evidence(e, dt: float, ev: list[CauseEvidence], scores: dict[str, float]) -> None:
+    """A lightly damped mode of a linear loop, or a sustained cycle: Miao & Seborg's ACF decay ratio.
+
+    A loop tuned too tightly is a linear system near its stability limit: noise and load excite its
+    mode, whose autocorrelation decays from cycle to cycle (decay ratio ``DECAY_MODE``); a limit cycle
+    (a sticky valve) or a sustained external oscillation keeps its amplitude (ratio near 1).
+    """
+    osc = acf_oscillation(e, dt)
+    R = float(osc.decay_ratio)
+    if not (math.isfinite(R) and R > 0.0):
+        return
+    if DECAY_MODE[0] <= R <= DECAY_MODE[1]:
+        ev.append(CauseEvidence("tuning", 2.0,
+                                f"The oscillation's autocorrelation decays from cycle to cycle (Miao & Seborg's "
+                                f"decay ratio {R:.2f}): a lightly damped mode of the loop, excited by noise and load, "
+                                f"not a sustained cycle."))
+        scores["tuning"] += 2.0
+    elif R >= DECAY_SUSTAINED:
+        ev.append(CauseEvidence("tuning", -1.0,
+                                f"The oscillation is sustained (decay ratio {R:.2f}): a limit cycle or a sustained "
+                                f"disturbance, not a damped mode of a linear loop."))
+        scores["tuning"] -= 1.0
 
 
 def _disturbance_evidence(y, s, period: float, y_model, evidence, ev: list[CauseEvidence],
@@ -375,6 +405,7 @@ def _disturbance_evidence(y, s, period: float, y_model, evidence, ev: list[Cause
                                     "friction limit cycle."))
             scores["disturbance"] += 1.0
             scores["tuning"] += 0.5
+            scores["stiction"] -= 1.0
 
 
 def _fault_evidence(u, y, period: float, span_known: bool, ev: list[CauseEvidence],
@@ -399,6 +430,13 @@ def _fault_evidence(u, y, period: float, span_known: bool, ev: list[CauseEvidenc
                                 f"act further, and integral wind-up makes the loop cycle."))
         scores["saturation"] += pull
         scores["tuning"] -= 1.0
+        keep = max(0.0, 1.0 - share / (3 * SATURATED))
+        if scores["stiction"] > 0.0:
+            ev.append(CauseEvidence("stiction", -scores["stiction"] * (1.0 - keep),
+                                    f"The shape tests assume an output free to move; at a limit for "
+                                    f"{100 * share:.0f} % of the record their evidence counts "
+                                    f"{100 * keep:.0f} %."))
+            scores["stiction"] *= keep
 
 
 def oscillation_cause(op, pv, dt: float, *, sp=None, plant: str = "first_order",
