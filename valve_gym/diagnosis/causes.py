@@ -35,7 +35,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..metrics import acf_oscillation
+from ..metrics import acf_oscillation, crest_factor
 from .stiction._base import bandpass, oscillation
 
 __all__ = ["CAUSES", "CauseEvidence", "OscillationCause", "cause_from_data", "estimate_pi", "gain_margin",
@@ -69,6 +69,11 @@ SATURATED = 0.05
 #: decays the ACF by exp(-2 pi zeta / sqrt(1 - zeta^2)) = 0.9..0.5 per cycle; and of a sustained cycle.
 DECAY_MODE = (0.5, 0.9)
 DECAY_SUSTAINED = 0.95
+#: Band-passed crest factor from which the oscillation counts as noise-driven (narrow-band Gaussian noise:
+#: about 3 over a long record; a sine 1.41, a triangle 1.73).
+CREST_NOISE = 2.4
+#: Thornhill's regularity from which the oscillation counts as strictly periodic.
+REGULARITY_PERIODIC = 20.0
 #: Relative difference of two loops' periods for them to share one (Thornhill et al. 2003 use 10 %...20 %).
 SHARED_PERIOD = 0.15
 
@@ -343,7 +348,9 @@ def _tuning_evidence(u, y, s, dt: float, period: float, plant: str, physical, op
     elif physical is not None:
         ev.append(CauseEvidence("tuning", 0.0, f"The PI law could not be read from the output (R2 "
                                                f"{ctrl['r2']:.2f}): no gain margin."))
-    _damping_evidence(s - y if s is not None else y - float(np.mean(y)), dt, ev, scores)
+    e = s - y if s is not None else y - float(np.mean(y))
+    _damping_evidence(e, dt, ev, scores)
+    _stationarity_evidence(e, period, ev, scores)
     return ctrl, gm, p180, suggested
 
 
@@ -369,6 +376,31 @@ def _damping_evidence(e, dt: float, ev: list[CauseEvidence], scores: dict[str, f
                                 f"The oscillation is sustained (decay ratio {R:.2f}): a limit cycle or a sustained "
                                 f"disturbance, not a damped mode of a linear loop."))
         scores["tuning"] -= 1.0
+
+
+def _stationarity_evidence(e, period: float, ev: list[CauseEvidence], scores: dict[str, float]) -> None:
+    """Deterministic or noise-driven: the band-passed error's crest factor and the period's regularity.
+
+    A cycle kept up by a nonlinearity or by a periodic source has a steady amplitude: its band-passed
+    crest factor is that of a sine or a triangle (1.4..1.7).  A lightly damped mode of a linear loop,
+    driven by noise, is narrow-band noise whose amplitude waxes and wanes (crest factor near 3 over a
+    long record).  A periodic external source (rotating equipment, an upstream batch cycle) is
+    strictly periodic: Thornhill's regularity far above the threshold of 1.
+    """
+    osc = oscillation(e)
+    cf = float(crest_factor(bandpass(np.asarray(e, float), period)))
+    if math.isfinite(cf) and cf >= CREST_NOISE:
+        ev.append(CauseEvidence("tuning", 1.5,
+                                f"The oscillation's amplitude waxes and wanes (band-passed crest factor {cf:.2f}; a "
+                                f"steady cycle has 1.4..1.7): narrow-band noise of a lightly damped linear loop, not "
+                                f"a limit cycle or a periodic source."))
+        scores["tuning"] += 1.5
+        scores["disturbance"] -= 1.0
+    if osc.present and osc.regularity >= REGULARITY_PERIODIC:
+        ev.append(CauseEvidence("disturbance", 1.5,
+                                f"The oscillation is strictly periodic (regularity {osc.regularity:.0f}, threshold 1): "
+                                f"a periodic source, not the irregular cycle of a noisy loop."))
+        scores["disturbance"] += 1.5
 
 
 def _disturbance_evidence(y, s, period: float, y_model, evidence, ev: list[CauseEvidence],
