@@ -92,7 +92,7 @@ def test_ambiguous_dates_ask_for_dayfirst_in_one_line():
         parse_stamps(cells, range(len(cells)))
     assert "\n" not in str(e.value)
     sec, bad, note = parse_stamps(cells, range(len(cells)), dayfirst=True)
-    assert not bad and np.allclose(np.diff(sec), 86400.0) and "as given" in note
+    assert not bad and np.allclose(np.diff(sec), 86400.0) and note is not None and "as given" in note
     sec_m, _, _ = parse_stamps(cells, range(len(cells)), dayfirst=False)
     assert np.allclose(np.diff(sec_m), [31 * 86400.0, 29 * 86400.0])
 
@@ -102,7 +102,7 @@ def test_a_regular_interval_decides_ambiguous_dates():
     start = datetime(2024, 4, 2, 23, 0)
     cells = _stamps("%d/%m/%Y %H:%M", 12, start=start, step=600)
     sec, _, note = parse_stamps(cells, range(12))
-    assert np.allclose(np.diff(sec), 600.0) and "day-first" in note and "regular" in note
+    assert np.allclose(np.diff(sec), 600.0) and note is not None and "day-first" in note and "regular" in note
 
 
 @pytest.mark.parametrize("factor, unit", [(1.0, "epoch seconds"), (1000.0, "epoch milliseconds")])
@@ -154,6 +154,7 @@ def test_wide_export_in_percent_without_flags(tmp_path):
         loop = simulate_loop(kind, seed=seed, n=n).recording
         df[f"{tag}.PV"] = 1000.0 * loop.pv - 250.0           # PV in its own units, negative values included
         df[f"{tag}.OP"] = 100 * loop.op
+        assert loop.sp is not None
         df[f"{tag}.SP"] = 1000.0 * loop.sp - 250.0
     p = tmp_path / "export.csv"
     df.to_csv(p, index=False)
