@@ -782,8 +782,9 @@ def _cause(rec: Recording, logged: Recording, plant: str, base: FitResult, final
     """The cause of the loop's oscillation (:func:`~.causes.oscillation_cause`); the stiction verdict follows it.
 
     Where the loop oscillates and another cause is more probable than stiction, with the stiction
-    probability below one half, ``stiction['present']`` becomes False (the verdict before is kept in
-    ``present_before_cause``) and the explanation says why: an oscillation alone is no evidence
+    probability below one half, ``stiction['present']`` becomes False and ``stiction['verdict']``
+    ``'no stiction'`` (the verdicts before are kept in ``present_before_cause`` and
+    ``verdict_before_cause``) and the explanation says why: an oscillation alone is no evidence
     against the valve when the tuning, a disturbance or the sensor explains it.
     """
     physical = dict(base.physical)
@@ -801,6 +802,8 @@ def _cause(rec: Recording, logged: Recording, plant: str, base: FitResult, final
     if (c.oscillating and stiction.get("present") and c.cause != "stiction" and c.p_stiction < 0.5
             and stiction.get("verdict_source") != "stem"):
         stiction["present"] = False
+        stiction["verdict_before_cause"] = stiction.get("verdict")
+        stiction["verdict"] = "no stiction"
         stiction["explanation"] = (stiction.get("explanation", "") + " " + (
             f"The oscillation is better explained as {CAUSE_WORDS[c.cause]} (p = {c.probabilities[c.cause]:.2f}, "
             f"stiction {c.p_stiction:.2f}): the verdict is no stiction.")).strip()
