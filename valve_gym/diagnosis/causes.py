@@ -349,53 +349,46 @@ def _tuning_evidence(u, y, s, dt: float, period: float, plant: str, physical, op
         ev.append(CauseEvidence("tuning", 0.0, f"The PI law could not be read from the output (R2 "
                                                f"{ctrl['r2']:.2f}): no gain margin."))
     e = s - y if s is not None else y - float(np.mean(y))
-    _damping_evidence(e, dt, ev, scores)
-    _stationarity_evidence(e, period, ev, scores)
+    _noise_driven_evidence(e, dt, period, ev, scores)
     return ctrl, gm, p180, suggested
 
 
-def _damping_evidence(e, dt: float, ev: list[CauseEvidence], scores: dict[str, float]) -> None:
-    """A lightly damped mode of a linear loop, or a sustained cycle: Miao & Seborg's ACF decay ratio.
+def _noise_driven_evidence(e, dt: float, period: float, ev: list[CauseEvidence],
+                           scores: dict[str, float]) -> None:
+    """A lightly damped mode of a linear loop, or a sustained cycle; a periodic source.
 
     A loop tuned too tightly is a linear system near its stability limit: noise and load excite its
-    mode, whose autocorrelation decays from cycle to cycle (decay ratio ``DECAY_MODE``); a limit cycle
-    (a sticky valve) or a sustained external oscillation keeps its amplitude (ratio near 1).
+    mode, whose autocorrelation decays from cycle to cycle (Miao & Seborg's decay ratio in
+    :data:`DECAY_MODE`) and whose amplitude waxes and wanes like narrow-band noise (band-passed crest
+    factor near 3; a steady cycle has 1.4..1.7).  The two read the same property, so they count once:
+    +2 for tuning when both say so, +1 when one does.  A limit cycle or a sustained external oscillation
+    keeps its amplitude (decay ratio near 1).  A periodic external source (rotating equipment, an
+    upstream batch cycle) is strictly periodic: Thornhill's regularity far above the threshold of 1.
     """
-    osc = acf_oscillation(e, dt)
-    R = float(osc.decay_ratio)
-    if not (math.isfinite(R) and R > 0.0):
-        return
-    if DECAY_MODE[0] <= R <= DECAY_MODE[1]:
-        ev.append(CauseEvidence("tuning", 2.0,
-                                f"The oscillation's autocorrelation decays from cycle to cycle (Miao & Seborg's "
-                                f"decay ratio {R:.2f}): a lightly damped mode of the loop, excited by noise and load, "
-                                f"not a sustained cycle."))
-        scores["tuning"] += 2.0
-    elif R >= DECAY_SUSTAINED:
+    acf = acf_oscillation(e, dt)
+    R = float(acf.decay_ratio)
+    cf = float(crest_factor(bandpass(np.asarray(e, float), period)))
+    damped = math.isfinite(R) and DECAY_MODE[0] <= R <= DECAY_MODE[1]
+    noisy = math.isfinite(cf) and cf >= CREST_NOISE
+    if damped or noisy:
+        pull = 2.0 if damped and noisy else 1.0
+        said = []
+        if damped:
+            said.append(f"its autocorrelation decays from cycle to cycle (Miao & Seborg's decay ratio {R:.2f})")
+        if noisy:
+            said.append(f"its amplitude waxes and wanes (band-passed crest factor {cf:.2f}; a steady cycle has "
+                        f"1.4..1.7)")
+        ev.append(CauseEvidence("tuning", pull,
+                                "The oscillation is noise-driven: " + " and ".join(said) + ": a lightly damped mode "
+                                "of a linear loop, excited by noise and load, not a sustained cycle."))
+        scores["tuning"] += pull
+        scores["disturbance"] -= pull / 2.0
+    elif math.isfinite(R) and R >= DECAY_SUSTAINED:
         ev.append(CauseEvidence("tuning", -1.0,
                                 f"The oscillation is sustained (decay ratio {R:.2f}): a limit cycle or a sustained "
                                 f"disturbance, not a damped mode of a linear loop."))
         scores["tuning"] -= 1.0
-
-
-def _stationarity_evidence(e, period: float, ev: list[CauseEvidence], scores: dict[str, float]) -> None:
-    """Deterministic or noise-driven: the band-passed error's crest factor and the period's regularity.
-
-    A cycle kept up by a nonlinearity or by a periodic source has a steady amplitude: its band-passed
-    crest factor is that of a sine or a triangle (1.4..1.7).  A lightly damped mode of a linear loop,
-    driven by noise, is narrow-band noise whose amplitude waxes and wanes (crest factor near 3 over a
-    long record).  A periodic external source (rotating equipment, an upstream batch cycle) is
-    strictly periodic: Thornhill's regularity far above the threshold of 1.
-    """
     osc = oscillation(e)
-    cf = float(crest_factor(bandpass(np.asarray(e, float), period)))
-    if math.isfinite(cf) and cf >= CREST_NOISE:
-        ev.append(CauseEvidence("tuning", 1.5,
-                                f"The oscillation's amplitude waxes and wanes (band-passed crest factor {cf:.2f}; a "
-                                f"steady cycle has 1.4..1.7): narrow-band noise of a lightly damped linear loop, not "
-                                f"a limit cycle or a periodic source."))
-        scores["tuning"] += 1.5
-        scores["disturbance"] -= 1.0
     if osc.present and osc.regularity >= REGULARITY_PERIODIC:
         ev.append(CauseEvidence("disturbance", 1.5,
                                 f"The oscillation is strictly periodic (regularity {osc.regularity:.0f}, threshold 1): "
@@ -437,7 +430,6 @@ def _disturbance_evidence(y, s, period: float, y_model, evidence, ev: list[Cause
                                     "friction limit cycle."))
             scores["disturbance"] += 1.0
             scores["tuning"] += 0.5
-            scores["stiction"] -= 1.0
 
 
 def _fault_evidence(u, y, period: float, span_known: bool, ev: list[CauseEvidence],
