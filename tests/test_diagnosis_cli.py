@@ -95,7 +95,7 @@ def _rows(n=200, const_pv=False, nan_block=None):
     ("oprange_text", ["--op-range", "zero,100"], "non-number"),
     ("short", [], "samples"),
     ("constant", [], "constant"),
-    ("nan", [], "missing"),
+    ("nan", ["--gaps", "error"], "missing"),          # a long gap is kept out by default; asked to stop
     ("effects", ["--effects", "friction"], "unknown effect"),
     ("holdout", ["--holdout", "0.95"], "--holdout"),
     ("plant", ["--plant", "boiler"], "invalid choice"),

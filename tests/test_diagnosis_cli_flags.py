@@ -57,7 +57,7 @@ def run_json(rec_dir, tmp_path, capsys, *flags, path=None):
 CASES = {"-h", "--help", "--columns", "--op-range", "--mv-range", "--max-gap", "--gaps",
          "--plant", "--actuator", "--validate", "--validate-columns", "--dt", "--holdout",
          "--json", "--report", "--effects", "--jobs", "--effort", "--search", "--op-lag", "--seed", "--quiet", "--out",
-         "--address", "--full", "--max-loops", "--top"}
+         "--address", "--full", "--max-loops", "--top", "--dayfirst", "--monthfirst", "--time-unit"}
 
 
 def test_every_help_flag_has_a_case(capsys):
@@ -94,8 +94,8 @@ def test_columns(tmp_path, capsys):
 
 
 def test_op_range(rec_dir, tmp_path, capsys):
-    code, _, err = run([rec_dir / "loop.csv", *FAST], capsys)
-    assert code == 2 and "--op-range" in err
+    code, out, err = run([rec_dir / "loop.csv", *FAST], capsys)       # percent, read from the values
+    assert code == 0 and "read: OP read in percent" in out, err
     d, _, _ = run_json(rec_dir, tmp_path, capsys)
     assert d["recording"]["op_range"] == [0.0, 100.0]
     code, _, err = run([rec_dir / "loop.csv", "--op-range", "5,5", *FAST], capsys)
@@ -117,16 +117,17 @@ def test_max_gap_and_gaps(rec_dir, tmp_path, capsys):
                                    enumerate(row.split(","))) for k, row in enumerate(lines[1:])]
     p = tmp_path / "holed.csv"
     p.write_text("\n".join(holed) + "\n")                  # op, pv, sp blank for 8 samples
-    code, _, err = run([p, "--op-range", "0,100", *FAST], capsys)
+    code, _, err = run([p, "--op-range", "0,100", "--gaps", "error", *FAST], capsys)
     assert code == 2 and "--max-gap" in err and "--gaps longest" in err
     d, out, _ = run_json(rec_dir, tmp_path, capsys, "--max-gap", "10", path=p)
     assert d["recording"]["n"] == 300 and "by linear interpolation" in d["recording"]["repairs"][0]
     assert "recording repaired (3): filled 8 missing value(s)" in out          # the console says so too
-    d, out, _ = run_json(rec_dir, tmp_path, capsys, "--gaps", "longest", path=p)
-    assert d["recording"]["n"] == 192 and d["recording"]["repairs"][0].startswith("kept the longest stretch")
+    for flags in (("--gaps", "longest"), ()):                       # the default keeps the longest stretch
+        d, out, _ = run_json(rec_dir, tmp_path, capsys, *flags, path=p)
+        assert d["recording"]["n"] == 192 and d["recording"]["repairs"][0].startswith("kept the longest stretch")
     code, _, err = run([p, "--op-range", "0,100", "--max-gap", "abc", *FAST], capsys)
     assert code == 2 and "--max-gap must be a whole number" in err
-    code, _, err = run([p, "--op-range", "0,100", "--gaps", "longest", "--out", tmp_path / "fl", *FAST], capsys)
+    code, _, err = run([p, "--op-range", "0,100", "--gaps", "error", "--out", tmp_path / "fl", *FAST], capsys)
     assert code == 2 and "not in fleet mode" in err and "longest stretch" in err
 
 
@@ -136,9 +137,11 @@ def test_plant(rec_dir, tmp_path, capsys):
     assert d["settings"]["plant"] == "first_order" and "plant first_order" in out
     code, _, err = run([rec_dir / "loop.csv", "--plant", "lake", *FAST], capsys)
     assert code == 2 and "invalid choice" in err
-    # default auto: the loop tag in the file name picks the model, and the output says why
+    # default auto: the loop tag in the file name picks the model, and the output says why; without a tag,
+    # the data choose between a self-regulating and an integrating model (never the level tank)
     d, out, _ = run_json(rec_dir, tmp_path, capsys)
-    assert d["settings"]["plant"] == "tank" and d["settings"]["plant_choice"]["asked"] == "auto"
+    assert d["settings"]["plant"] in ("first_order", "integrating") and d["settings"]["plant_choice"]["asked"] == "auto"
+    assert d["settings"]["plant_choice"]["source"] == "data" and "ARX" in d["settings"]["plant_choice"]["reason"]
     tagged = tmp_path / "2411LIC10201_0005.csv"
     tagged.write_bytes((rec_dir / "loop.csv").read_bytes())
     d, out, _ = run_json(rec_dir, tmp_path, capsys, path=tagged)
@@ -213,7 +216,9 @@ def test_report(rec_dir, tmp_path, capsys):
     names = set(os.listdir(rep))
     assert {"report.md", "diagnosis.json", "overlay.png", "residuals.png"} <= names
     assert not [n for n in names if n.endswith(".tmp")]
-    assert "plant `tank`" in (rep / "report.md").read_text() and "no loop tag" in (rep / "report.md").read_text()
+    text = (rep / "report.md").read_text()
+    assert "no loop tag" in text and "fitted and compared" in text
+    assert "## Why the loop oscillates" in text
 
 
 def test_effects(rec_dir, tmp_path, capsys):
@@ -341,3 +346,29 @@ def test_folder_mode_keeps_good_results_past_a_bad_recording(rec_dir, tmp_path, 
     d = json.loads(out_json.read_text())
     assert [r["recording"]["name"] for r in d["recordings"]] == ["a_good"]
     assert len(d["errors"]) == 1 and "b_bad.csv" in d["errors"][0]["path"] and "line(s) 41" in d["errors"][0]["error"]
+
+
+def test_dayfirst_monthfirst_and_time_unit(tmp_path, capsys):
+    """Dates that read both ways are asked about in one line; --dayfirst/--monthfirst and --time-unit decide."""
+    rec = make_recording("none", seed=4, n=300)
+    from datetime import datetime, timedelta
+    days = [(datetime(2024, 2, 1) + timedelta(days=int(k))) for k in range(300)]
+    p = tmp_path / "days.csv"          # daily samples from 1 February: 01/02/2024, 02/02/2024, ... (M/D reads too)
+    p.write_text("time,OP,PV\n" + "".join(f"{d:%d/%m/%Y},{100 * b},{c}\n" for d, b, c in zip(days[:12], rec.op,
+                                                                                           rec.pv)))
+    code, _, err = run([p, *FAST], capsys)
+    assert code == 2 and "--dayfirst or --monthfirst" in err and len(err.strip().splitlines()) == 1
+    long_ = tmp_path / "days_long.csv"
+    long_.write_text("time,OP,PV\n" + "".join(f"{d:%d/%m/%Y},{100 * b},{c}\n" for d, b, c in zip(days, rec.op,
+                                                                                                rec.pv)))
+    d, out, _ = run_json(None, tmp_path, capsys, "--dayfirst", path=long_)
+    assert d["recording"]["dt"] == 86400.0 and "as given" in " ".join(d["recording"]["notes"])
+    code, _, err = run([long_, "--monthfirst", *FAST], capsys)                 # 13/02/2024 cannot be M/D/Y
+    assert code == 2 and "contradicts --monthfirst" in err
+    ms = tmp_path / "ms.csv"
+    ms.write_text("t,OP,PV\n" + "".join(f"{1720000000000 + 1000 * k},{100 * b},{c}\n"
+                                        for k, (b, c) in enumerate(zip(rec.op, rec.pv))))
+    d, _, _ = run_json(None, tmp_path, capsys, path=ms)
+    assert d["recording"]["dt"] == 1.0 and "epoch milliseconds" in " ".join(d["recording"]["notes"])
+    d, _, _ = run_json(None, tmp_path, capsys, "--time-unit", "s", path=ms)
+    assert d["recording"]["dt"] == 1000.0

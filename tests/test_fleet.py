@@ -86,8 +86,9 @@ def test_wide_export_split_and_load(tmp_path, fmt):
     assert any("resampled" in n for n in a.notes)
     assert any("MODE manual" in n for n in b.notes) and len(b.recording) < len(a.recording)
     assert a.recording.start is not None and a.recording.start.startswith("2024-01-01")
-    with pytest.raises(ValueError, match="--op-range"):
-        load_loop(srcs[0])                                   # OP in percent without a range
+    c = load_loop(srcs[0])                                   # OP in percent without a range: read from the values
+    assert c.recording.op_range == (0.0, 100.0) and any("OP read in percent" in n for n in c.notes)
+    np.testing.assert_allclose(c.recording.op, a.recording.op)
 
 
 def test_screen_rule_of_the_oscillation_detector():

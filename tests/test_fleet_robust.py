@@ -285,7 +285,7 @@ def test_a_hostile_failure_message_leaves_the_worklist_tables_whole(tmp_path):
     ranked = page[page.index("<table>"):page.index("</table>")]
     assert "<script>" not in page and "<em>" not in page and "<code>" not in page and "<a href" not in page
     first = re.findall(r"<td[^>]*>(.*?)</td>", ranked[ranked.index("<tbody>"):], re.S)
-    assert len(first) == 10 and html.unescape(first[-1]) == _flat(HOSTILE) and first[3] == "repair &lt;now&gt;"
+    assert len(first) == 11 and html.unescape(first[-1]) == _flat(HOSTILE) and first[3] == "repair &lt;now&gt;"
     assert all(line.endswith("|") for line in md.splitlines() if line.startswith("|"))   # every row on one line
     own = open(html_path, encoding="utf-8").read()                     # the page the fleet writes itself
     assert f"<td>{html.escape(_flat(HOSTILE))}</td>" in own and "<td>x|y</td>" in own and "\\|" not in own

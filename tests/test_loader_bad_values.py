@@ -117,7 +117,7 @@ def test_a_known_code_in_a_long_run_is_an_outage(tmp_path):
     assert any("4 absurd value(s) of 'PV' (pv)" in r and "a known bad-value code" in r for r in rec.repairs)
     p = write(tmp_path / "l.csv", ["t", "OP", "PV", "SP"], [t, op, long_, sp])
     with pytest.raises(RecordingError, match="gap"):
-        load_recording(p, op_range=(0, 100))
+        load_recording(p, op_range=(0, 100), gaps="error")
     kept = load_recording(p, op_range=(0, 100), gaps="longest")
     assert kept.pv.min() > 0.5 and len(kept) == 270                 # the 270 samples after the outage
 

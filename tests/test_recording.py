@@ -117,8 +117,8 @@ def test_npokhappy_long_gap_and_longest():
     path = data_path("npokhappy_factory/FIC-211_sorted.csv")
     cols = {"t": "timestamp", "op": "OP_valve_FV211", "pv": "PV_flow_FT211"}
     with pytest.raises(RecordingError, match=r"gap.*64 missing samples.*PV_flow_FT211"):
-        load_recording(path, columns=cols, op_range=(0, 100))
-    rec = load_recording(path, columns=cols, op_range=(0, 100), gaps="longest")
+        load_recording(path, columns=cols, op_range=(0, 100), gaps="error")
+    rec = load_recording(path, columns=cols, op_range=(0, 100))           # the default keeps the longest stretch
     assert len(rec) == 6585
     assert any("longest stretch" in r for r in rec.repairs)
     assert any("filled 3 missing" in r for r in rec.repairs)
@@ -371,7 +371,7 @@ def test_long_gap_error_and_longest(tmp_path):
     p = write_csv(tmp_path / "g.csv", ["t", "op", "pv"], zip(t, op, pv))
     with pytest.raises(RecordingError, match=r"longer than max_gap=5.*10 missing samples between "
                                              r"t=59 s and t=70 s in 'pv'"):
-        load_recording(p, op_range=(0, 100))
+        load_recording(p, op_range=(0, 100), gaps="error")
     rec = load_recording(p, op_range=(0, 100), max_gap=10)
     assert len(rec) == 200
     rec = load_recording(p, op_range=(0, 100), gaps="longest")
@@ -490,13 +490,16 @@ def test_missing_rows_short_and_long(tmp_path):
     keep[80:100] = False
     p = write_loop(tmp_path, t=t[keep], op=op[keep], pv=pv[keep], name="long.csv")
     with pytest.raises(RecordingError, match=r"20 missing samples between t=79 s and t=100 s: no rows in the file"):
-        load_recording(p, op_range=(0, 100))
+        load_recording(p, op_range=(0, 100), gaps="error")
 
 
-def test_op_range_required(tmp_path):
-    with pytest.raises(RecordingError, match=r"column 'op' \(op\): values span 30\.\.50, outside 0\.\.1.*"
-                                             r"pass --op-range LO,HI"):
-        load_recording(write_loop(tmp_path))
+def test_op_range_read_from_values(tmp_path):
+    """An output in 30..50 without --op-range is read in percent, and the choice is a note."""
+    rec = load_recording(write_loop(tmp_path))
+    given = load_recording(write_loop(tmp_path), op_range=(0, 100))
+    assert rec.op_range == (0.0, 100.0)
+    np.testing.assert_array_equal(rec.op, given.op)
+    assert any("OP read in percent" in n for n in rec.notes)
 
 
 def test_op_slightly_outside_clipped(tmp_path):
@@ -548,7 +551,7 @@ def test_iso_timestamps(tmp_path):
     assert rec.start == "2024-03-01T10:00:00"
     stamps[7] = "yesterday"
     p = write_csv(tmp_path / "iso2.csv", ["timestamp", "op", "pv"], zip(stamps, op, pv))
-    with pytest.raises(RecordingError, match=r"neither numbers \(seconds\) nor ISO date strings, at line\(s\) 9"):
+    with pytest.raises(RecordingError, match=r"neither numbers \(seconds\) nor dates, at line\(s\) 9"):
         load_recording(p, op_range=(0, 100))
 
 
@@ -592,7 +595,7 @@ def test_long_run_of_absurd_values_is_a_gap_error(tmp_path):
     bad[80:90] = 1e30
     with pytest.raises(RecordingError, match=r"longer than max_gap=5.*10 missing samples between t=79 s "
                                              r"and t=90 s in 'pv'"):
-        load_recording(write_loop(tmp_path, pv=bad), op_range=(0, 100))
+        load_recording(write_loop(tmp_path, pv=bad), op_range=(0, 100), gaps="error")
 
 
 def test_non_finite_time_stamp(tmp_path):
@@ -609,7 +612,7 @@ def test_absurd_time_jump(tmp_path):
     tt[-1] = 1e308
     p = write_loop(tmp_path, t=tt)
     with pytest.raises(RecordingError, match=r"mostly gaps.*line 201: t=198 s to t=1e\+308 s.*gaps='longest'"):
-        load_recording(p, op_range=(0, 100))
+        load_recording(p, op_range=(0, 100), gaps="error")
     rec = load_recording(p, op_range=(0, 100), gaps="longest")
     assert len(rec) == 199 and rec.t[-1] == 198.0
     assert any("longest stretch" in r and "1 jump(s)" in r for r in rec.repairs)

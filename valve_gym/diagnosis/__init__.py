@@ -30,6 +30,7 @@ Examples
 >>> res.effects
 []
 """
+from .causes import OscillationCause, oscillation_cause
 from .diagnose import DiagnosisResult, diagnose, diagnose_many, validate_on
 from .fit import FitResult, ModelFitter, fit_percent, rmse
 from .indices import horch_ccf
@@ -42,4 +43,5 @@ from .select import SelectionRule
 __all__ = ["load_recording", "Recording", "RecordingError", "data_path", "ModelFitter",
            "FitResult", "diagnose", "diagnose_many", "DiagnosisResult", "validate_on",
            "locate_mismatch", "MismatchReport", "SelectionRule", "write_report", "write_json",
-           "rmse", "fit_percent", "PLANTS", "ACTUATORS", "CANDIDATE_EFFECTS", "horch_ccf"]
+           "rmse", "fit_percent", "PLANTS", "ACTUATORS", "CANDIDATE_EFFECTS", "horch_ccf", "OscillationCause",
+           "oscillation_cause"]

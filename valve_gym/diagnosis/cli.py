@@ -3,7 +3,8 @@
 Usage::
 
     valve-gym diagnose REC.csv|DIR [--columns t=COL,op=COL,pv=COL,sp=COL,mv=COL]
-        [--op-range LO,HI] [--mv-range LO,HI] [--dt SECONDS] [--plant auto|tank|integrating|first_order|cascade]
+        [--op-range LO,HI] [--mv-range LO,HI] [--dt SECONDS] [--dayfirst|--monthfirst]
+        [--time-unit s|ms|us|days] [--gaps longest|error] [--plant auto|tank|integrating|first_order|cascade]
         [--actuator valve|pump] [--validate OTHER.csv [--validate-columns MAPPING]] [--holdout FRAC]
         [--json OUT.json] [--report DIR] [--effects LIST] [--jobs N]
         [--effort auto|fast|normal|thorough] [--search full|fast] [--op-lag auto|0|1] [--seed N] [--quiet]
@@ -69,18 +70,28 @@ def build_parser() -> argparse.ArgumentParser:
                                      "TAG.MODE) keeps the longest automatic stretch, mode= reads the "
                                      "whole record")
     p.add_argument("--op-range", help="raw controller-output range LO,HI that maps to 0..1, "
-                                      "e.g. 0,100 for percent")
+                                      "e.g. 0,100 for percent (default: read from the values: 0..1 a fraction, "
+                                      "up to 100 percent, else the observed range, the span unknown; the choice "
+                                      "is reported)")
     p.add_argument("--mv-range", help="raw valve-position range LO,HI that maps to 0..1 (default: the "
                                       "--op-range); the position column is read by the stem test")
     p.add_argument("--dt", metavar="SECONDS",
                    help="sample time of a file without a time column (rows equally spaced; single files and "
                         "folders)")
     p.add_argument("--max-gap", default="5", metavar="N",
-                   help="longest run of missing samples filled by interpolation (default 5); longer gaps "
-                        "are an error unless --gaps longest (fleet mode: the longest stretch without one is kept)")
-    p.add_argument("--gaps", default="error", choices=("error", "longest"),
-                   help="a gap longer than --max-gap: error (default), or keep the longest stretch without one "
-                        "(single files and folders)")
+                   help="longest run of missing samples filled by interpolation (default 5); of a record with "
+                        "longer gaps the longest stretch without one is kept (reported), unless --gaps error")
+    p.add_argument("--gaps", default="longest", choices=("error", "longest"),
+                   help="a gap longer than --max-gap: keep the longest stretch without one (default), or stop "
+                        "with an error (single files and folders)")
+    dates = p.add_mutually_exclusive_group()
+    dates.add_argument("--dayfirst", dest="dayfirst", action="store_const", const=True, default=None,
+                       help="dates are written D/M/Y (default: read from the data; asked only when both fit)")
+    dates.add_argument("--monthfirst", dest="dayfirst", action="store_const", const=False,
+                       help="dates are written M/D/Y")
+    p.add_argument("--time-unit", choices=("s", "ms", "us", "days"), default=None,
+                   help="unit of a numeric time column: s, ms, us (since the start or the epoch) or days "
+                        "(spreadsheet serial days); default: read from the values' size and step")
     p.add_argument("--plant", default="auto", choices=("auto",) + tuple(PLANTS),
                    help="process model (default auto: from the ISA tag of the PV column, else of the file name: "
                         "LIC/LT... integrating, FIC/PIC/TIC/AIC... first_order, no tag: tank)")
@@ -250,7 +261,7 @@ def _check_mode_options(a) -> None:
     if a.out and a.dt is not None:
         raise _UsageError("--dt works with single files and folders, not in fleet mode (--out): a fleet's "
                           "loops carry their time stamps")
-    if a.out and a.gaps != "error":
+    if a.out and a.gaps != "longest":
         raise _UsageError("--gaps works with single files and folders, not in fleet mode (--out): a fleet "
                           "always keeps each loop's longest stretch free of gaps longer than --max-gap")
 
@@ -270,7 +281,7 @@ def _main(argv: list[str]) -> int:
     say = (lambda s: None) if a.quiet else (lambda s: print(s, file=sys.stderr, flush=True))
     max_gap = int(_number(a.max_gap, "--max-gap", int, 0, 10 ** 6))
     load_kw = {"columns": columns, "op_range": op_range, "mv_range": mv_range, "max_gap": max_gap,
-               "gaps": a.gaps, **_sample_time(a)}
+               "gaps": a.gaps, "dayfirst": a.dayfirst, "time_unit": a.time_unit, **_sample_time(a)}
     diag_kw = {"plant": a.plant, "actuator": a.actuator, "candidates": cands,
                "holdout": holdout, "effort": a.effort, "seed": seed, "search": a.search,
                "op_lag": op_lag_value(a.op_lag)}
@@ -348,7 +359,7 @@ def _fleet(a, path, jobs, seed, holdout, cands, op_range, max_gap, say) -> int:
                              op_lag=op_lag_value(a.op_lag),
                              columns=tuple(sorted(cols.items())) if cols else None, op_range=op_range,
                              mv_range=parse_range(a.mv_range, "--mv-range") if a.mv_range else None,
-                             max_gap=max_gap, report_dir=a.report)
+                             max_gap=max_gap, dayfirst=a.dayfirst, time_unit=a.time_unit, report_dir=a.report)
 
     kept = os.path.join(a.out, "loops")
     try:
@@ -403,6 +414,8 @@ def _print_summary(res) -> None:
     choice = res.settings.get("plant_choice", {})
     how = f" ({choice['reason']})" if choice.get("asked") == "auto" else ""
     print(f"{d['recording']['name']}: plant {res.plant}{how}, actuator {res.actuator}")
+    for note in d["recording"].get("notes") or []:
+        print(f"  read: {note}")
     reps = d["recording"].get("repairs") or []
     if reps:
         print(f"  recording repaired ({len(reps)}): " + "; ".join(reps[:3]) + ("; ..." if len(reps) > 3 else ""))
@@ -438,5 +451,9 @@ def _print_summary(res) -> None:
         r = d["mismatch"][0]
         print(f"  largest mismatch: {r['t_start']:g}-{r['t_end']:g} s "
               f"({100 * r['share_sse']:.0f} % of the squared error); {len(d['mismatch'])} region(s)")
+    c = d.get("cause")
+    if c and c.get("oscillating"):
+        print("  cause of the oscillation: " + c["summary"])
+        print("  action: " + c["action"])
     for p in d["explanation"]:
         print("  - " + p)

@@ -19,6 +19,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..effects import candidate_effects, effect_spec
+from .causes import CAUSE_WORDS, OscillationCause, oscillation_cause
 from .explain import explain_combined, explain_effect, explain_none, explain_stiction
 from .fit import (
     AUTO_THOROUGH_SAMPLES,
@@ -57,7 +58,7 @@ __all__ = ["DiagnosisResult", "diagnose", "diagnose_many", "validate_on", "simul
 #: Top-level keys every diagnosis JSON has.
 JSON_SCHEMA_KEYS = ("recording", "settings", "effects", "base", "final", "holdout", "mismatch",
                     "mismatch_conditions", "residual_tests", "candidates", "skipped",
-                    "explanation", "stiction", "validation", "timing")
+                    "explanation", "stiction", "cause", "validation", "timing")
 
 
 def _f(x):
@@ -101,6 +102,7 @@ class DiagnosisResult:
     mismatch_final : MismatchReport of the selected model
     explanation : list of str, one paragraph per added effect (or why none)
     stiction : dict, friction verdict (see :meth:`to_dict`)
+    cause : OscillationCause, the probabilities of the causes of an oscillation, with their evidence
     validation : dict or None, results on another recording
     timing : dict, seconds per stage
     settings : dict
@@ -123,6 +125,8 @@ class DiagnosisResult:
     timing: dict
     settings: dict
     frictionless: FitResult | None = None
+    #: Why the loop oscillates (:func:`~valve_gym.diagnosis.causes.oscillation_cause`), built once
+    cause: OscillationCause | None = None
     #: Simulated PV of the base and final models on the validation recording, and that recording
     _validation_series: tuple[np.ndarray, np.ndarray, Recording] | None = field(default=None, repr=False)
 
@@ -155,6 +159,7 @@ class DiagnosisResult:
             "skipped": dict(self.selection.skipped),
             "explanation": list(self.explanation),
             "stiction": self.stiction,
+            "cause": self.cause.to_dict() if self.cause is not None else None,
             "validation": self.validation,
             "timing": self.timing,
         }
@@ -174,6 +179,7 @@ class DiagnosisResult:
                 "final_fit_percent": self.final.fit_percent_all,
                 "holdout_base_rmse": h["base_rmse"], "holdout_final_rmse": h["final_rmse"],
                 "stiction": self.stiction.get("present"),
+                "cause": self.cause.cause if self.cause is not None else None,
                 "regions": len(self.mismatch.regions),
                 "seconds": self.timing.get("total")}
 
@@ -627,8 +633,10 @@ def diagnose(recording: Recording, plant: str = "auto", actuator: str = "valve",
     plant : {'auto', 'tank', 'integrating', 'first_order', 'cascade'}
         ``'auto'`` (default): from the ISA tag of the PV column, else of the recording's name
         (:func:`~valve_gym.diagnosis.plant_choice.plant_from_name`: ``LIC...``/``LT`` integrating,
-        ``FIC``/``PIC``/``TIC``/``AIC...`` first order, no tag: ``'tank'``); the choice and
-        its reason are in ``settings['plant_choice']``.
+        ``FIC``/``PIC``/``TIC``/``AIC...`` first order), else from the data
+        (:func:`~valve_gym.diagnosis.plant_choice.plant_from_data`: self-regulating or integrating,
+        with or without dead time, fitted and compared); the choice and its reason are in
+        ``settings['plant_choice']``.
     actuator : {'valve', 'pump'}
     candidates : sequence of str, or str, optional
         Candidate effects (default all of
@@ -734,6 +742,7 @@ def diagnose(recording: Recording, plant: str = "auto", actuator: str = "valve",
     base, final, mm, mm_final = fv.base, fv.final, fv.mismatch, fv.mismatch_final
     if validate is not None:
         validate = validate.with_op_lag(lag)
+    cause = _cause(rec, recording, plant, base, final, fv.stiction) if actuator == "valve" else None
     expl = _explanations(rec, sel, base, final, mm)
     _note_friction_conflict(expl, list(sel.effects), fv.stiction)
     _note_poor_fit(expl, final, plant)
@@ -756,7 +765,7 @@ def diagnose(recording: Recording, plant: str = "auto", actuator: str = "valve",
                           base=base, final=final, base_split=base_split, final_split=final_split,
                           selection=sel, mismatch=mm, mismatch_final=mm_final, explanation=expl,
                           stiction=fv.stiction, validation=None, timing=timing, settings=settings,
-                          frictionless=fv.frictionless)
+                          frictionless=fv.frictionless, cause=cause)
     if validation is not None:
         assert validate is not None
         res._validation_series = (validation.pop("_y_base"), validation.pop("_y_final"), validate)
@@ -766,6 +775,39 @@ def diagnose(recording: Recording, plant: str = "auto", actuator: str = "valve",
 
 def _refit_task(args):
     return _refit_full(*args)
+
+
+def _cause(rec: Recording, logged: Recording, plant: str, base: FitResult, final: FitResult,
+           stiction: dict) -> OscillationCause:
+    """The cause of the loop's oscillation (:func:`~.causes.oscillation_cause`); the stiction verdict follows it.
+
+    Where the loop oscillates and another cause is more probable than stiction, with the stiction
+    probability below one half, ``stiction['present']`` becomes False and ``stiction['verdict']``
+    ``'no stiction'`` (the verdicts before are kept in ``present_before_cause`` and
+    ``verdict_before_cause``) and the explanation says why: an oscillation alone is no evidence
+    against the valve when the tuning, a disturbance or the sensor explains it.
+    """
+    physical = dict(base.physical)
+    if "dead_time.theta" in final.physical:
+        physical["dead_time.theta"] = final.physical["dead_time.theta"]
+    said = tuple(rec.notes) + tuple(rec.repairs)
+    span_known = not any("OP span unknown" in s for s in said)
+    p = stiction.get("probability")
+    c = oscillation_cause(logged.op, logged.pv, float(logged.dt or 1.0), sp=logged.sp, plant=plant,
+                          p_stiction=float(p) if isinstance(p, (int, float)) else math.nan, physical=physical,
+                          y_model=final.y_sim if len(final.y_sim) == len(logged) else None,
+                          evidence=stiction.get("evidence") or (),
+                          op_span=float(rec.op_range[1] - rec.op_range[0]), span_known=span_known)
+    stiction["present_before_cause"] = bool(stiction.get("present", False))
+    if (c.oscillating and stiction.get("present") and c.cause != "stiction" and c.p_stiction < 0.5
+            and stiction.get("verdict_source") != "stem"):
+        stiction["present"] = False
+        stiction["verdict_before_cause"] = stiction.get("verdict")
+        stiction["verdict"] = "no stiction"
+        stiction["explanation"] = (stiction.get("explanation", "") + " " + (
+            f"The oscillation is better explained as {CAUSE_WORDS[c.cause]} (p = {c.probabilities[c.cause]:.2f}, "
+            f"stiction {c.p_stiction:.2f}): the verdict is no stiction.")).strip()
+    return c
 
 
 
@@ -901,7 +943,8 @@ def _check_arguments(recording: Recording, plant: str, actuator: str, holdout: f
     """Check the arguments of :func:`diagnose`: the plant (``'auto'`` resolved), its choice, the candidates."""
     if not isinstance(recording, Recording):
         raise TypeError("diagnose() needs a Recording (see load_recording)")
-    plant, plant_choice = resolve_plant(plant, recording.name, recording.columns.get("pv"))
+    plant, plant_choice = resolve_plant(plant, recording.name, recording.columns.get("pv"), recording.op,
+                                        recording.pv, float(recording.dt or 1.0))
     if plant not in PLANTS:
         raise ValueError(f"unknown plant {plant!r}; choose 'auto' or one of {', '.join(PLANTS)}")
     if actuator not in ACTUATORS:

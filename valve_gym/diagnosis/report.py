@@ -294,6 +294,8 @@ def _md_summary(res, d: dict) -> list[str]:
     L.append(f"{rec['n']} samples, dt = {_g(rec['dt'])} s, plant `{res.plant}`, actuator "
              f"`{res.actuator}`; held-out end: {_g(100 * d['holdout']['fraction'], 3)} % of the "
              f"record.")
+    if rec.get("notes"):
+        L.append("How the file was read: " + "; ".join(rec["notes"]) + ".")
     choice = d.get("settings", {}).get("plant_choice", {})
     if choice.get("reason"):
         L.append(f"Plant model (`--plant auto`): {choice['reason']}.")
@@ -319,6 +321,28 @@ def _md_summary(res, d: dict) -> list[str]:
         pi = "" if h["phase_index"] is None else f", phase index {h['phase_index']:.2f}"
         L.append(f"- Second opinion, without a model (Horch's cross-correlation test, not part of "
                  f"the verdict): {h['verdict']}{pi}: {h['reason']}.")
+    L.append("")
+    L += _md_cause(d.get("cause"))
+    return L
+
+
+def _md_cause(c: dict | None) -> list[str]:
+    """The cause of the oscillation: probabilities, evidence in words, action (docs/causes.md)."""
+    if not c:
+        return []
+    L = ["## Why the loop oscillates", ""]
+    if not c.get("oscillating"):
+        return L + [c.get("summary", ""), ""]
+    L.append(c["summary"])
+    L.append("")
+    L.append("| cause | probability |")
+    L.append("|---|---:|")
+    for k, v in c["probabilities"].items():
+        L.append(f"| {k} | {_g(v, 3)} |")
+    L.append("")
+    L.extend(f"- ({e['cause']}, {e['pull']:+.1f}) {e['statement']}" for e in c["evidence"])
+    L.append("")
+    L.append(f"**Action:** {c['action']}.")
     L.append("")
     return L
 

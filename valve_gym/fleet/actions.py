@@ -108,6 +108,9 @@ RULES = (
          + COMPENSATOR[0] + " with S = {S}"),
     Rule("compensate", f"oscillates, w >= {W_HIGH}, S < {S_SEVERE:.0%} of stroke",
          "run " + COMPENSATOR[0] + " with the stiction estimate S = {S}; repair the valve when convenient"),
+    Rule("cause", "oscillates, and the most probable cause of the oscillation is not the valve "
+                  "(valve_gym.diagnosis.causes)",
+         "{cause_action}"),
     Rule("retune", f"oscillates, w <= {W_LOW}",
          "retune the controller or find the oscillating disturbance (the valve is not the cause)"),
     Rule("undecided", "oscillates, otherwise",
@@ -146,7 +149,7 @@ def _pct(x: float) -> str:
 
 
 def recommend(status: str, message: str, oscillating: bool, verdict: str, weight: float, S: float,
-              amplitude_op: float) -> tuple[str, str]:
+              amplitude_op: float, cause=None) -> tuple[str, str]:
     """The first rule of :data:`RULES` that matches; returns ``(rule name, action text)``.
 
     Parameters
@@ -157,6 +160,9 @@ def recommend(status: str, message: str, oscillating: bool, verdict: str, weight
     weight : float, evidence weight 0..1
     S : float, stick band [fraction of stroke], NaN when unknown
     amplitude_op : float, controller-output amplitude [fraction of stroke]
+    cause : OscillationCause, optional, the cause of the oscillation (:mod:`valve_gym.diagnosis.causes`):
+        where it names another cause than the valve, the action follows it (retune with the suggested
+        gain, find the upstream source, check the transmitter or the output's limits)
     """
     band = S if _finite(S) else amplitude_op
     band_txt = _pct(S) if _finite(S) else (f"~{_pct(amplitude_op)} (from the OP swing; not estimated)"
@@ -165,6 +171,9 @@ def recommend(status: str, message: str, oscillating: bool, verdict: str, weight
         name = "data"
     elif not oscillating:
         name = "inspect" if verdict == "yes" else "quiet"
+    elif cause is not None and getattr(cause, "oscillating", False) and cause.cause != "stiction" \
+            and weight < W_HIGH:
+        name = "cause"
     elif weight >= W_HIGH:
         name = "repair" if _finite(band) and band >= S_SEVERE else "compensate"
     elif weight <= W_LOW:
@@ -172,4 +181,5 @@ def recommend(status: str, message: str, oscillating: bool, verdict: str, weight
     else:
         name = "undecided"
     rule = next(r for r in RULES if r.name == name)
-    return name, rule.action.format(S=band_txt, message=message)
+    return name, rule.action.format(S=band_txt, message=message,
+                                    cause_action=cause.action() if cause is not None else "")

@@ -9,6 +9,7 @@ says so.
 """
 from __future__ import annotations
 
+import json
 import math
 import os
 import time
@@ -107,9 +108,12 @@ def _full(rec, settings: FleetSettings, loop: str):
     return res
 
 
-def _evidence(sc: Screen, sn: StictionNumbers | None, w_src: str) -> str:
+def _evidence(sc: Screen, sn: StictionNumbers | None, w_src: str, cause=None) -> str:
     o = sc.oscillation
     parts = [o.reason]
+    if cause is not None and cause.oscillating:
+        p = cause.probabilities
+        parts.append(f"cause: {cause.cause} (" + ", ".join(f"{c} {v:.2f}" for c, v in p.items()) + ")")
     if o.present:
         parts.append(f"OP swing {100 * sc.amplitude_op:.1f} % of stroke")
     if sc.horch.verdict not in ("not applicable",) and not math.isnan(sc.horch.phase_index):
@@ -124,28 +128,46 @@ def _evidence(sc: Screen, sn: StictionNumbers | None, w_src: str) -> str:
     return "; ".join(parts)
 
 
-def _ok_result(src: LoopSource, key: str, loaded, sc: Screen, res, seconds: float, cpu: float) -> LoopResult:
+def _cause_fields(cause) -> dict:
+    """The cause columns of a loop's row (:class:`~valve_gym.diagnosis.causes.OscillationCause`)."""
+    if cause is None:
+        return {}
+    p = cause.probabilities
+    nan = math.nan
+    return {"cause": cause.cause, "p_valve": p.get("stiction", nan), "p_tuning": p.get("tuning", nan),
+            "p_disturbance": p.get("disturbance", nan), "p_sensor": p.get("sensor", nan),
+            "p_saturation": p.get("saturation", nan), "suggested_kc": cause.suggested_Kc_raw,
+            "cause_evidence": cause.sentence() if cause.oscillating else "",
+            "cause_scores": json.dumps(dict(cause.scores)) if cause.scores else ""}
+
+
+def _ok_result(src: LoopSource, key: str, loaded, sc: Screen, res, seconds: float, cpu: float,
+               cause=None) -> LoopResult:
     rec = loaded.recording
     o = sc.oscillation
     sn = stiction_numbers(res) if res is not None else None
     verdict = sn.verdict if sn else "not tested"
     p = sn.p if sn else math.nan
+    if res is not None:
+        cause = getattr(res, "cause", None)
     w, w_src = evidence_weight(p, verdict, sc.horch.phase_index)
+    if cause is not None and cause.oscillating:
+        w, w_src = cause.p_stiction, "probability that the valve causes the oscillation"
     S = sn.S if sn else math.nan
-    _, action = recommend("ok", "", o.present, verdict, w, S, sc.amplitude_op)
+    _, action = recommend("ok", "", o.present, verdict, w, S, sc.amplitude_op, cause)
     effects, rb, rf = "", math.nan, math.nan
     if res is not None:
         effects = ";".join(res.effects) or "none"
         rb, rf = float(res.base.rmse_all), float(res.final.rmse_all)
     return LoopResult(
-        loop=src.name, status="ok", message=_evidence(sc, sn, w_src), stiction=verdict, S=S,
+        loop=src.name, status="ok", message=_evidence(sc, sn, w_src, cause), stiction=verdict, S=S,
         J=sn.J if sn else math.nan, effects=effects, rmse_base=rb, rmse_final=rf, oscillation=o.amplitude,
         seconds=seconds, cpu_seconds=cpu, p_stiction=p, weight=w, score=score(w, sc.amplitude_op, o.present),
         action=action,
         stage="full" if res is not None else "screen", oscillating=o.present, regularity=o.regularity,
         period_s=o.period_s, amplitude_op=sc.amplitude_op, horch=sc.horch.verdict,
         horch_index=sc.horch.phase_index, n=len(rec), dt=float(rec.dt), gaps=len(loaded.gaps),
-        notes=loaded.notes, source=src.path, tag=src.tag, key=key)
+        notes=loaded.notes, source=src.path, tag=src.tag, key=key, **_cause_fields(cause))
 
 
 def failed_result(src: LoopSource, key: str, status: str, message: str, seconds: float = 0.0) -> LoopResult:
@@ -174,13 +196,22 @@ def analyse_loop(src: LoopSource, settings: FleetSettings, key: str = "") -> Loo
     t0, c0 = time.perf_counter(), time.process_time()
     try:
         loaded = load_loop(src, columns=dict(settings.columns) if settings.columns else None,
-                           op_range=settings.op_range, max_gap=settings.max_gap, mv_range=settings.mv_range)
+                           op_range=settings.op_range, max_gap=settings.max_gap, mv_range=settings.mv_range,
+                           dayfirst=settings.dayfirst, time_unit=settings.time_unit)
         rec = loaded.recording
-        sc = screen_recording(rec, resolve_plant(settings.plant, rec.name, rec.columns.get("pv"))[0])
-        res = None
+        sc = screen_recording(rec, resolve_plant(settings.plant, rec.name, rec.columns.get("pv"), rec.op, rec.pv,
+                                                 float(rec.dt or 1.0))[0])
+        res, cause = None, None
         if settings.full or sc.oscillation.present or position_sticks(rec):
-            res = _full(loaded.recording, settings, src.name)
-        return _ok_result(src, key, loaded, sc, res, time.perf_counter() - t0, time.process_time() - c0)
+            try:
+                res = _full(loaded.recording, settings, src.name)
+            except ValueError as e:
+                if "takes only" not in str(e):
+                    raise
+                # a PV of a few levels: no model to fit, but its quantisation is the evidence
+                from ..diagnosis.causes import cause_from_data
+                cause = cause_from_data(rec)
+        return _ok_result(src, key, loaded, sc, res, time.perf_counter() - t0, time.process_time() - c0, cause)
     except (RecordingError, ValueError) as e:
         return failed_result(src, key, "failed", str(e).splitlines()[0] if str(e) else type(e).__name__,
                              time.perf_counter() - t0)

@@ -14,13 +14,16 @@ __all__ = ["FleetSettings", "LoopResult", "TABLE_COLUMNS", "RESULT_VERSION", "lo
 #: 2: a recorded valve position (``mv``) sends a loop to the full diagnosis and decides its verdict.
 #: 3: a wide export's tags read status texts as missing samples, refuse duplicated columns and time stamps
 #: that go back, and ``--columns mode=`` switches the mode column off (it was read regardless).
-RESULT_VERSION = 3
+#: 4: the OP's range and the time stamps' format read from the data, the process model chosen from the data
+#: where no tag says it, and the cause of an oscillation (``cause``, ``p_*``, ``cause_evidence``).
+RESULT_VERSION = 4
 
 #: Columns of ``loops.parquet`` / ``loops.csv``, in order (the first eleven are the issue's minimum).
 TABLE_COLUMNS = ("loop", "status", "message", "stiction", "S", "J", "effects", "rmse_base", "rmse_final",
                  "oscillation", "seconds", "cpu_seconds", "p_stiction", "weight", "score", "action", "stage",
                  "oscillating", "regularity", "period_s", "amplitude_op", "horch", "horch_index", "n", "dt", "gaps",
-                 "source", "tag", "key")
+                 "source", "tag", "key", "cause", "p_valve", "p_tuning", "p_disturbance", "p_sensor", "p_saturation",
+                 "suggested_kc", "cause_evidence", "cause_scores")
 
 
 @dataclass(frozen=True)
@@ -44,6 +47,9 @@ class FleetSettings:
     op_range : (lo, hi), optional, raw controller-output range mapped to 0..1
     mv_range : (lo, hi), optional, raw valve-position range mapped to 0..1 (default: ``op_range``)
     max_gap : int, longest stretch without samples bridged, in scans
+    dayfirst : bool or None, dates ``D/M/Y`` (True) or ``M/D/Y`` (False); None reads it from the data
+    time_unit : str or None, unit of a numeric time column (``'s'``, ``'ms'``, ``'us'``, ``'days'``); None
+        reads it from the data
     report_dir : str, optional, folder for a full report per fully diagnosed loop
     """
 
@@ -60,6 +66,8 @@ class FleetSettings:
     op_range: tuple[float, float] | None = None
     max_gap: int = 5
     mv_range: tuple[float, float] | None = None
+    dayfirst: bool | None = None
+    time_unit: str | None = None
     report_dir: str | None = field(default=None, compare=False)
 
     def hash_text(self) -> str:
@@ -70,8 +78,9 @@ class FleetSettings:
             d.pop("search")
         if d["op_lag"] == 0:                # the default before auto: those runs keep their keys
             d.pop("op_lag")
-        if d["mv_range"] is None:           # the default: the position read like the output
-            d.pop("mv_range")
+        for k in ("mv_range", "dayfirst", "time_unit"):     # the defaults: read from the data
+            if d[k] is None:
+                d.pop(k)
         d["version"] = RESULT_VERSION
         return json.dumps(d, sort_keys=True, default=list)
 
@@ -123,6 +132,13 @@ class LoopResult:
     notes : tuple of str, repairs and resampling done
     source : str, file; tag : str, tag of a wide export
     key : str, resume key (content + settings hash)
+    cause : str, most probable cause of the oscillation (``'stiction'``, ``'tuning'``, ``'disturbance'``,
+        ``'sensor'``, ``'saturation'``; ``'none'`` when it does not oscillate; ``''`` when not diagnosed),
+        :mod:`valve_gym.diagnosis.causes`
+    p_valve, p_tuning, p_disturbance, p_sensor, p_saturation : float, probability of each cause (NaN without one)
+    suggested_kc : float, controller gain for a gain margin of 2 [OP units per PV unit] (NaN unless tuning)
+    cause_evidence : str, the cause and its evidence in words
+    cause_scores : str, the causes' log-odds scores as JSON (for the fleet's shared-period evidence)
     """
 
     loop: str
@@ -155,6 +171,15 @@ class LoopResult:
     source: str = ""
     tag: str = ""
     key: str = ""
+    cause: str = ""
+    p_valve: float = math.nan
+    p_tuning: float = math.nan
+    p_disturbance: float = math.nan
+    p_sensor: float = math.nan
+    p_saturation: float = math.nan
+    suggested_kc: float = math.nan
+    cause_evidence: str = ""
+    cause_scores: str = ""
 
     def to_dict(self) -> dict:
         """JSON-ready dict (NaN -> None, tuples -> lists)."""

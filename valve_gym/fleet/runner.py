@@ -37,6 +37,7 @@ from dataclasses import fields, replace
 from typing import Any, NamedTuple
 
 from .analyse import analyse_loop, failed_result
+from .plantwide import apply_shared_periods
 from .progress import Progress
 from .result import FleetSettings, LoopResult, loop_key
 from .sources import FLEET_OUTPUT_FILES, LoopSource, discover_loops, fleet_outputs
@@ -656,7 +657,7 @@ def run_fleet(path: str, out_dir: str, settings: FleetSettings = FleetSettings()
             left = _run_todo(todo, keys, settings, jobs, address, out_dir, results, bar, on_result, stream, stop,
                              ray_stack)
         stop.text = "stopping once the table and the worklist are written (a few seconds)"
-        ordered = [results[s.name] for s in sources if s.name in results]
+        ordered = apply_shared_periods([results[s.name] for s in sources if s.name in results])
         remaining = len(left) + len(later)
         p_table, p_csv = write_table(ordered, out_dir)
         md, html = write_worklist(ordered, sources, out_dir, settings, top=top, pending=remaining)

@@ -42,6 +42,7 @@ import math
 import os
 import re
 from dataclasses import dataclass
+from datetime import datetime, timezone
 from typing import NamedTuple
 
 import numpy as np
@@ -53,6 +54,7 @@ from ..diagnosis.recording.mode import MANUAL_MODES, automatic, automatic_stretc
 from ..diagnosis.recording.parse import parse_numbers
 from ..diagnosis.recording.read import arrow_to_numpy
 from ..diagnosis.recording.sniff import recording_files
+from ..diagnosis.recording.units import infer_op_range, numeric_time_unit, parse_stamps
 from ..diagnosis.recording.validate import check_increasing
 from .result import TABLE_COLUMNS
 
@@ -429,19 +431,38 @@ def _text_cells(src: LoopSource, t_raw: np.ndarray, column: str, bad: np.ndarray
                  f"(rows count the data rows after the header)")
 
 
-def _seconds(t_raw: np.ndarray, src: LoopSource, notes: list[str]) -> tuple[np.ndarray, str | None]:
+def _numeric_seconds(t: np.ndarray, src: LoopSource, notes: list[str],
+                     time_unit: str | None) -> tuple[np.ndarray, str | None]:
+    """Numbers of a time column as seconds: since the start, or epoch (s, ms, us) or serial days, as read."""
+    try:
+        f, epoch0, note = numeric_time_unit(t, time_unit)
+    except RecordingError as e:
+        raise RecordingError(f"{src.path}: column {src.time_column!r}: {e}") from None
+    if note:
+        notes.append(note)
+    if epoch0 is None:
+        return t * f, None
+    ok = np.flatnonzero(np.isfinite(t))
+    start = datetime.fromtimestamp(epoch0, timezone.utc).strftime("%Y-%m-%d %H:%M:%S")
+    return (t - t[ok[0]]) * f, start
+
+
+def _seconds(t_raw: np.ndarray, src: LoopSource, notes: list[str], dayfirst: bool | None = None,
+             time_unit: str | None = None) -> tuple[np.ndarray, str | None]:
     """Time stamps as float seconds (and the first stamp as ISO text when they are dates).
 
-    A few cells of a text column that are neither numbers nor dates are rows without a time stamp
-    (:func:`_text_cells`).
+    Numbers are seconds, epoch seconds, milliseconds or spreadsheet days, and text dates are ISO,
+    day-first or month-first, as :mod:`~valve_gym.diagnosis.recording.units` reads them (the
+    choice in ``notes``).  A few cells of a text column that are neither numbers nor dates are rows
+    without a time stamp (:func:`_text_cells`).
     """
     if t_raw.dtype.kind in "fiu":
-        return np.asarray(t_raw, float), None
+        return _numeric_seconds(np.asarray(t_raw, float), src, notes, time_unit)
     if t_raw.dtype.kind == "M":
         ns = t_raw.astype("datetime64[ns]")
     else:
         try:
-            return np.asarray(t_raw, dtype=float), None
+            return _numeric_seconds(np.asarray(t_raw, dtype=float), src, notes, time_unit)
         except (TypeError, ValueError):
             pass
         cells = np.asarray(t_raw, dtype=object)
@@ -450,16 +471,21 @@ def _seconds(t_raw: np.ndarray, src: LoopSource, notes: list[str]) -> tuple[np.n
             num, bad, nonfin = parse_numbers(cells)
             _text_cells(src, t_raw, src.time_column, np.asarray(bad, int), cells,
                         int(np.isfinite(num).sum()) + len(bad) + len(nonfin), notes)
-            return num, None
-        import warnings
-
-        import pandas as pd
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", UserWarning)    # a format inferred cell by cell
-            ns = pd.to_datetime(pd.Series(cells), errors="coerce", utc=True).dt.tz_localize(None).to_numpy()
-        nat = np.flatnonzero(np.isnat(ns))
-        bad = np.asarray([i for i in nat if str(cells[i]).strip().lower() not in MISSING_TOKENS], int)
-        _text_cells(src, t_raw, src.time_column, bad, cells, len(ns) - nat.size + bad.size, notes)
+            return _numeric_seconds(num, src, notes, time_unit)
+        present = [i for i, c in enumerate(cells) if c is not None and str(c).strip().lower() not in MISSING_TOKENS]
+        try:
+            sec, bad_i, note = parse_stamps(cells, present, dayfirst)
+        except RecordingError as e:
+            raise RecordingError(f"{src.path}: column {src.time_column!r}: {e}") from None
+        if -1 in bad_i:
+            raise RecordingError(f"{src.path}: column {src.time_column!r}: mixes time stamps with and without a "
+                                 f"time zone; write all of them the same way")
+        _text_cells(src, t_raw, src.time_column, np.asarray(bad_i, int), cells, len(present), notes)
+        if note:
+            notes.append(note)
+        ns = np.full(len(cells), np.datetime64("NaT"), dtype="datetime64[ns]")
+        okp = np.isfinite(sec)
+        ns[okp] = (np.round(sec[okp] * 1e9)).astype(np.int64).astype("datetime64[ns]")
     ok = ~np.isnat(ns)
     if not ok.any():
         raise RecordingError(f"{src.path}: tag {src.tag!r}: the time column holds neither numbers nor dates")
@@ -604,11 +630,9 @@ def _automatic_stretch(values: dict[str, np.ndarray], grid: np.ndarray, notes: l
 
 
 def _normalise_op(op: np.ndarray, op_range, where: str, notes: list[str]) -> tuple[np.ndarray, tuple]:
-    if op_range is None:
-        if op.min() < 0.0 or op.max() > 1.0:
-            raise RecordingError(f"{where}: OP values {op.min():g}..{op.max():g} lie outside 0..1; give the "
-                                 f"controller-output range with --op-range LO,HI (e.g. 0,100 for percent)")
-        return op, (0.0, 1.0)
+    if op_range is None:            # read from the values: fraction, percent or unknown span (never a failure)
+        op_range, said = infer_op_range(op)
+        notes.append(said)
     lo, hi = (float(v) for v in op_range)
     tol = 0.05 * (hi - lo)
     if op.min() < lo - tol or op.max() > hi + tol:
@@ -626,13 +650,14 @@ def _ordered(t: np.ndarray, t_raw: np.ndarray, src: LoopSource, dated: bool) -> 
                      lambda i: _stamp(t_raw, int(ok[i])), dated)
 
 
-def _load_wide(src: LoopSource, op_range, max_gap: int, off: tuple[str, ...] = ()) -> LoadedLoop:
+def _load_wide(src: LoopSource, op_range, max_gap: int, off: tuple[str, ...] = (), dayfirst: bool | None = None,
+               time_unit: str | None = None) -> LoadedLoop:
     where = f"{src.path}: tag {src.tag!r}"
     roles = {r: c for r, c in src.columns if r not in off}
     cols, text = _read_wide_columns(src, roles)
     t_raw = cols.pop("t")
     notes: list[str] = []
-    t, start = _seconds(t_raw, src, notes)
+    t, start = _seconds(t_raw, src, notes, dayfirst, time_unit)
     _ordered(t, t_raw, src, start is not None)
     for role, (bad, cells) in text.items():
         filled = int(np.isfinite(cols[role]).sum()) + bad.size
@@ -658,7 +683,8 @@ def _load_wide(src: LoopSource, op_range, max_gap: int, off: tuple[str, ...] = (
     return LoadedLoop(rec, tuple(gaps), tuple(notes))
 
 
-def load_loop(src: LoopSource, columns=None, op_range=None, max_gap: int = 5, mv_range=None) -> LoadedLoop:
+def load_loop(src: LoopSource, columns=None, op_range=None, max_gap: int = 5, mv_range=None,
+              dayfirst: bool | None = None, time_unit: str | None = None) -> LoadedLoop:
     """Read one loop.
 
     Parameters
@@ -667,9 +693,12 @@ def load_loop(src: LoopSource, columns=None, op_range=None, max_gap: int = 5, mv
     columns : dict, optional, role -> column name for one-recording CSV files (as ``--columns``); of a
         wide export's tag only the optional roles switched off are used (``{'mode': None}``: the
         ``TAG.MODE`` column is not read, the whole record is; ``{'sp': None}`` likewise)
-    op_range : (lo, hi), optional, raw controller-output range that maps to 0..1
+    op_range : (lo, hi), optional, raw controller-output range that maps to 0..1 (default: read from the
+        values, :func:`~valve_gym.diagnosis.recording.units.infer_op_range`, the choice in the notes)
     max_gap : int, longest stretch without samples bridged by interpolation, in scans
     mv_range : (lo, hi), optional, raw valve-position range (one-recording files; default ``op_range``)
+    dayfirst : bool or None, dates ``D/M/Y`` (True) or ``M/D/Y`` (False); None reads it from the data
+    time_unit : str or None, unit of a numeric time column; None reads it from the data
 
     Returns
     -------
@@ -685,9 +714,9 @@ def load_loop(src: LoopSource, columns=None, op_range=None, max_gap: int = 5, mv
         raise RecordingError(src.problem)
     if src.kind == "wide":
         off = tuple(r for r, c in (columns or {}).items() if r in ("sp", "mode") and not (c and str(c).strip()))
-        return _load_wide(src, op_range, max_gap, off)
+        return _load_wide(src, op_range, max_gap, off, dayfirst, time_unit)
     rec = load_recording(src.path, columns=columns, op_range=op_range, name=src.name, max_gap=max_gap,
-                         gaps="longest", mv_range=mv_range)
+                         gaps="longest", mv_range=mv_range, dayfirst=dayfirst, time_unit=time_unit)
     n_gaps = sum(int(m) for r in rec.repairs for m in re.findall(r"(\d+) gap\(s\)", r))
     gaps = tuple(Gap("pv", math.nan, math.nan) for _ in range(n_gaps))     # times are in the notes
-    return LoadedLoop(rec, gaps, tuple(rec.repairs))
+    return LoadedLoop(rec, gaps, tuple(rec.repairs) + tuple(rec.notes))

@@ -56,9 +56,21 @@ def _summary(results: Sequence[LoopResult], pending: int = 0) -> list[str]:
     return lines
 
 
+def _cause_cell(r: LoopResult) -> str:
+    """``cause (0.71 / 0.10 / ...)`` of a loop, or ``n/a`` where no cause was read."""
+    if not r.cause or r.cause == "none":
+        return "n/a"
+    ps = (r.p_valve, r.p_tuning, r.p_disturbance, r.p_sensor, r.p_saturation)
+    return f"{r.cause} (" + " / ".join(_g(p, ".2f") for p in ps) + ")"
+
+
 def _rules_md() -> list[str]:
     out = [md_row(("rule", "when", "action")), "|---|---|---|"]
-    out += [md_row((r.name, r.when, r.action.format(S="S", message="the message"))) for r in RULES]
+    out += [md_row((r.name, r.when, r.action.format(S="S", message="the message",
+                                                    cause_action="the cause's action: repair the valve / retune "
+                                                                 "with the suggested Kc / find the upstream source / "
+                                                                 "check the transmitter / check the output limits")))
+            for r in RULES]
     return out
 
 
@@ -68,15 +80,17 @@ def _md(results: Sequence[LoopResult], settings: FleetSettings, max_rows: int, p
              f"Ranked by score = w x OP oscillation amplitude [% of stroke] (w: stiction evidence weight; "
              f"see 'How the ranking works'). Plant model {_plant_words(settings.plant)}, "
              f"actuator {settings.actuator}.", "",
-             md_row(("#", "loop", "score", "action", "S", "J", "w", "PV amplitude", "period [s]", "evidence")),
-             "|---:|---|---:|---|---:|---:|---:|---:|---:|---|"]
+             md_row(("#", "loop", "score", "action", "cause (p valve / tuning / disturbance / sensor / saturation)",
+                     "S", "J", "w", "PV amplitude", "period [s]", "evidence")),
+             "|---:|---|---:|---|---|---:|---:|---:|---:|---:|---|"]
     for i, r in enumerate(ranked[:max_rows], 1):
-        lines.append(md_row((i, r.loop, _g(r.score, ".2f"), r.action, _pct(r.S), _pct(r.J), _g(r.weight, ".2f"),
-                             _g(r.oscillation), _g(r.period_s, ".0f"), r.message)))
+        lines.append(md_row((i, r.loop, _g(r.score, ".2f"), r.action, _cause_cell(r), _pct(r.S), _pct(r.J),
+                             _g(r.weight, ".2f"), _g(r.oscillation), _g(r.period_s, ".0f"),
+                             (r.cause_evidence + " " if r.cause_evidence else "") + r.message)))
     if len(ranked) > max_rows:
         lines.append(f"\n{len(ranked) - max_rows} more oscillating loops in loops.csv.")
     if not ranked:
-        lines.append(md_row(("", "no loop oscillates", "", "nothing", "", "", "", "", "", "")))
+        lines.append(md_row(("", "no loop oscillates", "", "nothing", "", "", "", "", "", "", "")))
     bad = [r for r in results if r.status != "ok"]
     if bad:
         lines += ["", "## Loops that could not be analysed", "", md_row(("loop", "status", "message")), "|---|---|---|"]
@@ -84,7 +98,9 @@ def _md(results: Sequence[LoopResult], settings: FleetSettings, max_rows: int, p
     lines += ["", "## How the ranking works", "",
               "score = w x 100 A_OP, with A_OP the controller output's oscillation amplitude (fraction of stroke; "
               "0 when the loop does not oscillate, by Thornhill's regularity of the ACF zero crossings) and w the "
-              "stiction evidence weight: the diagnosis' calibrated probability when it reports one, else the mean of "
+              "stiction evidence weight: the probability that the valve causes the oscillation "
+              "(valve_gym.diagnosis.causes, docs/causes.md) where the loop was diagnosed in full, else the diagnosis' "
+              "calibrated stiction probability when it reports one, else the mean of "
               "the model verdict (yes 1, no 0) and Horch's phase index. "
               f"w >= {W_HIGH}: the valve is the cause; w <= {W_LOW}: it is not. A stick band S >= {S_SEVERE:.0%} "
               "of stroke is severe. First matching rule:", "", *_rules_md(), ""]
@@ -98,7 +114,8 @@ def loop_plots(src: LoopSource, settings: FleetSettings, period_s: float) -> tup
     import matplotlib.pyplot as plt
 
     rec = load_loop(src, columns=dict(settings.columns) if settings.columns else None,
-                    op_range=settings.op_range, max_gap=settings.max_gap, mv_range=settings.mv_range).recording
+                    op_range=settings.op_range, max_gap=settings.max_gap, mv_range=settings.mv_range,
+                    dayfirst=settings.dayfirst, time_unit=settings.time_unit).recording
     dt = float(rec.dt or 1.0)
     m = int(min(len(rec), 600, 4 * period_s / dt if math.isfinite(period_s) and period_s > 0 else 600))
     sl = slice(len(rec) - m, len(rec))

@@ -20,6 +20,7 @@ from .read import CHUNK_ROWS, RawColumns, read_columns
 from .record import Recording
 from .repair import Grid, drop_duplicates, fill_gaps, regrid
 from .sniff import Sniffed, sniff
+from .units import infer_op_range
 from .validate import LoadOptions, check_constant, check_options, check_time_order, mark_absurd, normalise
 
 __all__ = ["load_recording"]
@@ -41,12 +42,14 @@ def load_recording(
     name: str | None = None,
     max_gap: int = 5,
     resample: bool | str = "auto",
-    gaps: str = "error",
+    gaps: str = "longest",
     mv_range: tuple[float, float] | None = None,
     *,
     max_samples: int | None = DEFAULT_MAX_SAMPLES,
     engine: str = "auto",
     dt: float | None = None,
+    dayfirst: bool | None = None,
+    time_unit: str | None = None,
 ) -> Recording:
     """Read a control-loop recording from a CSV or Parquet file.
 
@@ -80,13 +83,19 @@ def load_recording(
         role left out is looked up among :data:`DEFAULT_COLUMN_NAMES`
         (case-insensitive; ``t``, ``op``, ``pv`` are required, ``sp`` and
         ``mv`` optional); map a role to None to ignore it.
-        The time column holds seconds, or ISO 8601 date strings
-        (``2024-11-21 00:01:00``; converted to seconds since the first
-        sample, naive stamps taken as UTC).
+        The time column holds seconds (since the start, or epoch seconds,
+        milliseconds or microseconds, or spreadsheet serial days: read from
+        their magnitude and step, :func:`~.units.numeric_time_unit`), or date
+        strings (ISO 8601 ``2024-11-21 00:01:00``, ``D/M/Y`` or ``M/D/Y`` with
+        a 24- or 12-hour clock, ``18-Jul-2024 00:35``: :func:`~.units.parse_stamps`;
+        converted to seconds since the first sample, naive stamps taken as
+        UTC).  How they were read is stated in ``notes``.
     op_range : (float, float), optional
         Raw controller-output values ``(lo, hi)`` that map to 0..1, e.g.
-        ``(0, 100)`` for percent.  May be omitted only when all op values lie
-        in [0, 1]; otherwise an error asks for it.  Values outside the range
+        ``(0, 100)`` for percent.  Left out, it is read from the values
+        (:func:`~.units.infer_op_range`: 0..1 a fraction, up to 100 percent,
+        else the observed range: unknown span) and the choice is stated in
+        ``notes``.  Values outside the range
         by up to 5 % of its span are clipped (recorded as a repair); further
         out is an error.  A range of which 0..1 is at most 2 % (e.g.
         ``(0, 100)``) while every op value lies in 0..1 is an error too: the
@@ -107,11 +116,11 @@ def load_recording(
         raises RecordingError with False.  A step longer than 1.5 median steps
         counts as missing samples (handled like missing values, see
         `max_gap`).
-    gaps : {'error', 'longest'}, default 'error'
+    gaps : {'longest', 'error'}, default 'longest'
         What to do with a run of missing samples longer than `max_gap`:
-        'error' raises RecordingError naming its time span; 'longest' keeps
-        the longest stretch of the record free of such gaps (recorded as a
-        repair).
+        'longest' keeps the longest stretch of the record free of such gaps
+        (recorded as a repair); 'error' raises RecordingError naming its time
+        span.
     mv_range : (float, float), optional
         Raw stem-position values that map to 0..1; default the same as the
         controller output's range (`op_range`, or (0, 1)).
@@ -130,6 +139,11 @@ def load_recording(
         Sample time [s] of a file without a time column (a laboratory or
         MATLAB export: the samples are ``dt`` apart, row after row); the time
         column is then not looked for (naming one as well is an error).
+    dayfirst : bool or None
+        Dates written ``D/M/Y`` (True) or ``M/D/Y`` (False); None (default)
+        reads it from the data and asks for it only when both readings fit.
+    time_unit : {None, 's', 'ms', 'us', 'days'}
+        Unit of a numeric time column; None (default) reads it from the data.
 
     Returns
     -------
@@ -179,9 +193,11 @@ def load_recording(
         raw = _with_sample_times(raw, float(dt))
     raw, said = _automatic_rows(raw, src)
     dc = _decimal_comma_file(sn, raw)
-    p = parse_raw(raw, src, decimal_comma=dc)
+    p = parse_raw(raw, src, decimal_comma=dc, dayfirst=dayfirst, time_unit=time_unit)
     repairs: list[str] = said
     notes = _reader_notes(sn, raw)
+    if p.time_note:
+        notes.append(p.time_note)
     if dt is not None:
         notes.append(f"time: the row number x {float(dt):g} s (dt given; no time column read)")
     if dc:
@@ -193,7 +209,7 @@ def load_recording(
     p = mark_absurd(p, repairs, {"op": op_valid, "mv": opts.mv_range if opts.mv_range is not None else op_valid})
     p, grid = regrid(p, opts, repairs)
     grid = fill_gaps(grid, opts, p.columns.names, src, repairs, _time_formatter(p.start, p.epoch0))
-    signals, op_range_used = _normalised(grid, p, opts, repairs)
+    signals, op_range_used = _normalised(grid, p, opts, repairs, notes)
     t, signals, cond = condition(grid.t, signals, grid.dt, opts.max_samples)
     dt = grid.dt
     if cond is not None:
@@ -288,21 +304,16 @@ def _check_not_fraction(x: np.ndarray, rng: tuple[float, float], where: str, lab
         )
 
 
-def _normalised(grid: Grid, p: Parsed, opts: LoadOptions,
-                repairs: list[str]) -> tuple[dict[str, np.ndarray], tuple[float, float]]:
-    """Map op and mv to 0..1 (range errors and clipping); refuse a constant op or pv."""
+def _normalised(grid: Grid, p: Parsed, opts: LoadOptions, repairs: list[str],
+                notes: list[str] | None = None) -> tuple[dict[str, np.ndarray], tuple[float, float]]:
+    """Map op and mv to 0..1 (range read from the data when not given, errors, clipping); refuse a constant op or pv."""
     names = p.columns.names
     op_raw = grid.values["op"]
     op_range = opts.op_range
     if op_range is None:
-        lo_v, hi_v = float(op_raw.min()), float(op_raw.max())
-        if lo_v < 0.0 or hi_v > 1.0:
-            raise RecordingError(
-                f"{p.where('op')}: values span {lo_v:g}..{hi_v:g}, outside 0..1, so the controller "
-                f"output's range must be given: pass --op-range LO,HI (op_range=(LO, HI)), "
-                f"e.g. --op-range 0,100 for percent"
-            )
-        op_range = (0.0, 1.0)
+        op_range, said = infer_op_range(op_raw)
+        if notes is not None:
+            notes.append(said)
     else:
         _check_not_fraction(op_raw, op_range, p.where("op"), "OP", "output",
                             f"--op-range {op_range[0]:g},{op_range[1]:g}",

@@ -18,6 +18,7 @@ import numpy as np
 from ._base import MISSING_TOKENS, REQUIRED, ROLE_WORDS, RecordingError, fmt_lines
 from .columns import ColumnMap
 from .read import RawColumns
+from .units import numeric_time_unit, parse_stamps
 
 __all__ = ["Parsed", "parse_datetimes", "parse_numbers", "parse_raw"]
 
@@ -51,6 +52,9 @@ class Parsed:
         finite (``inf``, ``1e309``); they are missing in `values`.
     t_nonfinite : ndarray of int
         Positions of non-finite time stamps (NaN in `t`).
+    time_note : str or None
+        How the time stamps were read when that was inferred (day-first dates, epoch
+        milliseconds, ...: :mod:`~.units`).
     """
 
     src: str
@@ -64,6 +68,7 @@ class Parsed:
     epoch0: float | None
     nonfinite: dict[str, np.ndarray]
     t_nonfinite: np.ndarray
+    time_note: str | None = None
 
     def where(self, role: str) -> str:
         """``"FILE: column 'NAME' (role)"``, the start of a message about a column."""
@@ -193,13 +198,14 @@ def _signal(raw: RawColumns, r: str, src: str, decimal_comma: bool = False) -> t
     return v, nonfin
 
 
-def _text_time(raw: RawColumns, src: str, decimal_comma: bool = False) -> tuple[np.ndarray, str | None, list[int]]:
-    """Seconds from a text time column: numbers, or ISO date strings throughout."""
+def _text_time(raw: RawColumns, src: str, decimal_comma: bool = False,
+               dayfirst: bool | None = None) -> tuple[np.ndarray, str | None, list[int], str | None]:
+    """Seconds from a text time column: numbers, or date strings throughout (:func:`~.units.parse_stamps`)."""
     where = f"{src}: column {raw.columns.names['t']!r} (t)"
     cells = raw.data["t"]
     t, bad, nonfin = parse_numbers(cells, decimal_comma)
     if not bad:
-        return t, None, nonfin
+        return t, None, nonfin, None
     present = [i for i, c in enumerate(cells)
                if not (isinstance(c, float) and math.isnan(c)) and str(c).strip().lower() not in MISSING_TOKENS]
     if len(bad) != len(present):
@@ -207,9 +213,12 @@ def _text_time(raw: RawColumns, src: str, decimal_comma: bool = False) -> tuple[
         raise RecordingError(
             f"{where}: {len(bad)} non-numeric cell(s) at {raw.unit}(s) "
             f"{fmt_lines(raw.lines[bad].tolist())} (e.g. {ex!r}); the time column must hold "
-            f"seconds or ISO date strings throughout; fix those cells"
+            f"seconds or date strings throughout; fix those cells"
         )
-    t, bad_dt = parse_datetimes(cells, present)
+    try:
+        t, bad_dt, note = parse_stamps(cells, present, dayfirst)
+    except RecordingError as e:
+        raise RecordingError(f"{where}: {e}") from None
     if -1 in bad_dt:
         raise RecordingError(
             f"{where}: mixes time stamps with and without a time zone; write all of them the same way"
@@ -217,38 +226,56 @@ def _text_time(raw: RawColumns, src: str, decimal_comma: bool = False) -> tuple[
     if bad_dt:
         ex = str(cells[bad_dt[0]]).strip()
         raise RecordingError(
-            f"{where}: {len(bad_dt)} cell(s) are neither numbers (seconds) nor ISO date "
-            f"strings, at {raw.unit}(s) {fmt_lines(raw.lines[bad_dt].tolist())} (e.g. {ex!r}); "
-            f"fix those cells (e.g. 2024-11-21 00:01:00)"
+            f"{where}: {len(bad_dt)} cell(s) are neither numbers (seconds) nor dates, at "
+            f"{raw.unit}(s) {fmt_lines(raw.lines[bad_dt].tolist())} (e.g. {ex!r}); fix those cells "
+            f"(e.g. 2024-11-21 00:01:00; D/M/Y, M/D/Y with or without AM/PM and 18-Jul-2024 are read too)"
         )
-    return t, str(cells[present[0]]).strip(), []
+    return t, str(cells[present[0]]).strip(), [], note
 
 
-def _time(raw: RawColumns, src: str,
-          decimal_comma: bool = False) -> tuple[np.ndarray, str | None, float | None, list[int]]:
-    """Time in seconds, the first stamp as written (dates) and its POSIX seconds."""
+def _numeric_time(t: np.ndarray, time_unit: str | None, src: str, name: str):
+    """Seconds, first stamp, its POSIX seconds, a note: a numeric time column (:func:`~.units.numeric_time_unit`)."""
+    try:
+        f, epoch0, note = numeric_time_unit(t, time_unit)
+    except RecordingError as e:
+        raise RecordingError(f"{src}: column {name!r} (t): {e}") from None
+    if epoch0 is None:
+        return (t * f if f != 1.0 else t), None, None, note
+    ok = np.flatnonzero(np.isfinite(t))
+    rel = (t - t[ok[0]]) * f
+    start = datetime.fromtimestamp(epoch0, timezone.utc).strftime("%Y-%m-%d %H:%M:%S")
+    return rel, start, epoch0, note
+
+
+def _time(raw: RawColumns, src: str, decimal_comma: bool = False, dayfirst: bool | None = None,
+          time_unit: str | None = None) -> tuple[np.ndarray, str | None, float | None, list[int], str | None]:
+    """Time in seconds, the first stamp as written (dates), its POSIX seconds, non-finite stamps, a note."""
     cells = raw.data["t"]
+    name = raw.columns.names["t"]
     if cells.dtype.kind == "M":
         ns = cells.astype("datetime64[ns]")
         ok = np.flatnonzero(~np.isnat(ns))
         if ok.size == 0:
-            return np.full(len(ns), np.nan), None, None, []
+            return np.full(len(ns), np.nan), None, None, [], None
         sec = np.where(np.isnat(ns), np.nan, ns.astype(np.int64) / 1e9)
         epoch0 = float(sec[ok[0]])
         start = str(ns[ok[0]].astype("datetime64[s]")).replace("T", " ")
-        return sec - epoch0, start, epoch0, []
+        return sec - epoch0, start, epoch0, [], None
     if cells.dtype.kind == "f":
         t, _, nonfin = parse_numbers(cells)
-        return t, None, None, nonfin
-    t, start, nonfin = _text_time(raw, src, decimal_comma)
+        t, start, epoch0, note = _numeric_time(t, time_unit, src, name)
+        return t, start, epoch0, nonfin, note
+    t, start, nonfin, note = _text_time(raw, src, decimal_comma, dayfirst)
     if start is None:
-        return t, None, None, nonfin
-    epoch0 = float(parse_datetimes([start], [0])[0][0])
+        t, start, epoch0, note = _numeric_time(t, time_unit, src, name)
+        return t, start, epoch0, nonfin, note
     ok = np.flatnonzero(np.isfinite(t))
-    return t - t[ok[0]], start, epoch0, []
+    epoch0 = float(t[ok[0]])
+    return t - epoch0, start, epoch0, [], note
 
 
-def parse_raw(raw: RawColumns, src: str, decimal_comma: bool = False) -> Parsed:
+def parse_raw(raw: RawColumns, src: str, decimal_comma: bool = False, dayfirst: bool | None = None,
+              time_unit: str | None = None) -> Parsed:
     """Numbers of every mapped column.
 
     Parameters
@@ -259,6 +286,10 @@ def parse_raw(raw: RawColumns, src: str, decimal_comma: bool = False) -> Parsed:
         The file, for messages.
     decimal_comma : bool
         Read ``'0,53'`` as 0.53 (a file whose columns are separated by ``;`` or tabs).
+    dayfirst : bool or None
+        Dates ``D/M/Y`` (True), ``M/D/Y`` (False) or read from the data (None).
+    time_unit : {None, 's', 'ms', 'us', 'days'}
+        Unit of a numeric time column; None reads it from the data (:func:`~.units.numeric_time_unit`).
 
     Returns
     -------
@@ -278,7 +309,7 @@ def parse_raw(raw: RawColumns, src: str, decimal_comma: bool = False) -> Parsed:
         v, nf = _signal(raw, r, src, decimal_comma)
         values[r] = v
         nonfinite[r] = np.asarray(nf, dtype=np.int64)
-    t, start, epoch0, t_nf = _time(raw, src, decimal_comma)
+    t, start, epoch0, t_nf, time_note = _time(raw, src, decimal_comma, dayfirst, time_unit)
     lines = raw.lines
     t_text = raw.data["t"] if raw.data["t"].dtype == object else None
     if raw.drop_blank:
@@ -296,4 +327,4 @@ def parse_raw(raw: RawColumns, src: str, decimal_comma: bool = False) -> Parsed:
             values = {r: v[keep] for r, v in values.items()}
             t_text = None if t_text is None else t_text[keep]
     return Parsed(src, raw.columns, t, values, lines, raw.unit, t_text, start, epoch0, nonfinite,
-                  np.asarray(t_nf, dtype=np.int64))
+                  np.asarray(t_nf, dtype=np.int64), time_note)
