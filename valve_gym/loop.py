@@ -2,7 +2,8 @@
 
 One scan is: measure (the plant's sensor output plus white noise), compute the PI output
 (:func:`valve_gym.control.pi_step`, bumpless start from the stem at rest), hold it over the scan
-(:meth:`valve_gym.plant.Plant.step`, with the load inflow of that scan).  The synthetic recordings
+(:meth:`valve_gym.plant.Plant.advance`, with the load inflow of that scan; the inputs are checked once, up
+front).  The synthetic recordings
 (:mod:`valve_gym.diagnosis.synthetic`, and through them the fleet simulator) and the teaching figures
 (:func:`valve_gym.figures.closed_loop_pi`) run their loops with it.
 
@@ -70,6 +71,13 @@ def run_closed_loop(plant: Plant, start: PlantOutput, sp, pi: PIParams, noise_st
         raise ValueError(f"the PI's Ts = {pi.Ts} s differs from the plant's scan_s = {plant.scan_s} s")
     if noise_std > 0 and rng is None:
         raise ValueError("noise_std > 0 needs a random generator rng (np.random.default_rng(seed))")
+    if n != plant.n:
+        raise ValueError(f"sp has {n} column(s) but the plant runs {plant.n} loop(s)")
+    if not np.isfinite(sp).all():
+        raise ValueError("sp contains NaN or inf; pass finite set points")
+    dd = None if d is None else np.asarray(d, float)
+    if dd is not None and (dd.shape not in ((T,), (T, n)) or not np.isfinite(dd).all()):
+        raise ValueError(f"d must be a finite (T,) or (T, n) = ({T}, {n}) array of inflows, got shape {dd.shape}")
 
     def measure(y):
         return y + noise_std * rng.standard_normal(n) if noise_std > 0 else y.copy()  # type: ignore[union-attr]
@@ -78,9 +86,13 @@ def run_closed_loop(plant: Plant, start: PlantOutput, sp, pi: PIParams, noise_st
     pv, level, stem = (np.empty((T + 1, n)) for _ in range(3))
     pv[0], level[0], stem[0] = measure(start.y), start.pv, start.stem
     ctl = pi_init(start.stem, sp[0] - pv[0])
+    U, D = np.empty((1, n)), np.zeros((1, n))     # inputs checked above: the plant's unchecked advance
     for k in range(T):
         ctl, u = pi_step(ctl, sp[k] - pv[k], pi)
         op[k] = u
-        out = plant.step(u, None if d is None else d[k])
-        pv[k + 1], level[k + 1], stem[k + 1] = measure(out.y), out.pv, out.stem
+        np.clip(u, 0.0, 1.0, out=U[0])
+        if dd is not None:
+            D[0] = dd[k]
+        Y, H, LV = plant.advance(U, D)
+        pv[k + 1], level[k + 1], stem[k + 1] = measure(Y[0]), LV[0], H[0]
     return LoopRun(op=op, pv=pv, level=level, stem=stem)
