@@ -28,6 +28,7 @@ def test_quick_run_writes_every_file(quick_run):
     assert (quick_run / "trends.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.slow
 def test_quick_run_tables(quick_run):
     cfg = BenchConfig().quick_version()
     res = pd.read_csv(quick_run / "results.csv")

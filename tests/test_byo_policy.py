@@ -28,6 +28,8 @@ from valve_gym.agents.bench.policies import (  # noqa: E402
 )
 from valve_gym.agents.safe_files import UnsafeFileError, describe_file  # noqa: E402
 
+pytestmark = pytest.mark.slow   # end-to-end runs of several seconds each: outside the fast subset
+
 ROOT = Path(__file__).resolve().parents[1]
 RID = "valve_gym/ValveTankRegulation-v0"
 SHORT = {"config": {"episode_s": 60.0}}

@@ -154,6 +154,7 @@ def test_fleet_bad_usage(tmp_path, capsys, argv_extra, message):
     assert rc == 2 and message in err
 
 
+@pytest.mark.slow
 def test_report_states_the_repairs_of_the_data(small_csv, tmp_path, capsys):
     """A short gap of non-finite values is repaired, and the report says so (not only the JSON)."""
     rows = list(csv.reader(open(small_csv)))

@@ -25,6 +25,8 @@ import pytest
 from valve_gym.diagnosis import cli
 from valve_gym.diagnosis.synthetic import make_recording, write_csv
 
+pytestmark = pytest.mark.slow   # end-to-end runs of several seconds each: outside the fast subset
+
 FAST = ["--effects", "none", "--effort", "fast", "--jobs", "1", "--quiet"]
 
 

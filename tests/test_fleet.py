@@ -193,6 +193,7 @@ def test_interrupted_and_resumed_equals_uninterrupted(ray_session, folder, tmp_p
     assert "op_lag" not in dataclasses.replace(SETTINGS, op_lag=0).hash_text()   # the old default's keys stay
 
 
+@pytest.mark.slow
 def test_bad_recording_is_a_failed_row(ray_session, folder, tmp_path):
     out = str(tmp_path / "o")
     run = run_fleet(folder, out, SETTINGS, stream=None, top=3)

@@ -12,6 +12,8 @@ import socket
 import numpy as np
 import pytest
 
+pytestmark = pytest.mark.slow   # end-to-end runs of several seconds each: outside the fast subset
+
 CHROMIUM = "/usr/bin/chromium"
 
 if not os.path.exists(CHROMIUM):
