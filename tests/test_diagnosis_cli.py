@@ -174,3 +174,17 @@ def test_report_states_the_repairs_of_the_data(small_csv, tmp_path, capsys):
     md = (rep / "report.md").read_text()
     assert "What was done to the data before fitting" in md
     assert d["recording"]["repairs"][0] in md
+
+
+def test_fleet_mode_without_its_extra_names_the_extra(tmp_path, capsys, monkeypatch):
+    import importlib.util
+
+    real = importlib.util.find_spec
+    monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "ray" else real(name, *a))
+    rec = tmp_path / "recs"
+    rec.mkdir()
+    (rec / "loop.csv").write_text("t,op,pv\n0,0.5,1.0\n1,0.5,1.0\n")
+    assert main([str(rec), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert 'fleet mode (--out) needs ray: pip install "valve_gym[fleet]"' in err and "Traceback" not in err
+    assert not (tmp_path / "out").exists()

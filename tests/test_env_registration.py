@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 
 import gymnasium as gym
 
@@ -54,3 +55,25 @@ def test_no_top_level_agents_package_is_installed():
     assert not (root / "agents").exists()
     spec = importlib.util.find_spec("valve_gym.agents")
     assert spec is not None and spec.origin is not None and "valve_gym" in spec.origin
+
+
+def test_a_command_whose_extra_is_missing_names_the_extra(monkeypatch, capsys):
+    import builtins
+
+    from valve_gym import cli
+
+    real = builtins.__import__
+
+    def no_sb3(name, *a, **k):
+        if name.split(".")[0] == "stable_baselines3":
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+        return real(name, *a, **k)
+
+    for mod in [m for m in sys.modules if m.startswith(("valve_gym.agents.train", "valve_gym.agents.ppo"))]:
+        monkeypatch.delitem(sys.modules, mod)
+    monkeypatch.setattr(builtins, "__import__", no_sb3)
+    cfg = str(Path(__file__).resolve().parents[1] / "configs" / "rl" / "ppo.yaml")
+    assert cli.main(["train", "--config", cfg, "--out", "/tmp/valve_gym_never_written"]) == 2
+    err = capsys.readouterr().err
+    assert err.strip() == ("valve-gym train: this needs stable_baselines3, which the core install leaves out: "
+                           'pip install "valve_gym[rl]"')

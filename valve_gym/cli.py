@@ -24,6 +24,11 @@ _COMMANDS = {
 }
 
 
+#: The optional packages and the extra that installs each (pyproject.toml's optional-dependencies).
+EXTRA_OF = {"stable_baselines3": "rl", "torch": "rl", "tensorboard": "rl", "ray": "fleet", "pyarrow": "fleet",
+            "panel": "lab", "bokeh": "lab", "param": "lab"}
+
+
 def _usage() -> str:
     lines = ["usage: valve-gym COMMAND [options]", "", "commands:"]
     lines += [f"  {k:<15} {v[1]}" for k, v in _COMMANDS.items()]
@@ -71,6 +76,13 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("valve-gym: interrupted", file=sys.stderr)
         return 130
+    except ModuleNotFoundError as e:
+        top = (e.name or "").split(".")[0]
+        if top not in EXTRA_OF:
+            raise
+        print(f'valve-gym {cmd}: this needs {top}, which the core install leaves out: '
+              f'pip install "valve_gym[{EXTRA_OF[top]}]"', file=sys.stderr)
+        return 2
     return int(rc or 0)
 
 

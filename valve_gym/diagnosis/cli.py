@@ -339,6 +339,12 @@ def _main(argv: list[str]) -> int:
 
 def _fleet(a, path, jobs, seed, holdout, cands, op_range, max_gap, say) -> int:
     """Fleet mode: ``path`` (folder or wide export) on Ray into ``a.out``."""
+    import importlib.util
+
+    missing = [m for m in ("ray", "pyarrow") if importlib.util.find_spec(m) is None]
+    if missing:
+        raise _UsageError(f"fleet mode (--out) needs {' and '.join(missing)}: pip install \"valve_gym[fleet]\" "
+                          "(or leave out --out to diagnose the recordings one by one)")
     from ..fleet import FleetSettings, run_fleet
     if a.validate:
         raise _UsageError("--validate works with a single recording, not in fleet mode (--out)")

@@ -23,7 +23,7 @@ try:
     from stable_baselines3.common.vec_env import VecEnv
 except ImportError as exc:  # pragma: no cover - depends on the installation
     raise ImportError(
-        "valve_gym.envs.sb3 needs stable-baselines3: pip install stable-baselines3 "
+        'valve_gym.envs.sb3 needs stable-baselines3: pip install "valve_gym[rl]" '
         "(the rest of valve_gym works without it)") from exc
 
 from gymnasium.vector import AutoresetMode
