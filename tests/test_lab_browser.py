@@ -7,6 +7,7 @@ Skipped when /usr/bin/chromium (``apt-get install -y chromium``) or Playwright i
 from __future__ import annotations
 
 import os
+import re
 import socket
 
 import numpy as np
@@ -97,9 +98,6 @@ class Page:
                  return x !== null && (x.length !== old.length || x.some((v, i) => Math.abs(v - old[i]) > 1e-9)); }}""",
             arg=old.tolist())
 
-    def text(self, css: str) -> str:
-        return self.page.locator(css).first.inner_text()
-
     def clean(self):
         assert self.errors == [], self.errors
         assert self.offsite == [], f"requests off the server (no network allowed): {self.offsite}"
@@ -161,7 +159,8 @@ def test_fig7_preset_shows_stick_slip_and_downloads_its_traces(server, browser, 
         stalls, jump = _stick_slip(u, h)
         assert stalls > 100 and jump > 0.02          # the stem sticks, then jumps, while the input ramps
         assert _stick_slip(u, healthy)[1] < 0.01     # the healthy ghost follows the ramps
-        assert "stem jump" in pg.text(".vg-valve-summary p")
+        # the summary is re-rendered after the data: wait for its text, do not read it once
+        sync_api.expect(pg.page.locator(".vg-valve-summary p").first).to_contain_text("stem jump", timeout=WAIT_MS)
         # the downloads: the CSV holds the plotted traces, the PNG is a PNG
         with pg.page.expect_download() as dl:
             pg.page.locator(".vg-valve-csv button").click()
@@ -182,14 +181,12 @@ def test_fig7_preset_shows_stick_slip_and_downloads_its_traces(server, browser, 
 def test_loop_page_limit_cycle_with_high_friction_and_none_without(server, browser):
     pg = Page(browser, server).open(server + "?page=1", "loop_source")
     try:
-        pg.page.locator(".vg-lc p").first.wait_for()
-        high = pg.text(".vg-lc p")
-        assert high.startswith("limit cycle: amplitude"), high
+        sync_api.expect(pg.page.locator(".vg-lc p").first).to_have_text(re.compile(r"^limit cycle: amplitude"),
+                                                                         timeout=WAIT_MS)
         pg.close()
         pg = Page(browser, server).open(server + "?page=1&l_z_max=0&l_e_dead=0", "loop_source")
-        pg.page.locator(".vg-lc p").first.wait_for()
-        none = pg.text(".vg-lc p")
-        assert none.startswith("no limit cycle"), none
+        sync_api.expect(pg.page.locator(".vg-lc p").first).to_have_text(re.compile(r"^no limit cycle"),
+                                                                         timeout=WAIT_MS)
         pg.clean()
     finally:
         pg.close()
