@@ -72,6 +72,9 @@ def test_a_command_whose_extra_is_missing_names_the_extra(monkeypatch, capsys):
     for mod in [m for m in sys.modules if m.startswith(("valve_gym.agents.train", "valve_gym.agents.ppo"))]:
         monkeypatch.delitem(sys.modules, mod)
     monkeypatch.setattr(builtins, "__import__", no_sb3)
+    import valve_gym.agents.ppo as ppo  # the policy files and the numpy controller import without SB3
+
+    assert callable(ppo.load_policy)
     cfg = str(Path(__file__).resolve().parents[1] / "configs" / "rl" / "ppo.yaml")
     assert cli.main(["train", "--config", cfg, "--out", "/tmp/valve_gym_never_written"]) == 2
     err = capsys.readouterr().err

@@ -18,6 +18,7 @@ unpickles anything (SB3 ``.zip`` files are refused, see
 """
 from __future__ import annotations
 
+import functools
 import os
 from dataclasses import asdict, dataclass
 from typing import NamedTuple
@@ -26,7 +27,7 @@ import numpy as np
 
 from .base import as_obs_batch, episode_start_mask
 
-__all__ = ["ObsTransform", "ObsHistory", "PPOController", "TransformVecEnv", "load_policy",
+__all__ = ["ObsTransform", "ObsHistory", "PPOController", "TransformVecEnv", "load_policy",  # noqa: F822 (lazy)
            "save_policy", "read_policy_meta", "NumpyActor", "policy_tensors", "POLICY_FORMAT"]
 
 
@@ -148,49 +149,65 @@ class ObsTransform:
 
 
 # ---------------------------------------------------------------- training wrapper
-def _vec_env_wrapper_base():
-    from stable_baselines3.common.vec_env import VecEnvWrapper
-    return VecEnvWrapper
+@functools.cache
+def _transform_vec_env() -> type:
+    """The class :class:`TransformVecEnv`, defined on first use.
 
-
-class TransformVecEnv(_vec_env_wrapper_base()):
-    """SB3 ``VecEnvWrapper`` applying an :class:`ObsTransform` (training side).
-
-    Handles SB3's auto-reset: for a finished sub-env the returned observation
-    starts a new history, and ``infos[i]["terminal_observation"]`` is
-    transformed with the old history so that PPO bootstraps the value of a
-    truncated episode from the right input.
+    It subclasses SB3's ``VecEnvWrapper``; defined lazily, this module (the policy files and the numpy
+    controller) imports without stable-baselines3.
     """
+    try:
+        from stable_baselines3.common.vec_env import VecEnvWrapper
+    except ImportError as exc:  # pragma: no cover - depends on the installation
+        raise ModuleNotFoundError('TransformVecEnv needs stable-baselines3: pip install "valve_gym[rl]"',
+                                  name="stable_baselines3") from exc
 
-    def __init__(self, venv, transform: ObsTransform):
-        from gymnasium import spaces
-        self.transform = transform
-        d = int(venv.observation_space.shape[0])
-        od = transform.out_dim(d)
-        space = spaces.Box(low=-np.inf, high=np.inf, shape=(od,), dtype=np.float32)
-        super().__init__(venv, observation_space=space)
-        self._hist: ObsHistory | None = None
+    class TransformVecEnv(VecEnvWrapper):
+        """SB3 ``VecEnvWrapper`` applying an :class:`ObsTransform` (training side).
 
-    def reset(self):
-        """Reset the wrapped env; returns the transformed first observations."""
-        obs = self.venv.reset()
-        x, self._hist = self.transform.start(obs)
-        return x
+        Handles SB3's auto-reset: for a finished sub-env the returned observation
+        starts a new history, and ``infos[i]["terminal_observation"]`` is
+        transformed with the old history so that PPO bootstraps the value of a
+        truncated episode from the right input.
+        """
 
-    def step_wait(self):
-        """Step the wrapped env; transforms the observations (and terminal ones)."""
-        obs, rew, done, infos = self.venv.step_wait()
-        done = np.asarray(done, dtype=bool)
-        assert self._hist is not None, "reset() before step()"
-        if done.any():
-            for i in np.flatnonzero(done):
-                term = infos[i].get("terminal_observation")
-                if term is not None:
-                    sub = ObsHistory(self._hist.frames[i:i + 1])
-                    infos[i]["terminal_observation"] = self.transform.peek(
-                        sub, np.asarray(term, dtype=np.float64)[None, :])[0]
-        x, self._hist = self.transform.step(self._hist, obs, episode_start=done)
-        return x, rew, done, infos
+        def __init__(self, venv, transform: ObsTransform):
+            from gymnasium import spaces
+            self.transform = transform
+            d = int(venv.observation_space.shape[0])
+            od = transform.out_dim(d)
+            space = spaces.Box(low=-np.inf, high=np.inf, shape=(od,), dtype=np.float32)
+            super().__init__(venv, observation_space=space)
+            self._hist: ObsHistory | None = None
+
+        def reset(self):
+            """Reset the wrapped env; returns the transformed first observations."""
+            obs = self.venv.reset()
+            x, self._hist = self.transform.start(obs)
+            return x
+
+        def step_wait(self):
+            """Step the wrapped env; transforms the observations (and terminal ones)."""
+            obs, rew, done, infos = self.venv.step_wait()
+            done = np.asarray(done, dtype=bool)
+            assert self._hist is not None, "reset() before step()"
+            if done.any():
+                for i in np.flatnonzero(done):
+                    term = infos[i].get("terminal_observation")
+                    if term is not None:
+                        sub = ObsHistory(self._hist.frames[i:i + 1])
+                        infos[i]["terminal_observation"] = self.transform.peek(
+                            sub, np.asarray(term, dtype=np.float64)[None, :])[0]
+            x, self._hist = self.transform.step(self._hist, obs, episode_start=done)
+            return x, rew, done, infos
+
+    return TransformVecEnv
+
+
+def __getattr__(name: str):
+    if name == "TransformVecEnv":
+        return _transform_vec_env()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 # ---------------------------------------------------------------- policy files

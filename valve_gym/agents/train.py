@@ -984,6 +984,15 @@ def main(argv=None) -> int:
     except (ConfigError, UsageError) as exc:
         print(f"valve-gym train: {exc}", file=sys.stderr)
         return 2
+    except ModuleNotFoundError as exc:
+        from valve_gym.cli import EXTRA_OF
+
+        top = (exc.name or "").split(".")[0]
+        if top not in EXTRA_OF:
+            raise
+        print(f'valve-gym train: this needs {top}, which the core install leaves out: '
+              f'pip install "valve_gym[{EXTRA_OF[top]}]"', file=sys.stderr)
+        return 2
     except (ValueError, OSError) as exc:
         print(f"valve-gym train: {exc}", file=sys.stderr)
         return 1
