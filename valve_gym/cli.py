@@ -29,6 +29,15 @@ EXTRA_OF = {"stable_baselines3": "rl", "torch": "rl", "tensorboard": "rl", "ray"
             "panel": "lab", "bokeh": "lab", "param": "lab"}
 
 
+def missing_extra(exc: ModuleNotFoundError, cmd: str) -> str | None:
+    """The one line for a command whose optional package is missing (``None``: not an extra's package)."""
+    top = (exc.name or "").split(".")[0]
+    if top not in EXTRA_OF:
+        return None
+    return (f'valve-gym {cmd}: this needs {top}, which the core install leaves out: '
+            f'pip install "valve_gym[{EXTRA_OF[top]}]"')
+
+
 def _usage() -> str:
     lines = ["usage: valve-gym COMMAND [options]", "", "commands:"]
     lines += [f"  {k:<15} {v[1]}" for k, v in _COMMANDS.items()]
@@ -77,11 +86,10 @@ def main(argv=None) -> int:
         print("valve-gym: interrupted", file=sys.stderr)
         return 130
     except ModuleNotFoundError as e:
-        top = (e.name or "").split(".")[0]
-        if top not in EXTRA_OF:
+        said = missing_extra(e, cmd)
+        if said is None:
             raise
-        print(f'valve-gym {cmd}: this needs {top}, which the core install leaves out: '
-              f'pip install "valve_gym[{EXTRA_OF[top]}]"', file=sys.stderr)
+        print(said, file=sys.stderr)
         return 2
     return int(rc or 0)
 

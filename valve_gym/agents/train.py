@@ -985,13 +985,12 @@ def main(argv=None) -> int:
         print(f"valve-gym train: {exc}", file=sys.stderr)
         return 2
     except ModuleNotFoundError as exc:
-        from valve_gym.cli import EXTRA_OF
+        from valve_gym.cli import missing_extra
 
-        top = (exc.name or "").split(".")[0]
-        if top not in EXTRA_OF:
+        said = missing_extra(exc, "train")
+        if said is None:
             raise
-        print(f'valve-gym train: this needs {top}, which the core install leaves out: '
-              f'pip install "valve_gym[{EXTRA_OF[top]}]"', file=sys.stderr)
+        print(said, file=sys.stderr)
         return 2
     except (ValueError, OSError) as exc:
         print(f"valve-gym train: {exc}", file=sys.stderr)
