@@ -17,21 +17,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import time
+import sys
+from pathlib import Path
 
 import numpy as np
 
-
-def _best(fns: dict, repeats: int) -> dict:
-    for fn in fns.values():
-        fn()
-    best = {k: float("inf") for k in fns}
-    for _ in range(repeats):
-        for k, fn in fns.items():
-            t0 = time.perf_counter()
-            fn()
-            best[k] = min(best[k], time.perf_counter() - t0)
-    return best
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_env_speed import _best  # noqa: E402  (best time of each callable, repeats interleaved)
 
 
 def single(env_id: str, n: int):

@@ -42,6 +42,10 @@ class _OneVectorEnv:
     num_envs: int
     _get_indices: Any          # VecEnv's (annotation only: the mixin comes first in the MRO)
 
+    def step_async(self, actions: np.ndarray) -> None:
+        """Store the actions of the next :meth:`step_wait`."""
+        self._actions = actions
+
     def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
         """Set an attribute of the vector env (shared by all indices)."""
         setattr(self.venv, attr_name, value)
@@ -145,10 +149,6 @@ class SB3VecEnv(_OneVectorEnv, VecEnv):
         self._started = True
         return obs
 
-    def step_async(self, actions: np.ndarray) -> None:
-        """Store the actions of the next :meth:`step_wait`."""
-        self._actions = actions
-
     def step_wait(self):
         """Step every loop; returns SB3's ``(obs, rewards, dones, infos)``."""
         if not self._started:
@@ -248,10 +248,6 @@ class SB3RegulationVecEnv(_OneVectorEnv, VecEnv):
         self._reset_options()
         self._started = True
         return obs
-
-    def step_async(self, actions: np.ndarray) -> None:
-        """Store the actions of the next :meth:`step_wait`."""
-        self._actions = actions
 
     def step_wait(self):
         """Step every loop; returns SB3's ``(obs, rewards, dones, infos)``."""

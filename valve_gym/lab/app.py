@@ -177,18 +177,23 @@ def _slider_classes(names, prefix: str) -> dict:
     return {n: {"css_classes": [f"vg-{prefix}-{n}"]} for n in names}
 
 
+def _friction_page(lab, first: list, heading: str, rest: list, prefix: str, name: str, text: str):
+    """A page whose controls are ``first``, the friction model's own controls, ``heading`` and ``rest``."""
+    controls = pn.Column(
+        pn.Param(lab, parameters=first, show_name=False, widgets=_slider_classes(first, prefix)),
+        lab.friction_controls,
+        pn.pane.Markdown(f"**{heading}**"),
+        pn.Param(lab, parameters=rest, show_name=False, widgets=_slider_classes(rest, prefix)),
+        lab.downloads(name), width=320)
+    return _layout(controls, lab.plots, text, name)
+
+
 def valve_page(lab: ValvePage | None = None):
     """The valve page (a Panel layout); ``lab`` its settings (default the fig-7 preset)."""
     lab = ValvePage(preset="fig7") if lab is None else lab
     common = ["preset", "model", "tau", "v_max"]
     sig = ["input", "seconds", "step", "hold", "ramp_speed", "amplitude", "period"]
-    controls = pn.Column(
-        pn.Param(lab, parameters=common, show_name=False, widgets=_slider_classes(common, "v")),
-        lab.friction_controls,
-        pn.pane.Markdown("**Input signal**"),
-        pn.Param(lab, parameters=sig, show_name=False, widgets=_slider_classes(sig, "v")),
-        lab.downloads("valve"), width=320)
-    return _layout(controls, lab.plots, _VALVE_TEXT, "valve")
+    return _friction_page(lab, common, "Input signal", sig, "v", "valve", _VALVE_TEXT)
 
 
 # --------------------------------------------------------------------------- the loop
@@ -279,13 +284,7 @@ def loop_page(lab: LoopPage | None = None):
     lab = LoopPage() if lab is None else lab
     first = ["fig10", "process", "model"]
     rest = ["Kc", "Ti", "sp_step", "sp_at", "load", "load_at", "seconds", "settle"]
-    controls = pn.Column(
-        pn.Param(lab, parameters=first, show_name=False, widgets=_slider_classes(first, "l")),
-        lab.friction_controls,
-        pn.pane.Markdown("**PI and the run**"),
-        pn.Param(lab, parameters=rest, show_name=False, widgets=_slider_classes(rest, "l")),
-        lab.downloads("loop"), width=320)
-    return _layout(controls, lab.plots, _LOOP_TEXT, "loop")
+    return _friction_page(lab, first, "PI and the run", rest, "l", "loop", _LOOP_TEXT)
 
 
 # --------------------------------------------------------------------------- the compensators
