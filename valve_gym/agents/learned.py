@@ -22,7 +22,15 @@ import numpy as np
 
 from valve_gym.envs.regulation import N_ACT, N_OBS, BlockLaw, BlockSettings, obs_names
 
-from .controllers.block import PV_RANGE, PVGuard, check_inputs, check_op_limits, check_step_inputs, not_reset_error
+from .controllers.block import (
+    PV_RANGE,
+    GuardedBlock,
+    PVGuard,
+    check_inputs,
+    check_op_limits,
+    check_step_inputs,
+    not_reset_error,
+)
 from .safe_files import load_model_file, save_model_file
 
 __all__ = ["MLPSpec", "LearnedBlock", "load_learned", "save_learned", "mlp_forward", "mlp_shapes", "normalise",
@@ -104,7 +112,7 @@ def normalise(obs: np.ndarray, mean: np.ndarray, std: np.ndarray) -> np.ndarray:
     return np.clip((obs - mean) / std, -5.0, 5.0)
 
 
-class LearnedBlock:
+class LearnedBlock(GuardedBlock):
     """The learned compensator: :class:`BlockLaw` driven by a numpy network (a DCS block).
 
     Parameters
@@ -156,16 +164,6 @@ class LearnedBlock:
         self._law = BlockLaw(self.block_settings, n)
         self._law.reset(sp_a, pv_a, op_a)
         self.guard.start(op_a)
-
-    @property
-    def held(self) -> np.ndarray:
-        """(n,) bool: loops whose output the last scan held on a bad measurement (see ``PVGuard``)."""
-        return self.guard.held
-
-    @property
-    def bad_pv_scans(self) -> np.ndarray:
-        """(n,) int: scans held on a bad measurement since :meth:`reset`, per loop."""
-        return self.guard.bad_pv_scans
 
     def step(self, sp, pv):
         """One scan: measurement ``pv`` [m] at set point ``sp`` [m]; returns the output (float or (n,)).

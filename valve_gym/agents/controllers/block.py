@@ -335,7 +335,23 @@ def _rule_inputs(p: dict, s: Setting) -> str:
     return ", ".join(used) or "the other settings"
 
 
-class FunctionBlock(ABC):
+class GuardedBlock:
+    """What a block with a :class:`PVGuard` (``self.guard``) reports of its bad-measurement holds."""
+
+    guard: PVGuard
+
+    @property
+    def held(self) -> np.ndarray:
+        """(n,) bool: the loops whose output the last scan held on a bad measurement (see :class:`PVGuard`)."""
+        return self.guard.held
+
+    @property
+    def bad_pv_scans(self) -> np.ndarray:
+        """(n,) int: scans held on a bad measurement since :meth:`reset`, per loop."""
+        return self.guard.bad_pv_scans
+
+
+class FunctionBlock(GuardedBlock, ABC):
     """Base of the controller blocks: settings, validation, reset/step.
 
     Subclasses declare ``name`` and ``SETTINGS`` and implement
@@ -425,16 +441,6 @@ class FunctionBlock(ABC):
         self._state = self.initial_state(sp, pv, op)
         self._n, self._scalar = n, scalar
         self.guard.start(op)
-
-    @property
-    def held(self) -> np.ndarray:
-        """(n,) bool: the loops whose output the last scan held on a bad measurement (see :class:`PVGuard`)."""
-        return self.guard.held
-
-    @property
-    def bad_pv_scans(self) -> np.ndarray:
-        """(n,) int: scans held on a bad measurement since :meth:`reset`, per loop."""
-        return self.guard.bad_pv_scans
 
     def step(self, sp, pv) -> ArrayOrFloat:
         """One scan: the valve input to apply for the next ``scan_s`` seconds.
