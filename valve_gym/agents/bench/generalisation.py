@@ -29,6 +29,8 @@ from typing import Any, cast
 
 import numpy as np
 
+from valve_gym.signals import ou_sequence
+
 from .config import BAND_NAMES, BenchConfig
 from .runner import ESTIMATE_MIN, ControllerBank, Runs
 from .scenarios import Scenarios
@@ -156,14 +158,9 @@ def _plant(rng: np.random.Generator, process: str, valve: str, S: float, J: floa
 
 
 def _ou(rng: np.random.Generator, sigma: float, tau: float, n: int, dt: float) -> np.ndarray:
-    a = math.exp(-dt / tau)
-    w = rng.standard_normal(n) * sigma * math.sqrt(1.0 - a * a)
-    out = np.empty(n)
-    d = 0.0
-    for k in range(n):
-        out[k] = d
-        d = a * d + w[k]
-    return out
+    """``n`` scans of an Ornstein-Uhlenbeck load (std ``sigma``, correlation time ``tau`` [s]), starting at 0."""
+    w = rng.standard_normal(n)
+    return ou_sequence(np.concatenate([[0.0], w[:-1]]), math.exp(-dt / tau), sigma)
 
 
 def gen_loops(family: GenFamily = GenFamily()) -> GenLoops:
