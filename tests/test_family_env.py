@@ -144,7 +144,7 @@ def test_shipped_family_policies_load_safely_and_run_as_the_envs_block():
             assert np.all(np.isfinite(a)) and np.all(np.abs(a) <= 1.0)
             u = loop.step(ep.sp, pv)
             obs, r, _, _, step_info = env.step(a[0].astype(np.float32))
-            assert np.isfinite(r) and step_info["op"] == pytest.approx(float(u), abs=1e-6)
+            assert np.isfinite(r) and step_info["op"] == pytest.approx(float(np.ravel(u)[0]), abs=1e-6)
             pv = np.array([step_info["pv"]])
 
 
