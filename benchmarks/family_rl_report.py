@@ -24,12 +24,15 @@ travel / frictionless PI and LC share on the trainer's fixed evaluation loops ag
 from __future__ import annotations
 
 import argparse
+import os
 import subprocess
 import sys
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:            # the policies and the hooks of this checkout, whatever is installed
+    sys.path.insert(0, str(ROOT))
 POL = ROOT / "valve_gym" / "agents" / "policies"
 ROWS = {f"{a.upper()} family s{s}": POL / "rl_family" / f"{a}_seed{s}.json" for a in ("ppo", "sac") for s in (0, 1)}
 ROWS.update({f"{a.upper()} regulation s0": POL / "rl" / f"{a}_seed0.json" for a in ("ppo", "sac")})
@@ -42,7 +45,9 @@ def heldout() -> None:
         cmd += ["--policy", f"{label}={f}"]
     print("$ " + " ".join(str(c).replace(str(ROOT) + "/", "") for c in cmd), flush=True)
     t0 = time.perf_counter()
-    subprocess.run(cmd, check=True, cwd=ROOT)
+    path = os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+    env = {**os.environ, "PYTHONPATH": path}
+    subprocess.run(cmd, check=True, cwd=ROOT, env=env)     # this checkout's valve_gym, whatever is installed
     print(f"(held-out family: {time.perf_counter() - t0:.0f} s wall)\n", flush=True)
 
 

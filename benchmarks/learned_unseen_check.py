@@ -169,9 +169,9 @@ def run(name: str, rows: list[dict], scan: float, Kc, Ti, frictionless: bool, du
     load = step + walk
     try:
         if name in POLICIES:
-            blk = POLICIES[name]
+            blk = POLICIES[name]          # a policy export: one block per loop with the loop's tuning and scan
             ctrl = ControllerBank([blk.for_loop(float(a), float(b), scan) for a, b in zip(Kc, Ti)],
-                                  [np.array([i]) for i in range(n)], n)
+                                  [np.array([i]) for i in range(n)], n) if hasattr(blk, "for_loop") else blk
         else:
             ctrl = load_controller(name, Kc=Kc, Ti=Ti, scan_s=scan)
     except (ValueError, TypeError):

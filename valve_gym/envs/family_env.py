@@ -311,8 +311,8 @@ class ValveFamilyRegulationEnv(gym.Env):
         ep = self._ep
         if ep is None:
             raise RuntimeError("call reset() before render()")
-        return render_frame(float(ep.level[0]), float(ep.sp[0]), float(ep.stem[0]), float(ep.law.state_arrays()["u"][0]),
-                            1.25 * max(float(ep.sp[0]), 1.6))
+        u = float(ep.law.state_arrays()["u"][0])
+        return render_frame(float(ep.level[0]), float(ep.sp[0]), float(ep.stem[0]), u, 1.25 * max(float(ep.sp[0]), 1.6))
 
 
 class ValveFamilyRegulationVectorEnv(SyncVectorEnv):
