@@ -162,3 +162,29 @@ def test_policy_rows_reach_the_generalisation_part():
     s = res.scores["ppo family"]
     assert np.all(np.isfinite(s.iae_per_h)) and np.all(np.isfinite(s.travel_per_h))
     assert "| ppo family |" in generalisation_markdown(res, cfg)
+
+
+@pytest.mark.slow
+def test_family_config_trains_reproducibly_and_exports_a_loop_scaled_policy(tmp_path):
+    """``valve-gym train`` with the shipped family config (a few hundred steps): same seed, same weights."""
+    pytest.importorskip("stable_baselines3")
+    import yaml
+    from safetensors.numpy import load_file
+
+    from valve_gym.agents.bench.policies import load_policy_block
+    from valve_gym.agents.train import main
+
+    root = Path(__file__).resolve().parents[1]
+    cfg = yaml.safe_load((root / "configs" / "rl" / "ppo_family.yaml").read_text())
+    cfg["eval"] = {"every_steps": 256, "n_loops": 3, "seed": 900001, "duration_s": 300}
+    cfg[FAMILY_ID].update(n_timesteps=256, n_envs=2, n_steps=64, batch_size=64, n_epochs=1)
+    p = tmp_path / "ppo_family_tiny.yaml"
+    p.write_text(yaml.safe_dump(cfg))
+    for d in ("a", "b"):
+        assert main(["--config", str(p), "--seed", "3", "--out", str(tmp_path / d), "--no-progress"]) == 0
+    wa = load_file(str(tmp_path / "a" / "policy.safetensors"))
+    wb = load_file(str(tmp_path / "b" / "policy.safetensors"))
+    assert wa.keys() == wb.keys() and all(np.array_equal(wa[k], wb[k]) for k in wa)
+    blk = load_policy_block(tmp_path / "a" / "policy.json")
+    assert blk.meta["e_stroke"] == FamilyConfig().e_stroke
+    assert blk.for_loop(4.0, 30.0, 2.0).block_settings.e_ref == pytest.approx(FamilyConfig().e_stroke / 4.0)

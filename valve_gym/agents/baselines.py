@@ -1,5 +1,8 @@
 """SB3 baselines on ``valve_gym/ValveTankRegulation-v0``: PPO, A2C, SAC, TD3 from rl-zoo3-style YAML.
 
+A config may instead name ``env_id: valve_gym/ValveFamilyRegulation-v0`` (the randomised family of
+``learned_adaptive``, :mod:`valve_gym.envs.family_env`; ``configs/rl/ppo_family.yaml``, ``sac_family.yaml``).
+
 ``valve-gym train --config configs/rl/sac.yaml --seed 0 --out runs/sac_0`` (``algorithm: sac``; also
 ``ppo``, ``a2c``, ``td3``; a config with ``algorithm: ppo`` and ``env_id`` trains here, the older PPO
 configs of ``ValveTank-v0`` in :mod:`valve_gym.agents.train`).
