@@ -209,7 +209,7 @@ class GenSpec:
     label : str
     name : str, for ``load_controller``
     family : str, ``frictionless``, ``pi``, ``detuned``, ``default`` (compensator, default settings),
-        ``known`` (compensator with the true ``S``) or ``learned``
+        ``known`` (compensator with the true ``S``), ``learned`` or ``policy`` (one's own block, ``--policy``)
     settings : tuple of (str, float)
     frictionless : bool
     """
@@ -240,6 +240,8 @@ def _controller(spec: GenSpec, loops: GenLoops, idx: np.ndarray, scan_s: float):
     """The block of ``spec`` for loops ``idx`` (one scan time): per-loop tuning, else one block per loop."""
     from valve_gym.agents import load_controller
 
+    if spec.family == "policy":
+        return _policy_controller(_GEN["policies"][spec.label], loops, idx, scan_s)
     kw: dict[str, Any] = dict(spec.settings, scan_s=scan_s)
     if spec.family == "known":
         kw["S"] = np.maximum(loops.S[idx], ESTIMATE_MIN)
@@ -251,6 +253,18 @@ def _controller(spec: GenSpec, loops: GenLoops, idx: np.ndarray, scan_s: float):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", UserWarning)   # a learned block warns for a tuning it was not trained on
         blocks = [load_controller(spec.name, Kc=float(loops.Kc[i]), Ti=float(loops.Ti[i]), **per) for i in idx]
+    return ControllerBank(blocks, [np.array([j]) for j in range(idx.size)], idx.size)
+
+
+def _policy_controller(block, loops: GenLoops, idx: np.ndarray, scan_s: float):
+    """One's own block on loops ``idx``.
+
+    A policy block runs one copy per loop with the loop's ``Kc``, ``Ti`` and scan
+    (:meth:`~valve_gym.agents.bench.policies.PolicyBlock.for_loop`); any other block as it is.
+    """
+    if not hasattr(block, "for_loop"):
+        return block
+    blocks = [block.for_loop(float(loops.Kc[i]), float(loops.Ti[i]), scan_s) for i in idx]
     return ControllerBank(blocks, [np.array([j]) for j in range(idx.size)], idx.size)
 
 
@@ -374,7 +388,7 @@ def learned_names() -> tuple[str, ...]:
 
 def run_generalisation(config: BenchConfig, family: GenFamily = GenFamily(), jobs: int = 1,
                        progress: Callable[[str], None] | None = None,
-                       learned: tuple[str, ...] | None = None) -> GenResult:
+                       learned: tuple[str, ...] | None = None, policies: dict | None = None) -> GenResult:
     """Run every row of :func:`gen_lineup` on the family's loops and score them with the benchmark's scores.
 
     Parameters
@@ -387,6 +401,8 @@ def run_generalisation(config: BenchConfig, family: GenFamily = GenFamily(), job
     progress : callable, optional
     learned : tuple of str, optional
         Learned blocks to run (default: :func:`learned_names` when ``config.controllers.learned``, else none).
+    policies : dict of str to block, optional
+        One's own rows (``valve-gym benchmark --policy``; one block per row label), after the learned rows.
 
     Returns
     -------
@@ -396,8 +412,10 @@ def run_generalisation(config: BenchConfig, family: GenFamily = GenFamily(), job
     loops = gen_loops(family)
     if learned is None:
         learned = learned_names() if config.controllers.learned else ()
-    specs, notes = _available(gen_lineup(config, learned), loops)
-    _GEN.update(specs=specs, loops=loops, config=config)
+    _GEN.update(loops=loops, config=config, policies=dict(policies or {}))
+    specs, notes = _available(gen_lineup(config, learned) + tuple(GenSpec(str(k), str(k), "policy")
+                                                                   for k in _GEN["policies"]), loops)
+    _GEN.update(specs=specs)
     res = _execute(len(specs), max(1, min(int(jobs), len(specs))), progress)
     by = {i: s for i, s, _ in res}
     scores = {specs[i].label: by[i] for i in range(len(specs))}
@@ -405,7 +423,7 @@ def run_generalisation(config: BenchConfig, family: GenFamily = GenFamily(), job
     summary = summarise(scores, view, config)
     classical = tuple(s.label for s in specs if s.family in ("pi", "detuned", "default"))
     comps = {s.label: compare_learned(scores, view, config, classical, s.label) for s in specs
-             if s.family == "learned"}
+             if s.family in ("learned", "policy")}
     return GenResult(loops, tuple(specs), scores, summary, comps, tuple(notes), time.perf_counter() - t0)
 
 
@@ -493,7 +511,7 @@ def generalisation_markdown(res: GenResult, config: BenchConfig) -> str:
         out += [f"- {n}" for n in res.notes] + [""]
     out += _table(res, config) + [""] + _comparison_lines(res) + [""]
     out += ["Breakdown, sticky + severe loops:", ""] + breakdown(res, tuple(s.label for s in res.specs
-                                                                            if s.family in ("learned",)
+                                                                            if s.family in ("learned", "policy")
                                                                             or s.label == "knocker")) + [""]
     return "\n".join(out)
 
