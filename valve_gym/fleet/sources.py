@@ -288,9 +288,8 @@ def load_loop(src: LoopSource, columns=None, op_range=None, max_gap: int = 5, mv
                           op_range=op_range, max_gap=max_gap, off=off, dayfirst=dayfirst, time_unit=time_unit,
                           gaps=gaps)
         return LoadedLoop(w.recording, w.gaps, w.notes)
-    kw = {} if dt is None else {"dt": dt}
     rec = load_recording(src.path, columns=columns, op_range=op_range, name=src.name, max_gap=max_gap,
-                         gaps=gaps, mv_range=mv_range, dayfirst=dayfirst, time_unit=time_unit, **kw)
+                         gaps=gaps, mv_range=mv_range, dayfirst=dayfirst, time_unit=time_unit, dt=dt)
     n_gaps = sum(int(m) for r in rec.repairs for m in re.findall(r"(\d+) gap\(s\)", r))
-    gaps = tuple(Gap("pv", math.nan, math.nan) for _ in range(n_gaps))     # times are in the notes
-    return LoadedLoop(rec, gaps, tuple(rec.repairs) + tuple(rec.notes))
+    found = tuple(Gap("pv", math.nan, math.nan) for _ in range(n_gaps))     # times are in the notes
+    return LoadedLoop(rec, found, tuple(rec.repairs) + tuple(rec.notes))
