@@ -126,3 +126,19 @@ def test_a_wide_export_reads_the_same_without_pyarrow(tmp_path, monkeypatch):
     for name, rec in without.items():
         np.testing.assert_array_equal(rec.op, with_arrow[name].op)
         np.testing.assert_array_equal(rec.pv, with_arrow[name].pv)
+
+
+def test_the_local_executor_runs_in_worker_processes_and_stops_when_asked():
+    import math
+
+    from valve_gym.fleet.runner import local_results
+
+    items = [1.0, 4.0, 9.0, 16.0, 25.0]
+    got = {i: r for i, r, e in local_results(math.sqrt, items, 2) if i >= 0 and e is None}
+    assert got == {0: 1.0, 1: 2.0, 2: 3.0, 3: 4.0, 4: 5.0}
+    assert [r for _, r, _ in local_results(math.sqrt, items, 1)] == [1.0, 2.0, 3.0, 4.0, 5.0]   # in order
+    assert list(local_results(math.sqrt, items, 2, stop=lambda: True)) == []                    # nothing run
+    seen = []
+    for i, r, _ in local_results(math.sqrt, items, 1, stop=lambda: len(seen) >= 2):
+        seen.append(r)
+    assert seen == [1.0, 2.0]

@@ -32,7 +32,7 @@ import signal
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 from dataclasses import fields, replace
 from typing import Any, NamedTuple
 
@@ -608,16 +608,17 @@ def _local_task(args: tuple[LoopSource, FleetSettings, str]) -> LoopResult:
     return analyse_loop(src, settings, key)
 
 
-def local_results(fn: Callable[[Any], Any], items: list, jobs: int,
-                  stop: Callable[[], bool] | None = None) -> Iterator[tuple[int, Any, BaseException | None]]:
+def local_results(fn: Callable[[Any], Any], items: list, jobs: int, stop: Callable[[], bool] | None = None
+                  ) -> Generator[tuple[int, Any, BaseException | None], None, None]:
     """``fn`` over ``items`` without Ray: ``(index, result, None)``, or ``(index, None, error)``, as each finishes.
 
     The local executor of the batch engine: with ``jobs`` 1 (or one item) the items run one after another
     in this process, in order (an exception of ``fn`` propagates); otherwise in ``jobs`` worker processes
     (``fn`` and the items picklable; each worker gets its share of the kernel threads and leaves Ctrl-C to
-    this process), at most ``2 jobs`` submitted at once, and an error of a worker (a lost process) is
-    yielded.  ``stop()`` is looked at before each item and at least once a second; when it is true, or
-    when the caller stops iterating, the items not finished are given up (the workers ended).
+    this process), at most ``2 jobs`` submitted at once, an error of a worker (a lost process) is
+    yielded, and ``(-1, None, None)`` when no item finished within a second (for a progress line).
+    ``stop()`` is looked at before each item and at least once a second; when it is true, or when the
+    caller stops iterating (``close()``), the items not finished are given up (the workers ended).
     """
     if jobs <= 1 or len(items) <= 1:
         for i, it in enumerate(items):
@@ -667,9 +668,9 @@ def _run_local(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs
     workers' loops are given up.
     """
     done: set[int] = set()
+    results = local_results(_local_task, [(s, settings, keys[s.name]) for s in todo], jobs, lambda: stop.requested)
     try:
-        for i, res, err in local_results(_local_task, [(s, settings, keys[s.name]) for s in todo], jobs,
-                                         lambda: stop.requested):
+        for i, res, err in results:
             if i < 0:
                 sink.bar.show()
                 continue
@@ -682,6 +683,8 @@ def _run_local(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs
             sink.tick()
     except KeyboardInterrupt:                       # Ctrl-C twice: the loop in progress is given up
         pass
+    finally:
+        results.close()                             # the workers' loops not finished are given up
     return [s for i, s in enumerate(todo) if i not in done]
 
 
