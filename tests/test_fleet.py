@@ -184,9 +184,11 @@ def test_interrupted_and_resumed_equals_uninterrupted(ray_session, folder, tmp_p
     changed = run_fleet(folder, out, FleetSettings(op_range=(0.0, 100.0), effort="fast", candidates=(),
                                                    seed=1), stream=None, engine="ray", top=0, max_loops=1)
     assert changed.done == 1                                              # other settings: not reused
-    fast = run_fleet(folder, out, dataclasses.replace(SETTINGS, search="fast"), stream=None, engine="ray", top=0, max_loops=1)
+    fast = run_fleet(folder, out, dataclasses.replace(SETTINGS, search="fast"), stream=None, engine="ray", top=0,
+                     max_loops=1)
     assert fast.done == 1                                                 # the fast search: not reused either
-    lag = run_fleet(folder, out, dataclasses.replace(SETTINGS, op_lag=1), stream=None, engine="ray", top=0, max_loops=1)
+    lag = run_fleet(folder, out, dataclasses.replace(SETTINGS, op_lag=1), stream=None, engine="ray", top=0,
+                    max_loops=1)
     assert lag.done == 1                                                  # another OP/PV pairing: not reused
     assert '"op_lag": "auto"' in SETTINGS.hash_text()
     assert '"op_lag": 1' in dataclasses.replace(SETTINGS, op_lag=1).hash_text()

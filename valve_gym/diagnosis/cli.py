@@ -129,6 +129,12 @@ def build_parser() -> argparse.ArgumentParser:
                         "only when it is clearly better); in fleet mode it applies to the full diagnoses")
     p.add_argument("--seed", default="0", help="seed of the search (default 0)")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
+    _add_folder_options(p)
+    return p
+
+
+def _add_folder_options(p: argparse.ArgumentParser) -> None:
+    """The options of a folder of loops (the batch engine, :func:`valve_gym.fleet.run_fleet`)."""
     g = p.add_argument_group("a folder of loops, or a wide export with --out (see docs/fleet.md)")
     g.add_argument("--out", metavar="OUTDIR",
                    help="keep the results: per loop in OUTDIR/loops/, OUTDIR/loops.csv (+ loops.parquet with "
@@ -145,7 +151,6 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument("--max-loops", metavar="N",
                    help="analyse at most N new loops in this run (with --out, the others in the next)")
     g.add_argument("--top", default="10", metavar="N", help="loops with plots in worklist.html (default 10)")
-    return p
 
 
 def _joined_ranges(argv: list[str]) -> list[str]:
