@@ -120,13 +120,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="search budget (default auto: thorough up to 1800 samples, normal above)")
     p.add_argument("--search", default="full", choices=("full", "fast"),
                    help="full (default) or fast: warm-start clouds and early stops, about 1.15x less CPU, "
-                        "fits up to 18 %% worse; in fleet mode it applies to the full diagnoses")
+                        "fits up to 18 %% worse; for a folder it applies to the full diagnoses")
     p.add_argument("--op-lag", default="auto", choices=OP_LAG_CHOICES,
                    help="how the recorder pairs OP and PV: 0 PV[k] measured after OP[k] acted for one "
                         "sample; 1 OP[k] computed from the PV[k] beside it (a scan logged as it happened, or a "
                         "zero-order-hold input sampled with the output): OP[k-1] is paired with PV[k]; auto "
                         "(default) reads it from the controller's reaction to PV moves (else fits both and keeps 1 "
-                        "only when it is clearly better); in fleet mode it applies to the full diagnoses")
+                        "only when it is clearly better); for a folder it applies to the full diagnoses")
     p.add_argument("--seed", default="0", help="seed of the search (default 0)")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
     _add_folder_options(p)
