@@ -7,11 +7,13 @@ Two measurements::
         (``--repeat`` interleaved pairs); reports wall time of each run (Ray start excluded), the
         steady-state rate after each worker's first loops, and the speed-up 2 workers / 1 worker of
         the best run of each, in the same invocation
-    python benchmarks/bench_fleet.py fleet [--loops 2000] [--n 600] [--jobs 2]
-        a whole simulated fleet the way `valve-gym diagnose DIR --out OUT` runs it: screening of every
+    python benchmarks/bench_fleet.py fleet [--loops 2000] [--n 600] [--jobs 2] [--engine ray|local]
+        a whole simulated fleet the way `valve-gym diagnose DIR --out OUT --ray` runs it (``--engine
+        local``: as `valve-gym diagnose DIR --out OUT` runs it, without Ray): screening of every
         loop, full diagnosis (base model + friction verdict, effort fast) of the oscillating ones;
         reports wall time, loops/s, full diagnoses, and peak memory of the whole process tree
-        (driver + Ray processes; the sum of their resident sets, an upper bound as they share pages)
+        (driver + Ray or local worker processes; the sum of their resident sets, an upper bound as they
+        share pages)
 
 The simulated loops (valve_gym.fleet.simulate: level loops at a constant set point, 72 % healthy,
 15 % sticky, 5 % severe, 8 % with an oscillating disturbance) are written once to
@@ -94,23 +96,27 @@ def _data(root: str, loops: int, n: int, seed: int) -> str:
     return folder
 
 
-def _run(folder: str, out: str, settings: FleetSettings, jobs: int, quiet: bool) -> dict:
-    import ray
-
+def _run(folder: str, out: str, settings: FleetSettings, jobs: int, quiet: bool, engine: str = "ray") -> dict:
     shutil.rmtree(out, ignore_errors=True)
     t0 = time.perf_counter()
-    ray.init(address="local", num_cpus=jobs, include_dashboard=False, log_to_driver=False, configure_logging=True,
-             logging_level="ERROR")
+    if engine == "ray":
+        import ray
+
+        ray.init(address="local", num_cpus=jobs, include_dashboard=False, log_to_driver=False,
+                 configure_logging=True, logging_level="ERROR")
     t_ray = time.perf_counter() - t0
     stamps: list[float] = []
     with PeakMemory() as mem:
         c1 = resource.getrusage(resource.RUSAGE_SELF)
         t1 = time.perf_counter()
         run = run_fleet(folder, out, settings, jobs=jobs, stream=None if quiet else sys.stderr, top=10,
-                        on_result=lambda r: stamps.append(time.perf_counter()))
+                        on_result=lambda r: stamps.append(time.perf_counter()), engine=engine)
         t_run = time.perf_counter() - t1
         c2 = resource.getrusage(resource.RUSAGE_SELF)
-    ray.shutdown()
+    if engine == "ray":
+        import ray
+
+        ray.shutdown()
     driver_cpu = (c2.ru_utime + c2.ru_stime) - (c1.ru_utime + c1.ru_stime)
     st = np.array(stamps) - t1
     k = min(2 * jobs, len(st) - 1)          # steady state: after each worker's first loops (numba compiled)
@@ -120,7 +126,7 @@ def _run(folder: str, out: str, settings: FleetSettings, jobs: int, quiet: bool)
         print(f"{len(bad)} loop(s) failed, e.g. {bad[0].loop}: {bad[0].message}", file=sys.stderr)
     full = sum(r.stage == "full" for r in run.results)
     cpu = float(np.nansum([r.cpu_seconds for r in run.results]))
-    return {"jobs": jobs, "loops": run.n_loops, "failed": run.failed, "full_diagnoses": full,
+    return {"engine": engine, "jobs": jobs, "loops": run.n_loops, "failed": run.failed, "full_diagnoses": full,
             "ray_start_s": round(t_ray, 2), "run_s": round(t_run, 2), "loops_per_s": round(run.n_loops / t_run, 3),
             "steady_loops_per_s": round(steady, 3), "peak_tree_rss_mb": round(mem.peak, 1),
             "wall_s_per_loop_median": round(float(np.median([r.seconds for r in run.results])), 3),
@@ -137,6 +143,8 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=2, help="workers of the fleet run")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--repeat", type=int, default=1, help="scaling: pairs of (1 worker, 2 workers) runs")
+    ap.add_argument("--engine", choices=("ray", "local"), default="ray",
+                    help="fleet: Ray tasks (default, as the published runs) or the local executor (no Ray)")
     ap.add_argument("--data", default="/tmp/valve_gym_bench_fleet")
     ap.add_argument("--json", help="write the numbers as JSON")
     a = ap.parse_args(argv)
@@ -159,7 +167,7 @@ def main(argv=None) -> int:
                      "repeats": a.repeat})
     else:
         s = FleetSettings(op_range=(0.0, 100.0), effort="fast", candidates=())
-        rows.append(_run(folder, out, s, a.jobs, quiet=False))
+        rows.append(_run(folder, out, s, a.jobs, quiet=False, engine=a.engine))
     print(f"load average after: {os.getloadavg()}", file=sys.stderr)
     for r in rows:
         print(json.dumps(r))

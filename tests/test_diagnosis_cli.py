@@ -49,18 +49,19 @@ def test_end_to_end(small_csv, tmp_path, capsys):
 
 @pytest.mark.slow
 def test_folder(small_csv, tmp_path, capsys):
+    """A folder runs through the batch engine: every loop screened, a summary table, the loops in the JSON."""
     folder = tmp_path / "recs"
     folder.mkdir()
     for i in range(2):
         write_csv(make_recording("none", seed=40 + i, n=300), folder / f"r{i}.csv")
     js = tmp_path / "all.json"
     rc, out, err = run([str(folder), "--op-range", "0,100", "--effects", "none",
-                        "--effort", "fast", "--jobs", "2", "--json", str(js)], capsys)
+                        "--effort", "fast", "--jobs", "2", "--json", str(js), "--full"], capsys)
     assert rc == 0, err
-    assert "| r0 |" in out and "| r1 |" in out
-    assert "[2/2]" in err
+    assert "| r0 | ok | full |" in out and "| r1 | ok | full |" in out
+    assert "2/2 done, 0 failed" in err
     d = json.loads(js.read_text())
-    assert len(d["recordings"]) == 2 and d["errors"] == []
+    assert [r["loop"] for r in d["loops"]] == ["r0", "r1"] and all(r["status"] == "ok" for r in d["loops"])
 
 
 def test_help(capsys):
@@ -144,7 +145,7 @@ def test_fleet_mode(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("argv_extra, message", [
-    (["--address", "auto"], "--out"),
+    (["--top", "3"], "--out"),
     (["--out", "OUT", "--validate", "X.csv"], "--validate"),
     (["--out", "OUT", "--max-loops", "0"], "--max-loops"),
 ])
@@ -176,7 +177,7 @@ def test_report_states_the_repairs_of_the_data(small_csv, tmp_path, capsys):
     assert d["recording"]["repairs"][0] in md
 
 
-def test_fleet_mode_without_its_extra_names_the_extra(tmp_path, capsys, monkeypatch):
+def test_ray_without_its_extra_names_the_extra(tmp_path, capsys, monkeypatch):
     import importlib.util
 
     real = importlib.util.find_spec
@@ -184,7 +185,13 @@ def test_fleet_mode_without_its_extra_names_the_extra(tmp_path, capsys, monkeypa
     rec = tmp_path / "recs"
     rec.mkdir()
     (rec / "loop.csv").write_text("t,op,pv\n0,0.5,1.0\n1,0.5,1.0\n")
-    assert main([str(rec), "--out", str(tmp_path / "out")]) == 2
+    assert main([str(rec), "--out", str(tmp_path / "out"), "--ray"]) == 2
     err = capsys.readouterr().err
-    assert 'fleet mode (--out) needs ray: pip install "valve_gym[fleet]"' in err and "Traceback" not in err
+    assert '--ray and --address run the loops on Ray, which needs ray: pip install "valve_gym[fleet]"' in err
+    assert "Traceback" not in err
     assert not (tmp_path / "out").exists()
+
+
+def test_folder_options_with_one_recording_are_refused(small_csv, capsys):
+    rc, out, err = run([small_csv, "--address", "auto", "--quiet"], capsys)
+    assert rc == 2 and "give a folder" in err

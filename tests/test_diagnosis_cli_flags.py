@@ -59,7 +59,7 @@ def run_json(rec_dir, tmp_path, capsys, *flags, path=None):
 CASES = {"-h", "--help", "--columns", "--op-range", "--mv-range", "--max-gap", "--gaps",
          "--plant", "--actuator", "--validate", "--validate-columns", "--dt", "--holdout",
          "--json", "--report", "--effects", "--jobs", "--effort", "--search", "--op-lag", "--seed", "--quiet", "--out",
-         "--address", "--full", "--max-loops", "--top", "--dayfirst", "--monthfirst", "--time-unit"}
+         "--address", "--ray", "--full", "--max-loops", "--top", "--dayfirst", "--monthfirst", "--time-unit"}
 
 
 def test_every_help_flag_has_a_case(capsys):
@@ -129,8 +129,8 @@ def test_max_gap_and_gaps(rec_dir, tmp_path, capsys):
         assert d["recording"]["n"] == 192 and d["recording"]["repairs"][0].startswith("kept the longest stretch")
     code, _, err = run([p, "--op-range", "0,100", "--max-gap", "abc", *FAST], capsys)
     assert code == 2 and "--max-gap must be a whole number" in err
-    code, _, err = run([p, "--op-range", "0,100", "--gaps", "error", "--out", tmp_path / "fl", *FAST], capsys)
-    assert code == 2 and "not in fleet mode" in err and "longest stretch" in err
+    code, out, err = run([p, "--op-range", "0,100", "--gaps", "error", "--out", tmp_path / "fl", *FAST], capsys)
+    assert code == 2 and "holed (failed)" in out and "--gaps longest" in out       # the batch engine: a failed row
 
 
 @pytest.mark.slow
@@ -298,10 +298,10 @@ def test_quiet(rec_dir, capsys):
     assert code == 0 and err_q == "" and out_q == out
 
 
-def test_fleet_only_flags_need_out(rec_dir, capsys):
-    for flag in (["--address", "auto"], ["--full"], ["--max-loops", "1"], ["--top", "-1"]):
+def test_folder_flags_need_a_folder(rec_dir, capsys):
+    for flag in (["--address", "auto"], ["--ray"], ["--full"], ["--max-loops", "1"], ["--top", "-1"]):
         code, _, err = run([rec_dir / "loop.csv", "--op-range", "0,100", *flag], capsys)
-        assert code == 2 and "fleet mode only" in err, flag
+        assert code == 2 and "give a folder" in err, flag
 
 
 @pytest.mark.slow
@@ -344,10 +344,11 @@ def test_folder_mode_keeps_good_results_past_a_bad_recording(rec_dir, tmp_path, 
     (folder / "b_bad.csv").write_text("\n".join(text) + "\n")
     out_json = tmp_path / "all.json"
     code, out, err = run([folder, "--op-range", "0,100", *FAST, "--json", out_json], capsys)
-    assert code in (1, 2) and "Traceback" not in err
+    assert code == 2 and "Traceback" not in err
     d = json.loads(out_json.read_text())
-    assert [r["recording"]["name"] for r in d["recordings"]] == ["a_good"]
-    assert len(d["errors"]) == 1 and "b_bad.csv" in d["errors"][0]["path"] and "line(s) 41" in d["errors"][0]["error"]
+    assert [(r["loop"], r["status"]) for r in d["loops"]] == [("a_good", "ok"), ("b_bad", "failed")]
+    assert "b_bad.csv" in d["loops"][1]["message"] and "line(s) 41" in d["loops"][1]["message"]
+    assert "| b_bad | failed |" in out and "| a_good | ok |" in out
 
 
 def test_dayfirst_monthfirst_and_time_unit(tmp_path, capsys):

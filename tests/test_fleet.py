@@ -1,4 +1,4 @@
-"""Tests of the fleet mode (valve_gym.fleet): sources, screening, actions, and runs on Ray (one session)."""
+"""Tests of the batch engine (valve_gym.fleet): sources, screening, actions, and runs on Ray (one session)."""
 from __future__ import annotations
 
 import dataclasses
@@ -156,10 +156,10 @@ def _table(out):
 
 @pytest.mark.slow
 def test_interrupted_and_resumed_equals_uninterrupted(ray_session, folder, tmp_path):
-    whole = run_fleet(folder, str(tmp_path / "whole"), SETTINGS, stream=None, top=2)
+    whole = run_fleet(folder, str(tmp_path / "whole"), SETTINGS, stream=None, engine="ray", top=2)
     assert whole.n_loops == 6 and whole.done == 6 and not whole.interrupted and whole.remaining == 0
     out = str(tmp_path / "parts")
-    first = run_fleet(folder, out, SETTINGS, max_loops=2, stream=None, top=0)
+    first = run_fleet(folder, out, SETTINGS, max_loops=2, stream=None, engine="ray", top=0)
     assert first.done == 2 and first.remaining == 4 and len(pd.read_csv(os.path.join(out, "loops.csv"))) == 2
     # a worker killed while writing leaves at most a temporary file; a damaged result is recomputed
     loops = sorted(os.listdir(os.path.join(out, "loops")))
@@ -171,22 +171,24 @@ def test_interrupted_and_resumed_equals_uninterrupted(ray_session, folder, tmp_p
     def ctrl_c(res):                                                     # Ctrl-C after one more loop
         raise KeyboardInterrupt
 
-    stopped = run_fleet(folder, out, SETTINGS, stream=None, top=0, on_result=ctrl_c)
+    stopped = run_fleet(folder, out, SETTINGS, stream=None, engine="ray", top=0, on_result=ctrl_c)
     assert stopped.interrupted and stopped.done == 1 and stopped.remaining == 4
     assert len(pd.read_csv(os.path.join(out, "loops.csv"))) == 2                   # 1 kept + 1 new
-    second = run_fleet(folder, out, SETTINGS, stream=None, top=2)
+    second = run_fleet(folder, out, SETTINGS, stream=None, engine="ray", top=2)
     assert second.resumed == 2 and second.done == 4 and second.remaining == 0
     a, b = _table(os.path.join(tmp_path, "whole")), _table(out)
     assert len(b) == 6 and b["loop"].is_unique
     pd.testing.assert_frame_equal(a, b)
-    third = run_fleet(folder, out, SETTINGS, stream=None, top=0)          # nothing left to do
+    third = run_fleet(folder, out, SETTINGS, stream=None, engine="ray", top=0)          # nothing left to do
     assert third.done == 0 and third.resumed == 6
     changed = run_fleet(folder, out, FleetSettings(op_range=(0.0, 100.0), effort="fast", candidates=(),
-                                                   seed=1), stream=None, top=0, max_loops=1)
+                                                   seed=1), stream=None, engine="ray", top=0, max_loops=1)
     assert changed.done == 1                                              # other settings: not reused
-    fast = run_fleet(folder, out, dataclasses.replace(SETTINGS, search="fast"), stream=None, top=0, max_loops=1)
+    fast = run_fleet(folder, out, dataclasses.replace(SETTINGS, search="fast"), stream=None, engine="ray", top=0,
+                     max_loops=1)
     assert fast.done == 1                                                 # the fast search: not reused either
-    lag = run_fleet(folder, out, dataclasses.replace(SETTINGS, op_lag=1), stream=None, top=0, max_loops=1)
+    lag = run_fleet(folder, out, dataclasses.replace(SETTINGS, op_lag=1), stream=None, engine="ray", top=0,
+                    max_loops=1)
     assert lag.done == 1                                                  # another OP/PV pairing: not reused
     assert '"op_lag": "auto"' in SETTINGS.hash_text()
     assert '"op_lag": 1' in dataclasses.replace(SETTINGS, op_lag=1).hash_text()
@@ -196,7 +198,7 @@ def test_interrupted_and_resumed_equals_uninterrupted(ray_session, folder, tmp_p
 @pytest.mark.slow
 def test_bad_recording_is_a_failed_row(ray_session, folder, tmp_path):
     out = str(tmp_path / "o")
-    run = run_fleet(folder, out, SETTINGS, stream=None, top=3)
+    run = run_fleet(folder, out, SETTINGS, stream=None, engine="ray", top=3)
     df = pd.read_csv(os.path.join(out, "loops.csv"))
     assert list(df.columns[:11]) == ["loop", "status", "message", "stiction", "S", "J", "effects", "rmse_base",
                                      "rmse_final", "oscillation", "seconds"]
@@ -290,7 +292,7 @@ def test_a_task_error_is_read_from_its_last_line_without_colour_codes():
 def test_wide_export_fleet(ray_session, tmp_path):
     p = tmp_path / "export.parquet"
     _wide_frame(n=500, seed=3).to_parquet(p, index=False)
-    run = run_fleet(str(p), str(tmp_path / "o"), SETTINGS, stream=None, top=1)
+    run = run_fleet(str(p), str(tmp_path / "o"), SETTINGS, stream=None, engine="ray", top=1)
     rows = {r.loop: r for r in run.results}
     assert set(rows) == {"FIC101", "LIC202", "TI303"}
     assert rows["TI303"].status == "failed" and "TI303.OP" in rows["TI303"].message
@@ -336,7 +338,7 @@ def test_in_process_ray_ignores_a_cluster_named_in_the_environment(folder, tmp_p
         shutil.copy(os.path.join(folder, name), recs / name)
     env = dict(os.environ, RAY_ADDRESS="127.0.0.1:9")      # nothing listens there
     cmd = [sys.executable, "-m", "valve_gym.cli", "diagnose", str(recs), "--op-range", "0,100", "--effects", "none",
-           "--effort", "fast", "--jobs", "1", "--quiet", "--out", str(out)]
+           "--effort", "fast", "--jobs", "1", "--quiet", "--out", str(out), "--ray"]
     p = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=240)
     assert p.returncode == 0, (p.stdout + p.stderr)[-2000:]
     assert len(list((out / "loops").glob("*.json"))) == 2

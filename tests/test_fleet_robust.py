@@ -77,7 +77,7 @@ def _command_in_own_session(code: str, args: list[str]) -> tuple[int, str, str, 
 def _stopped_fleet_run(code: str, recs: str, out) -> str:
     """A fleet run of ``recs`` into ``out`` by ``code`` that stops itself: it exits 130 and leaves no process;
     its stderr."""
-    rc, stdout, stderr, left = _command_in_own_session(code, ["diagnose", recs, "--out", str(out), *FAST])
+    rc, stdout, stderr, left = _command_in_own_session(code, ["diagnose", recs, "--out", str(out), *FAST, "--ray"])
     assert not left, f"processes left running after the command exited: {left}"
     assert rc == 130, (stdout + stderr)[-2000:]
     return stderr

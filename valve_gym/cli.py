@@ -17,8 +17,8 @@ _COMMANDS = {
     "benchmark": ("valve_gym.agents.bench.cli", "compensator benchmark: regulation and servo on sticky valves"),
     "train": ("valve_gym.agents.train", "train the learned compensator (ES) or a PPO policy from a YAML config"),
     "figures": ("valve_gym.figures", "write the teaching figures (PNG)"),
-    "diagnose": ("valve_gym.diagnosis.cli", "diagnose a recording (or a folder of loops, on Ray): locate the "
-                 "mismatch, name the missing physics, rank the valves"),
+    "diagnose": ("valve_gym.diagnosis.cli", "diagnose a recording (or a folder of loops, locally or on Ray): "
+                 "locate the mismatch, name the missing physics, rank the valves"),
     "lab": ("valve_gym.lab.cli", "serve the teaching lab in the browser: the valve, its loop, the compensators"),
     "convert-policy": ("valve_gym.agents.convert", "convert a TRUSTED old pickle-based SB3 zip to safetensors + JSON"),
 }

@@ -8,19 +8,23 @@ Usage::
         [--actuator valve|pump] [--validate OTHER.csv [--validate-columns MAPPING]] [--holdout FRAC]
         [--json OUT.json] [--report DIR] [--effects LIST] [--jobs N]
         [--effort auto|fast|normal|thorough] [--search full|fast] [--op-lag auto|0|1] [--seed N] [--quiet]
-    valve-gym diagnose DIR|EXPORT --out OUTDIR [--jobs N] [--address ADDR] [--full]
+    valve-gym diagnose DIR [--out OUTDIR] [--jobs N] [--ray | --address ADDR] [--full]
         [--max-loops N] [--top N] [same options as above]
+    valve-gym diagnose EXPORT --out OUTDIR [same options]
 
-A folder is diagnosed file by file (``*.csv`` and ``*.txt`` DCS exports, sorted) in ``--jobs`` worker
-processes, with a progress line per file on stderr and a summary table on
-stdout.  With ``--out`` a folder (or a historian's wide export) is run as a
-fleet on Ray (:mod:`valve_gym.fleet`): each loop's result is written to
-``OUTDIR/loops/`` as it finishes, ``OUTDIR/loops.parquet``/``loops.csv`` hold one
-row per loop, ``OUTDIR/worklist.md``/``.html`` rank the loops, and running again
-continues an interrupted run.  Exit status: 0 on success, 2 for bad input (the
-message says what is wrong and how to fix it; no traceback; in fleet mode also
-when a loop's data could not be used), 1 for an internal error, 130 when a fleet
-run was interrupted (finished loops are kept).
+A folder of loops (or, with ``--out``, a historian's wide export) is diagnosed by the one batch
+engine, :func:`valve_gym.fleet.run_fleet` (:mod:`valve_gym.fleet`), with or without ``--out``: every
+loop is screened (oscillation index, Horch's test) and diagnosed in full where it oscillates (every
+loop with ``--full``), with a progress line on stderr.  The loops run without Ray by default: one
+after another in this process with ``--jobs 1``, in ``--jobs`` local worker processes otherwise;
+``--ray`` runs them as Ray tasks (Ray in this process), ``--address`` on a Ray cluster (the
+``[fleet]`` extra).  Without ``--out`` a summary table (one row per loop) is printed on stdout and
+nothing is kept; with ``--out`` each loop's result is written to ``OUTDIR/loops/`` as it finishes,
+``OUTDIR/loops.csv`` (and ``loops.parquet`` with pyarrow) hold one row per loop,
+``OUTDIR/worklist.md``/``.html`` rank the loops, and running again continues an interrupted run.
+Exit status: 0 on success, 2 for bad input (the message says what is wrong and how to fix it; no
+traceback; for a folder also when a loop's data could not be used), 1 for an internal error, 130 when
+a folder's run was interrupted (finished loops are kept).
 """
 from __future__ import annotations
 
@@ -29,7 +33,6 @@ import math
 import os
 import re
 import sys
-import time
 
 from .._io import folder_problem
 from ..effects import candidate_effects
@@ -37,7 +40,7 @@ from .model import ACTUATORS, CANDIDATE_EFFECTS, PLANTS
 from .recording import RecordingError, load_recording, parse_columns, parse_range
 from .report import _g
 
-__all__ = ["main", "build_parser"]
+__all__ = ["main", "build_parser", "fleet_summary_table"]
 
 
 class _UsageError(Exception):
@@ -110,34 +113,44 @@ def build_parser() -> argparse.ArgumentParser:
                    help="candidate effects, comma-separated, 'all' (default) or 'none'; known: "
                         + ", ".join(CANDIDATE_EFFECTS))
     p.add_argument("--jobs", default="2",
-                   help="worker processes (default 2): recordings in parallel for a folder (Ray workers "
-                        "with --out), candidate fits in parallel for one file")
+                   help="workers (default 2): loops in parallel for a folder (local worker processes, 1: one "
+                        "after another in this process; Ray workers with --ray), candidate fits in parallel "
+                        "for one file")
     p.add_argument("--effort", default="auto", choices=("auto", "fast", "normal", "thorough"),
                    help="search budget (default auto: thorough up to 1800 samples, normal above)")
     p.add_argument("--search", default="full", choices=("full", "fast"),
                    help="full (default) or fast: warm-start clouds and early stops, about 1.15x less CPU, "
-                        "fits up to 18 %% worse; in fleet mode it applies to the full diagnoses")
+                        "fits up to 18 %% worse; for a folder it applies to the full diagnoses")
     p.add_argument("--op-lag", default="auto", choices=OP_LAG_CHOICES,
                    help="how the recorder pairs OP and PV: 0 PV[k] measured after OP[k] acted for one "
                         "sample; 1 OP[k] computed from the PV[k] beside it (a scan logged as it happened, or a "
                         "zero-order-hold input sampled with the output): OP[k-1] is paired with PV[k]; auto "
                         "(default) reads it from the controller's reaction to PV moves (else fits both and keeps 1 "
-                        "only when it is clearly better); in fleet mode it applies to the full diagnoses")
+                        "only when it is clearly better); for a folder it applies to the full diagnoses")
     p.add_argument("--seed", default="0", help="seed of the search (default 0)")
     p.add_argument("--quiet", action="store_true", help="no progress messages")
-    g = p.add_argument_group("fleet mode (a folder or a wide export, on Ray; see docs/fleet.md)")
+    _add_folder_options(p)
+    return p
+
+
+def _add_folder_options(p: argparse.ArgumentParser) -> None:
+    """The options of a folder of loops (the batch engine, :func:`valve_gym.fleet.run_fleet`)."""
+    g = p.add_argument_group("a folder of loops, or a wide export with --out (see docs/fleet.md)")
     g.add_argument("--out", metavar="OUTDIR",
-                   help="run the loops of the folder / wide export as a fleet: results per loop in OUTDIR/loops/, "
-                        "OUTDIR/loops.parquet + loops.csv, worklist.md + worklist.html; resumes a stopped run")
+                   help="keep the results: per loop in OUTDIR/loops/, OUTDIR/loops.csv (+ loops.parquet with "
+                        "pyarrow), worklist.md + worklist.html; resumes a stopped run; also runs the tags of a "
+                        "historian's wide export")
+    g.add_argument("--ray", action="store_true",
+                   help="run the loops as Ray tasks, Ray in this process with --jobs workers (default: without "
+                        "Ray); needs the [fleet] extra")
     g.add_argument("--address", metavar="ADDR",
-                   help="address of a running Ray cluster ('auto', host:port, or ray://host:port of its Ray "
-                        "Client); default: Ray in this process with --jobs workers")
+                   help="address of a running Ray cluster to run the loops on ('auto', host:port, or "
+                        "ray://host:port of its Ray Client); implies --ray")
     g.add_argument("--full", action="store_true",
                    help="full diagnosis of every loop (default: only of the loops that oscillate)")
     g.add_argument("--max-loops", metavar="N",
-                   help="analyse at most N new loops in this run (the others in the next)")
+                   help="analyse at most N new loops in this run (with --out, the others in the next)")
     g.add_argument("--top", default="10", metavar="N", help="loops with plots in worklist.html (default 10)")
-    return p
 
 
 def _joined_ranges(argv: list[str]) -> list[str]:
@@ -255,19 +268,13 @@ def _sample_time(a) -> dict:
 
 
 def _check_mode_options(a) -> None:
-    """Refuse options that the chosen mode (fleet with ``--out``, else single files and folders) does not use."""
+    """Refuse options that the chosen mode (a folder or ``--out``: the batch engine; else one file) does not use."""
     if a.validate_columns is not None and not a.validate:
         raise _UsageError("--validate-columns maps the columns of the --validate recording: give --validate too")
-    if a.out and a.dt is not None:
-        raise _UsageError("--dt works with single files and folders, not in fleet mode (--out): a fleet's "
-                          "loops carry their time stamps")
-    if a.out and a.gaps != "longest":
-        raise _UsageError("--gaps works with single files and folders, not in fleet mode (--out): a fleet "
-                          "always keeps each loop's longest stretch free of gaps longer than --max-gap")
 
 
 def _main(argv: list[str]) -> int:
-    from .diagnose import diagnose, diagnose_many
+    from .diagnose import diagnose
 
     a = build_parser().parse_args(_joined_ranges(argv))
     columns = parse_columns(a.columns) if a.columns is not None else None
@@ -287,37 +294,11 @@ def _main(argv: list[str]) -> int:
                "op_lag": op_lag_value(a.op_lag)}
     path = a.path
     _check_mode_options(a)
-    if a.out:
+    if a.out or os.path.isdir(path):
         return _fleet(a, path, jobs, seed, holdout, cands, op_range, max_gap, say)
-    if a.address or a.full or a.max_loops or a.top != "10":
-        raise _UsageError("--address, --full, --max-loops and --top work in fleet mode only: add --out OUTDIR")
-    if os.path.isdir(path):
-        if a.validate:
-            raise _UsageError("--validate works with a single recording, not a folder")
-        from .recording.sniff import recording_files
-        files = recording_files(path)
-        if not files:
-            raise _UsageError(f"folder {path!r} holds no .csv files (nor .txt DCS exports)")
-        say(f"diagnosing {len(files)} recordings with {jobs} worker(s)")
-        t0 = time.perf_counter()
-        rep_dir = a.report
-        out = diagnose_many(files, jobs=jobs, load_kw=load_kw, diag_kw=diag_kw,
-                            report_dir=rep_dir, progress=say)
-        from .report import summary_table, write_json, write_text
-        rows = [r["row"] if r["ok"] else {"recording": os.path.basename(r["path"]),
-                                          "error": r["error"]} for r in out]
-        table = summary_table(rows)
-        print(table)
-        errors = [{"path": r["path"], "error": r["error"]} for r in out if not r["ok"]]
-        if a.json:
-            write_json({"recordings": [r["result"] for r in out if r["ok"]],
-                        "summary": [r for r in rows if "error" not in r], "errors": errors,
-                        "seconds": time.perf_counter() - t0}, a.json)
-        if rep_dir:
-            write_text(f"# Diagnosis of {len(files)} recordings\n\n{table}", os.path.join(
-                rep_dir, "summary.md"))
-        say(f"done in {time.perf_counter() - t0:.1f} s; {len(errors)} failed")
-        return 2 if errors else 0
+    if a.address or a.ray or a.full or a.max_loops or a.top != "10":
+        raise _UsageError("--ray, --address, --full, --max-loops and --top work with a folder of loops (or with "
+                          "--out OUTDIR); give a folder, or leave them out for one recording")
     if not os.path.exists(path):
         raise RecordingError(f"{path}: no such file or folder")
     rec = load_recording(path, **load_kw)
@@ -338,24 +319,27 @@ def _main(argv: list[str]) -> int:
 
 
 def _fleet(a, path, jobs, seed, holdout, cands, op_range, max_gap, say) -> int:
-    """Fleet mode: ``path`` (folder or wide export) on Ray into ``a.out``."""
+    """A folder (or, with ``--out``, a wide export) through the batch engine, :func:`valve_gym.fleet.run_fleet`."""
     import importlib.util
 
-    missing = [m for m in ("ray", "pyarrow") if importlib.util.find_spec(m) is None]
-    if missing:
-        raise _UsageError(f"fleet mode (--out) needs {' and '.join(missing)}: pip install \"valve_gym[fleet]\" "
-                          "(or leave out --out to diagnose the recordings one by one)")
+    use_ray = bool(a.ray or a.address)
+    if use_ray and importlib.util.find_spec("ray") is None:
+        raise _UsageError('--ray and --address run the loops on Ray, which needs ray: pip install "valve_gym[fleet]" '
+                          '(or leave them out: the loops then run without Ray)')
     from ..fleet import FleetSettings, run_fleet
     if a.validate:
-        raise _UsageError("--validate works with a single recording, not in fleet mode (--out)")
+        raise _UsageError("--validate works with a single recording, not with a folder or --out")
     if not os.path.exists(path):
         raise RecordingError(f"{path}: no such file or folder")
-    _check_out(a.out, "--out", True)
-    from ..fleet.runner import check_out_dir
-    try:
-        check_out_dir(path, a.out, "--out")
-    except ValueError as e:
-        raise _UsageError(str(e)) from None
+    if a.out:
+        _check_out(a.out, "--out", True)
+        from ..fleet.runner import check_out_dir
+        try:
+            check_out_dir(path, a.out, "--out")
+        except ValueError as e:
+            raise _UsageError(str(e)) from None
+    elif a.top != "10":
+        raise _UsageError("--top sets the loops with plots in the worklist, which --out OUTDIR writes: add --out")
     _check_address(a.address)
     max_loops = int(_number(a.max_loops, "--max-loops", int, 1, 10 ** 9)) if a.max_loops else None
     top = int(_number(a.top, "--top", int, 0, 1000))
@@ -365,16 +349,20 @@ def _fleet(a, path, jobs, seed, holdout, cands, op_range, max_gap, say) -> int:
                              op_lag=op_lag_value(a.op_lag),
                              columns=tuple(sorted(cols.items())) if cols else None, op_range=op_range,
                              mv_range=parse_range(a.mv_range, "--mv-range") if a.mv_range else None,
-                             max_gap=max_gap, dayfirst=a.dayfirst, time_unit=a.time_unit, report_dir=a.report)
+                             max_gap=max_gap, dayfirst=a.dayfirst, time_unit=a.time_unit,
+                             dt=_sample_time(a).get("dt"), gaps=a.gaps, report_dir=a.report)
 
-    kept = os.path.join(a.out, "loops")
+    kept = os.path.join(a.out, "loops") if a.out else ""
     try:
-        run = run_fleet(path, a.out, settings, jobs=jobs, address=a.address, max_loops=max_loops,
-                        stream=None if a.quiet else sys.stderr, top=top)
+        run = run_fleet(path, a.out or None, settings, jobs=jobs, address=a.address, max_loops=max_loops,
+                        stream=None if a.quiet else sys.stderr, top=top, engine="ray" if use_ray else "local")
     except KeyboardInterrupt:       # while the loops were found, or a second Ctrl-C
-        print(f"valve-gym diagnose: interrupted: the loops finished so far are kept in {kept}; run the same "
-              f"command again to continue (it also writes the table and the worklist)", file=sys.stderr)
+        more = (f"the loops finished so far are kept in {kept}; run the same command again to continue (it also "
+                f"writes the table and the worklist)" if a.out else "add --out OUTDIR to keep the finished loops")
+        print(f"valve-gym diagnose: interrupted: {more}", file=sys.stderr)
         return 130
+    if not a.out:
+        print(fleet_summary_table(run.results))
     _print_fleet(run, max_loops)
     if a.json:
         import json
@@ -384,14 +372,45 @@ def _fleet(a, path, jobs, seed, holdout, cands, op_range, max_gap, say) -> int:
                            "interrupted": run.interrupted, "remaining": run.remaining}, indent=1,
                           allow_nan=False).encode()
         write_atomic(a.json, lambda f: f.write(text))
+    if a.report:
+        from .report import write_text
+        write_text(f"# Diagnosis of {run.n_loops} loops\n\n{fleet_summary_table(run.results)}",
+                   os.path.join(a.report, "summary.md"))
     if run.interrupted:
-        rest = (f"run the same command again to continue the other {run.remaining}" if run.remaining else
-                "every loop had finished, and the table and the worklist are written")
-        print(f"valve-gym diagnose: interrupted: {run.done} loop(s) finished in this run, {len(run.results)} of "
-              f"{run.n_loops} in all, are kept in {kept}; {rest}", file=sys.stderr)
+        if a.out:
+            rest = (f"run the same command again to continue the other {run.remaining}" if run.remaining else
+                    "every loop had finished, and the table and the worklist are written")
+            print(f"valve-gym diagnose: interrupted: {run.done} loop(s) finished in this run, {len(run.results)} "
+                  f"of {run.n_loops} in all, are kept in {kept}; {rest}", file=sys.stderr)
+        else:
+            print(f"valve-gym diagnose: interrupted: {len(run.results)} of {run.n_loops} loop(s) finished (above); "
+                  f"add --out OUTDIR to keep the finished loops and continue later", file=sys.stderr)
         return 130
     statuses = {r.status for r in run.results}
     return 1 if "error" in statuses else 2 if "failed" in statuses else 0
+
+
+def fleet_summary_table(results) -> str:
+    """Markdown table of the batch engine's results (:class:`~valve_gym.fleet.LoopResult`), one row per loop.
+
+    Columns: loop, status, stage (``screen`` or ``full``), whether it oscillates, the stiction verdict with
+    its probability and stick band ``S`` [% of stroke], the effects named, the free-run RMSE of the base and
+    final models [PV units], the recommended action (or why the loop failed) and the loop's wall time [s].
+    """
+    from .._markdown import md_cell
+
+    L = ["| loop | status | stage | oscillating | stiction | p | S % | effects | RMSE base | RMSE final | "
+         "action | s |",
+         "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in results:
+        if r.status != "ok":
+            L.append(f"| {md_cell(r.loop)} | {r.status} | | | | | | | | | {md_cell(r.message)} | "
+                     f"{_g(r.seconds, 3)} |")
+            continue
+        L.append(f"| {md_cell(r.loop)} | ok | {r.stage} | {'yes' if r.oscillating else 'no'} | {r.stiction} | "
+                 f"{_g(r.p_stiction, 2)} | {_g(100 * r.S, 3)} | {md_cell(r.effects or '–')} | {_g(r.rmse_base)} | "
+                 f"{_g(r.rmse_final)} | {md_cell(r.action)} | {_g(r.seconds, 3)} |")
+    return "\n".join(L) + "\n"
 
 
 def _print_fleet(run, max_loops: int | None = None) -> None:
@@ -409,10 +428,12 @@ def _print_fleet(run, max_loops: int | None = None) -> None:
         print(f"{len(bad)} loop(s) failed:")
         for r in bad:
             print(f"  {r.loop} ({r.status}): {r.message}")
-    print(f"worklist: {run.paths['worklist_md']}, {run.paths['worklist_html']}; table: {run.paths['table']}")
+    if run.paths:
+        print(f"worklist: {run.paths['worklist_md']}, {run.paths['worklist_html']}; table: {run.paths['table']}")
     if run.remaining and not run.interrupted:
+        again = "run the same command again to continue them" if run.paths else "add --out OUTDIR to keep and resume"
         print(f"partial run (--max-loops {max_loops}): {run.remaining} of {run.n_loops} loops not analysed yet; "
-              f"run the same command again to continue them")
+              f"{again}")
 
 
 def _print_summary(res) -> None:

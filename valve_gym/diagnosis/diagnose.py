@@ -12,7 +12,6 @@ import math
 import os
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import as_completed
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -1124,10 +1123,16 @@ def _diagnose_job(args):
 
 
 def diagnose_many(paths: Sequence[str], jobs: int = 2, load_kw: dict | None = None,
-                  diag_kw: dict | None = None, json_dir: str | None = None,
+                  diag_kw: dict | Callable[[str], dict] | None = None, json_dir: str | None = None,
                   report_dir: str | None = None,
                   progress: Callable[[str], None] | None = None) -> list[dict]:
-    """Diagnose many recording files in parallel worker processes.
+    """Diagnose many recording files in full, on the local executor of the batch engine.
+
+    A library function for a list of files each diagnosed in full (no screening; per-file settings).
+    A folder of loops is diagnosed by the batch engine itself, :func:`valve_gym.fleet.run_fleet`
+    (``valve-gym diagnose DIR``: screening, full diagnosis of the oscillating loops); its local
+    executor (:func:`valve_gym.fleet.runner.local_results`: this process for ``jobs`` 1, else worker
+    processes) runs these diagnoses too.
 
     Parameters
     ----------
@@ -1144,6 +1149,8 @@ def diagnose_many(paths: Sequence[str], jobs: int = 2, load_kw: dict | None = No
     list of dict, in the order of ``paths``: ``path``, ``ok``, and either
     ``row`` (summary row) and ``result`` (the JSON dict) or ``error``.
     """
+    from ..fleet.runner import local_results
+
     load_kw = dict(load_kw or {})
     tasks = []
     for p in paths:
@@ -1157,9 +1164,13 @@ def diagnose_many(paths: Sequence[str], jobs: int = 2, load_kw: dict | None = No
     n = len(tasks)
     done = 0
     t0 = time.perf_counter()
-
-    def note(i, r):
-        nonlocal done
+    for i, r, err in local_results(_diagnose_job, tasks, jobs):
+        if i < 0:
+            continue
+        if err is not None:
+            r = {"path": tasks[i][0], "ok": False, "error": f"worker lost ({type(err).__name__}: {err})",
+                 "seconds": math.nan}
+        out[i] = r
         done += 1
         if progress:
             name = os.path.basename(r["path"])
@@ -1171,16 +1182,4 @@ def diagnose_many(paths: Sequence[str], jobs: int = 2, load_kw: dict | None = No
             else:
                 msg = f"[{done}/{n}] {name}: ERROR {r['error']}"
             progress(msg)
-
-    if jobs <= 1 or n <= 1:
-        for i, t in enumerate(tasks):
-            out[i] = _diagnose_job(t)
-            note(i, out[i])
-    else:
-        with process_pool(jobs) as ex:
-            futs = {ex.submit(_diagnose_job, t): i for i, t in enumerate(tasks)}
-            for fu in as_completed(futs):
-                i = futs[fu]
-                out[i] = fu.result()
-                note(i, out[i])
     return out  # type: ignore[return-value]

@@ -1,23 +1,25 @@
-"""Plant-scale diagnosis: a fleet of loops on Ray, ranked into a worklist of which valve to fix first.
+"""Plant-scale diagnosis: valve_gym's one batch engine, a fleet of loops ranked into a worklist.
 
-``valve-gym diagnose DIR --out OUT [--jobs N] [--address ADDR]`` runs
+``valve-gym diagnose DIR [--out OUT] [--jobs N] [--ray | --address ADDR]`` runs
 :func:`run_fleet`: every loop of a folder (one CSV per loop) or of a
 historian's wide export (``TAG.PV``, ``TAG.OP``, ``TAG.SP``, ``TAG.MODE``) is
 screened (oscillation index, Horch's test), diagnosed in full where it
-oscillates, and written as it finishes; ``loops.parquet``/``loops.csv`` hold one
-row per loop and ``worklist.md``/``worklist.html`` rank the loops by the cost of
-stiction with a recommended action.  See ``docs/fleet.md``.
+oscillates, and (with ``--out``) written as it finishes; ``loops.csv`` (and
+``loops.parquet`` with pyarrow) hold one row per loop and
+``worklist.md``/``worklist.html`` rank the loops by the cost of stiction with a
+recommended action.  The loops run without Ray by default (this process, or
+local worker processes), on Ray when asked.  See ``docs/fleet.md``.
 
 Public API
 ----------
 run_fleet, FleetRun
-    run a fleet on Ray (in this process, or on a cluster), resumable.
+    run a fleet locally (no Ray) or on Ray (in this process, or on a cluster), resumable.
 FleetSettings, LoopResult, TABLE_COLUMNS
     the settings of a run and one loop's typed result.
 discover_loops, load_loop, LoopSource, resample_loop
     find the loops of a folder or a wide export; read one.
 analyse_loop
-    one loop's work (what a Ray task runs).
+    one loop's work (what each worker runs).
 screen_recording
     the fast screening stage (the oscillation detector's "screen" rule, Horch's test).
 write_worklist, RULES

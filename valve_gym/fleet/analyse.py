@@ -195,9 +195,7 @@ def analyse_loop(src: LoopSource, settings: FleetSettings, key: str = "") -> Loo
 
     t0, c0 = time.perf_counter(), time.process_time()
     try:
-        loaded = load_loop(src, columns=dict(settings.columns) if settings.columns else None,
-                           op_range=settings.op_range, max_gap=settings.max_gap, mv_range=settings.mv_range,
-                           dayfirst=settings.dayfirst, time_unit=settings.time_unit)
+        loaded = load_loop(src, **settings.load_kw())
         rec = loaded.recording
         sc = screen_recording(rec, resolve_plant(settings.plant, rec.name, rec.columns.get("pv"), rec.op, rec.pv,
                                                  float(rec.dt or 1.0))[0])

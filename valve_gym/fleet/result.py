@@ -50,6 +50,9 @@ class FleetSettings:
     dayfirst : bool or None, dates ``D/M/Y`` (True) or ``M/D/Y`` (False); None reads it from the data
     time_unit : str or None, unit of a numeric time column (``'s'``, ``'ms'``, ``'us'``, ``'days'``); None
         reads it from the data
+    dt : float or None, sample time [s] of one-recording files without a time column (``--dt``)
+    gaps : str, ``'longest'`` (default: keep each loop's longest stretch without a gap longer than
+        ``max_gap``) or ``'error'`` (such a loop fails, naming the gap)
     report_dir : str, optional, folder for a full report per fully diagnosed loop
     """
 
@@ -68,7 +71,15 @@ class FleetSettings:
     mv_range: tuple[float, float] | None = None
     dayfirst: bool | None = None
     time_unit: str | None = None
+    dt: float | None = None
+    gaps: str = "longest"
     report_dir: str | None = field(default=None, compare=False)
+
+    def load_kw(self) -> dict[str, Any]:
+        """The keywords of :func:`~valve_gym.fleet.sources.load_loop` that these settings give."""
+        return {"columns": dict(self.columns) if self.columns else None, "op_range": self.op_range,
+                "max_gap": self.max_gap, "mv_range": self.mv_range, "dayfirst": self.dayfirst,
+                "time_unit": self.time_unit, "dt": self.dt, "gaps": self.gaps}
 
     def hash_text(self) -> str:
         """Canonical JSON of the settings that change a result."""
@@ -78,9 +89,11 @@ class FleetSettings:
             d.pop("search")
         if d["op_lag"] == 0:                # the default before auto: those runs keep their keys
             d.pop("op_lag")
-        for k in ("mv_range", "dayfirst", "time_unit"):     # the defaults: read from the data
+        for k in ("mv_range", "dayfirst", "time_unit", "dt"):     # the defaults: read from the data
             if d[k] is None:
                 d.pop(k)
+        if d["gaps"] == "longest":          # the default: keys of runs made before it existed stay valid
+            d.pop("gaps")
         d["version"] = RESULT_VERSION
         return json.dumps(d, sort_keys=True, default=list)
 

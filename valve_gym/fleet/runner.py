@@ -32,7 +32,7 @@ import signal
 import sys
 import tempfile
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
 from dataclasses import fields, replace
 from typing import Any, NamedTuple
 
@@ -43,7 +43,7 @@ from .result import FleetSettings, LoopResult, loop_key
 from .sources import FLEET_OUTPUT_FILES, LoopSource, discover_loops, fleet_outputs
 from .table import read_result, write_result, write_table
 
-__all__ = ["FleetRun", "run_fleet", "plan_fleet", "check_out_dir"]
+__all__ = ["FleetRun", "run_fleet", "plan_fleet", "check_out_dir", "local_results", "ENGINES"]
 
 _TABLE_EVERY_S = 30.0
 
@@ -508,8 +508,33 @@ def _collect(ref, src_of: dict, keys: dict) -> LoopResult:
                                                            f"run again to retry")
 
 
-def _stream(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs: int, out_dir: str,
-            results: dict, bar: Progress, on_result: Callable[[LoopResult], None] | None,
+class _Sink:
+    """Where each loop's result goes as it arrives.
+
+    Its JSON (with an output folder), the results, the progress bar, ``on_result``; the table every
+    :data:`_TABLE_EVERY_S` seconds.
+    """
+
+    def __init__(self, out_dir: str | None, results: dict, bar: Progress,
+                 on_result: Callable[[LoopResult], None] | None):
+        self.out_dir, self.results, self.bar, self.on_result = out_dir, results, bar, on_result
+        self.last_table = time.perf_counter()
+
+    def take(self, res: LoopResult) -> None:
+        if self.out_dir is not None:
+            write_result(res, os.path.join(self.out_dir, "loops", res.loop + ".json"))
+        self.results[res.loop] = res
+        self.bar.update(failed=res.status != "ok")
+        if self.on_result:
+            self.on_result(res)
+
+    def tick(self) -> None:
+        if self.out_dir is not None and time.perf_counter() - self.last_table > _TABLE_EVERY_S:
+            write_table(list(self.results.values()), self.out_dir)
+            self.last_table = time.perf_counter()
+
+
+def _stream(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs: int, sink: _Sink,
             ship: bool = False, stop: _Stop | None = None) -> list[LoopSource]:
     """Submit ``todo`` with a bounded window, write each result as it comes; returns the loops not done.
 
@@ -525,7 +550,6 @@ def _stream(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs: i
     window = max(2 * cpus, 4)
     pending = list(reversed(todo))
     src_of: dict = {}
-    last_table = time.perf_counter()
     try:
         while pending or src_of:
             if stop is not None and stop.requested:
@@ -537,16 +561,10 @@ def _stream(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs: i
             for ref in ready:
                 res = _collect(ref, src_of, keys)
                 shipper.done(src_of.pop(ref))
-                write_result(res, os.path.join(out_dir, "loops", res.loop + ".json"))
-                results[res.loop] = res
-                bar.update(failed=res.status != "ok")
-                if on_result:
-                    on_result(res)
+                sink.take(res)
             if not ready:
-                bar.show()
-            if time.perf_counter() - last_table > _TABLE_EVERY_S:
-                write_table(list(results.values()), out_dir)
-                last_table = time.perf_counter()
+                sink.bar.show()
+            sink.tick()
     except KeyboardInterrupt:
         for ref in src_of:
             ray.cancel(ref, force=True)
@@ -577,50 +595,163 @@ def _ray_up(jobs: int, address: str | None, say, stop: _Stop) -> Iterator[bool]:
             stop.rearm()
 
 
-def _run_todo(todo, keys, settings, jobs, address, out_dir, results, bar, on_result, stream, stop: _Stop,
-              ray_stack: contextlib.ExitStack) -> list[LoopSource]:
-    """Start Ray on ``ray_stack`` (shut down when it closes) and run the loops of ``todo``; the loops left.
+def _worker_init(threads: int) -> None:
+    """A local worker process: its share of the kernel threads; Ctrl-C is the driver's to act on."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    from ..diagnosis.model import set_kernel_threads
+    set_kernel_threads(threads)
 
-    All of them when a signal came while Ray started.
+
+def _local_task(args: tuple[LoopSource, FleetSettings, str]) -> LoopResult:
+    src, settings, key = args
+    return analyse_loop(src, settings, key)
+
+
+def local_results(fn: Callable[[Any], Any], items: list, jobs: int, stop: Callable[[], bool] | None = None
+                  ) -> Generator[tuple[int, Any, BaseException | None], None, None]:
+    """``fn`` over ``items`` without Ray: ``(index, result, None)``, or ``(index, None, error)``, as each finishes.
+
+    The local executor of the batch engine: with ``jobs`` 1 (or one item) the items run one after another
+    in this process, in order (an exception of ``fn`` propagates); otherwise in ``jobs`` worker processes
+    (``fn`` and the items picklable; each worker gets its share of the kernel threads and leaves Ctrl-C to
+    this process), at most ``2 jobs`` submitted at once, an error of a worker (a lost process) is
+    yielded, and ``(-1, None, None)`` when no item finished within a second (for a progress line).
+    ``stop()`` is looked at before each item and at least once a second; when it is true, or when the
+    caller stops iterating (``close()``), the items not finished are given up (the workers ended).
+    """
+    if jobs <= 1 or len(items) <= 1:
+        for i, it in enumerate(items):
+            if stop is not None and stop():
+                return
+            yield i, fn(it), None
+        return
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    from ..diagnosis.model import kernel_threads
+
+    ex = ProcessPoolExecutor(max_workers=jobs, initializer=_worker_init,
+                             initargs=(max(1, kernel_threads() // jobs),))
+    pending = list(reversed(range(len(items))))
+    index_of: dict = {}
+    finished = False
+    try:
+        while pending or index_of:
+            if stop is not None and stop():
+                return
+            while pending and len(index_of) < 2 * jobs:
+                i = pending.pop()
+                index_of[ex.submit(fn, items[i])] = i
+            ready, _ = wait(list(index_of), timeout=1.0, return_when=FIRST_COMPLETED)
+            for fu in ready:
+                i = index_of.pop(fu)
+                try:
+                    yield i, fu.result(), None
+                except Exception as e:              # a worker process lost (killed, out of memory)
+                    yield i, None, e
+            if not ready:
+                yield -1, None, None                # nothing finished within the second
+        finished = True
+    finally:
+        if not finished:
+            for proc in list((getattr(ex, "_processes", None) or {}).values()):
+                with contextlib.suppress(Exception):
+                    proc.terminate()
+        ex.shutdown(wait=True, cancel_futures=True)
+
+
+def _run_local(todo: list[LoopSource], keys: dict, settings: FleetSettings, jobs: int, sink: _Sink,
+               stop: _Stop) -> list[LoopSource]:
+    """Run ``todo`` without Ray (:func:`local_results`); returns the loops not done.
+
+    After a signal the loop in progress in this process is finished (unless Ctrl-C comes twice), the
+    workers' loops are given up.
+    """
+    done: set[int] = set()
+    results = local_results(_local_task, [(s, settings, keys[s.name]) for s in todo], jobs, lambda: stop.requested)
+    try:
+        for i, res, err in results:
+            if i < 0:
+                sink.bar.show()
+                continue
+            if err is not None:
+                s = todo[i]
+                res = failed_result(s, keys[s.name], "error", f"worker lost ({type(err).__name__}: {err}); "
+                                                              f"run again to retry")
+            done.add(i)
+            sink.take(res)
+            sink.tick()
+    except KeyboardInterrupt:                       # Ctrl-C twice: the loop in progress is given up
+        pass
+    finally:
+        results.close()                             # the workers' loops not finished are given up
+    return [s for i, s in enumerate(todo) if i not in done]
+
+
+def _run_todo(todo, keys, settings, jobs, address, engine: str, sink: _Sink, stream, stop: _Stop,
+              ray_stack: contextlib.ExitStack) -> list[LoopSource]:
+    """Run the loops of ``todo`` on ``engine``; the loops left.
+
+    ``'ray'``: Ray started on ``ray_stack`` (shut down when it closes); all of the loops are left when a
+    signal came while Ray started.  ``'local'``: :func:`_run_local`.
     """
     say = None if stream is None else (lambda m: print(m, file=stream, flush=True))
     try:
+        if sink.out_dir is not None:
+            os.makedirs(os.path.join(sink.out_dir, "loops"), exist_ok=True)
+        if engine == "local":
+            return _run_local(todo, keys, settings, jobs, sink, stop)
         started = ray_stack.enter_context(_ray_up(jobs, address, say, stop))
         if stop.requested:
             return list(todo)
-        os.makedirs(os.path.join(out_dir, "loops"), exist_ok=True)
-        return _stream(todo, keys, settings, jobs, out_dir, results, bar, on_result,
-                       ship=bool(address) or not started, stop=stop)
+        return _stream(todo, keys, settings, jobs, sink, ship=bool(address) or not started, stop=stop)
     except KeyboardInterrupt:       # while Ray started (or its start was cut short): no loop ran
         return list(todo)
     finally:
-        bar.close()
+        sink.bar.close()
 
 
-def run_fleet(path: str, out_dir: str, settings: FleetSettings = FleetSettings(), jobs: int = 2,
+#: Engines of :func:`run_fleet`: ``'local'`` (this process, or local worker processes; no Ray), ``'ray'``,
+#: ``'auto'`` (Ray where an address is given, else local).
+ENGINES = ("auto", "local", "ray")
+
+
+def run_fleet(path: str, out_dir: str | None, settings: FleetSettings = FleetSettings(), jobs: int = 2,
               address: str | None = None, max_loops: int | None = None, stream=sys.stderr,
-              top: int = 10, on_result: Callable[[LoopResult], None] | None = None) -> FleetRun:
-    """Diagnose every loop of ``path`` on Ray, streaming results into ``out_dir``.
+              top: int = 10, on_result: Callable[[LoopResult], None] | None = None,
+              engine: str = "auto") -> FleetRun:
+    """Diagnose every loop of ``path``, streaming results into ``out_dir``.
 
-    Ctrl-C (SIGINT) or SIGTERM from the moment Ray starts (main thread): the loops in flight are
-    cancelled, the table and the worklist of the finished loops are written, Ray is shut down and
-    the result says ``interrupted``; a signal while Ray starts takes effect once it is up, one while
-    the table and the worklist are written once they are (both written whole).  Before that (finding
-    the loops) KeyboardInterrupt is raised as usual; a second Ctrl-C raises it at once.  Every finished
-    loop is in ``out_dir/loops/`` already.
+    The one batch engine of valve_gym: ``valve-gym diagnose DIR`` (with or without ``--out``) runs it.
+    Each loop is screened and, where it oscillates (or ``settings.full``), diagnosed in full
+    (:func:`~valve_gym.fleet.analyse.analyse_loop`); the same work whichever engine runs it.
+
+    Ctrl-C (SIGINT) or SIGTERM during the run (main thread): the loops in flight are given up (Ray's
+    cancelled, local workers ended; in this process the loop in progress is finished first, unless
+    Ctrl-C comes twice), the table and the worklist of the finished loops are written, Ray (if started)
+    is shut down and the result says ``interrupted``; a signal while Ray starts takes effect once it is
+    up, one while the table and the worklist are written once they are (both written whole).  Before
+    that (finding the loops) KeyboardInterrupt is raised as usual.  Every finished loop is in
+    ``out_dir/loops/`` already.
 
     Parameters
     ----------
     path : str, a folder of recordings / wide exports, or one wide export
-    out_dir : str, output folder (created); ``loops/``, ``loops.parquet``, ``loops.csv``,
-        ``worklist.md``, ``worklist.html``
+    out_dir : str or None, output folder (created); ``loops/``, ``loops.csv``, ``loops.parquet`` (with
+        pyarrow), ``worklist.md``, ``worklist.html``.  None: nothing is written and nothing resumed (the
+        results are returned)
     settings : FleetSettings
-    jobs : int, Ray workers on this machine (ignored with ``address``)
+    jobs : int, workers on this machine: with the local engine 1 runs the loops one after another in
+        this process, more in as many local worker processes; with Ray its workers (ignored with
+        ``address``)
     address : str, optional, address of an existing Ray cluster (``'auto'`` or ``'host:port'``)
     max_loops : int, optional, analyse at most this many new loops in this call (the rest next time)
     stream : text stream for the progress bar, None for silence
     top : int, loops with plots in the HTML worklist
-    on_result : callable(LoopResult), optional, told of each result as it is written
+    on_result : callable(LoopResult), optional, told of each result as it arrives
+    engine : {'auto', 'local', 'ray'}, ``'local'``: no Ray needed; ``'ray'``: Ray tasks (in this process
+        with ``jobs`` workers, or on the cluster at ``address``; needs the ``[fleet]`` extra); ``'auto'``
+        (default): Ray where ``address`` is given, else local
 
     Returns
     -------
@@ -629,39 +760,57 @@ def run_fleet(path: str, out_dir: str, settings: FleetSettings = FleetSettings()
     Raises
     ------
     ValueError
-        ``jobs`` < 1, or ``out_dir`` is the input folder itself (:func:`check_out_dir`), before any work;
-        RecordingError (a ValueError) when ``path`` holds no loops.
+        ``jobs`` < 1, an unknown ``engine``, ``address`` with the local engine, or ``out_dir`` is the
+        input folder itself (:func:`check_out_dir`), before any work; RecordingError (a ValueError)
+        when ``path`` holds no loops.
     """
     from .worklist import write_worklist
 
     t0 = time.perf_counter()
     if jobs < 1:
         raise ValueError(f"jobs must be at least 1, got {jobs!r}")
-    check_out_dir(path, out_dir)
+    if engine not in ENGINES:
+        raise ValueError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    if engine == "auto":
+        engine = "ray" if address else "local"
+    if engine == "local" and address:
+        raise ValueError(f"address {address!r} names a Ray cluster: use engine='ray' (or 'auto')")
+    if out_dir is not None:
+        check_out_dir(path, out_dir)
     sources = discover_loops(path)
     skipped = fleet_outputs(path)
     if skipped and stream is not None:
         print(f"note: skipped {', '.join(os.path.basename(f) for f in skipped)} in {path}: the outputs of an "
               f"earlier fleet run, not recordings", file=stream, flush=True)
-    keys, stored, todo = plan_fleet(sources, out_dir, settings)
+    if out_dir is not None:
+        keys, stored, todo = plan_fleet(sources, out_dir, settings)
+    else:
+        keys = {s.name: loop_key(s.fingerprint, s.kind, s.tag, settings) for s in sources}
+        stored, todo = {}, list(sources)
     later: list[LoopSource] = []
     if max_loops is not None:
         todo, later = todo[:max_loops], todo[max_loops:]
     results: dict[str, LoopResult] = dict(stored)
     bar = Progress(len(todo), skipped=len(stored), stream=stream)
+    sink = _Sink(out_dir, results, bar, on_result)
     left: list[LoopSource] = []
+    paths: dict[str, str] = {}
     # signals noted, acted on between steps; the table and the worklist are written whole either way, before
     # Ray is shut down (the ExitStack closes first)
     with _Stop(None if stream is None else bar.note) as stop, contextlib.ExitStack() as ray_stack:
+        if engine == "local":
+            stop.text = ("stopping: the finished loops are kept, " + (
+                "the loop in progress is finished first" if jobs <= 1 else "those in flight given up") +
+                "; the table and the worklist are written (Ctrl-C again to stop at once)")
         if todo:
-            left = _run_todo(todo, keys, settings, jobs, address, out_dir, results, bar, on_result, stream, stop,
-                             ray_stack)
+            left = _run_todo(todo, keys, settings, jobs, address, engine, sink, stream, stop, ray_stack)
         stop.text = "stopping once the table and the worklist are written (a few seconds)"
         ordered = apply_shared_periods([results[s.name] for s in sources if s.name in results])
         remaining = len(left) + len(later)
-        p_table, p_csv = write_table(ordered, out_dir)
-        md, html = write_worklist(ordered, sources, out_dir, settings, top=top, pending=remaining)
+        if out_dir is not None:
+            p_table, p_csv = write_table(ordered, out_dir)
+            md, html = write_worklist(ordered, sources, out_dir, settings, top=top, pending=remaining)
+            paths = {"table": p_table, "csv": p_csv, "worklist_md": md, "worklist_html": html}
     n_failed = sum(r.status != "ok" for r in ordered)
     return FleetRun(len(sources), len(todo) - len(left), len(stored), n_failed, bool(left) or stop.requested,
-                    remaining, time.perf_counter() - t0, ordered,
-                    {"table": p_table, "csv": p_csv, "worklist_md": md, "worklist_html": html})
+                    remaining, time.perf_counter() - t0, ordered, paths)

@@ -1,6 +1,10 @@
-"""The fleet table: ``loops.parquet`` and ``loops.csv``, one row per loop, written atomically."""
+"""The fleet table: ``loops.csv`` and ``loops.parquet``, one row per loop, written atomically.
+
+``loops.parquet`` needs pyarrow (the ``[fleet]`` extra); a core install writes ``loops.csv`` alone.
+"""
 from __future__ import annotations
 
+import importlib.util
 import io
 import json
 import os
@@ -28,15 +32,26 @@ def table_frame(results: Iterable[LoopResult]):
 
 
 def write_table(results: Iterable[LoopResult], out_dir: str) -> tuple[str, str]:
-    """Write ``out_dir/loops.parquet`` and ``out_dir/loops.csv`` (atomic); returns their paths."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
+    """Write ``out_dir/loops.csv`` and, where pyarrow is installed, ``out_dir/loops.parquet`` (atomic).
 
+    Returns
+    -------
+    (table, csv) : the paths of ``loops.parquet`` (``loops.csv`` without pyarrow: an older
+        ``loops.parquet`` there is removed, so that it cannot be read for the new table) and ``loops.csv``
+    """
     df = table_frame(results)
     pq_path = os.path.join(out_dir, "loops.parquet")
     csv_path = os.path.join(out_dir, "loops.csv")
-    table = pa.Table.from_pandas(df, preserve_index=False)
-    write_atomic(pq_path, lambda f: pq.write_table(table, f))
+    if importlib.util.find_spec("pyarrow") is not None:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        table = pa.Table.from_pandas(df, preserve_index=False)
+        write_atomic(pq_path, lambda f: pq.write_table(table, f))
+    else:
+        if os.path.isfile(pq_path):
+            os.remove(pq_path)
+        pq_path = csv_path
     text = io.StringIO()
     df.to_csv(text, index=False)
     write_atomic(csv_path, lambda f: f.write(text.getvalue().encode("utf-8")))

@@ -113,9 +113,7 @@ def loop_plots(src: LoopSource, settings: FleetSettings, period_s: float) -> tup
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
 
-    rec = load_loop(src, columns=dict(settings.columns) if settings.columns else None,
-                    op_range=settings.op_range, max_gap=settings.max_gap, mv_range=settings.mv_range,
-                    dayfirst=settings.dayfirst, time_unit=settings.time_unit).recording
+    rec = load_loop(src, **settings.load_kw()).recording
     dt = float(rec.dt or 1.0)
     m = int(min(len(rec), 600, 4 * period_s / dt if math.isfinite(period_s) and period_s > 0 else 600))
     sl = slice(len(rec) - m, len(rec))

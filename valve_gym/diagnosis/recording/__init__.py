@@ -23,6 +23,7 @@ The loader is made of parts that can be read and tested alone:
 :mod:`.decimate`          long records: decimation, window (:class:`Conditioning`)
 :mod:`.record`            the :class:`Recording` record
 :mod:`.loader`            :func:`load_recording`, the steps in order
+:mod:`.wide`              a historian's wide export: each tag read onto its own grid
 ========================  ===================================================
 
 Real recordings shipped with the package (see ``valve_gym/data/README.md``)

@@ -23,7 +23,7 @@ from ._base import MISSING_TOKENS, RecordingError, fmt_lines
 from .columns import ColumnMap, resolve_columns
 from .sniff import Sniffed, decode, sniff_dialect
 
-__all__ = ["CHUNK_ROWS", "RawColumns", "read_columns", "read_csv_columns", "read_parquet", "read_rows"]
+__all__ = ["CHUNK_ROWS", "RawColumns", "read_columns", "read_csv_columns", "read_header", "read_parquet", "read_rows"]
 
 #: Rows per chunk of the column-wise readers.
 CHUNK_ROWS = 250_000
@@ -272,6 +272,34 @@ def _times(col) -> np.ndarray:
     return pc.cast(col, pa.timestamp("ns")).to_numpy(zero_copy_only=False).astype("datetime64[ns]")
 
 
+def _pyarrow(src: str) -> None:
+    """Raise RecordingError, naming the extra to install, where pyarrow (for Parquet files) is missing."""
+    import importlib.util
+
+    if importlib.util.find_spec("pyarrow") is None:
+        raise RecordingError(f"{src}: reading a Parquet file needs pyarrow, which the core install leaves out: "
+                             f'pip install "valve_gym[fleet]" (or export the recording as CSV)')
+
+
+def read_header(sn: Sniffed) -> tuple[str, ...]:
+    """Column names of a sniffed file: the CSV header row, or the schema of a Parquet file.
+
+    Raises
+    ------
+    RecordingError
+        A Parquet file that cannot be read, or pyarrow missing (the message names the extra).
+    """
+    if sn.kind != "parquet":
+        return tuple(sn.header)
+    _pyarrow(sn.src)
+    import pyarrow.parquet as pq
+
+    try:
+        return tuple(str(n) for n in pq.read_schema(sn.path).names)
+    except Exception as e:  # pyarrow raises several types for a bad file
+        raise RecordingError(f"{sn.src}: not a readable Parquet file ({e}); export it again") from None
+
+
 def read_parquet(sn: Sniffed, columns: Mapping[str, str | None] | None) -> RawColumns:
     """Read only the mapped columns of a Parquet file, batch by batch.
 
@@ -291,8 +319,10 @@ def read_parquet(sn: Sniffed, columns: Mapping[str, str | None] | None) -> RawCo
     ------
     RecordingError
         Not a readable Parquet file; a column of a type other than numbers,
-        time stamps or text; no rows; a column mapping problem.
+        time stamps or text; no rows; a column mapping problem; pyarrow not installed (the
+        message names the extra).
     """
+    _pyarrow(sn.src)
     import pyarrow as pa
     import pyarrow.parquet as pq
 
