@@ -271,9 +271,8 @@ KNOWN_SECOND_LOADER = {"valve_gym/fleet/sources.py"}
 #: Written apart on purpose: the textbook loops that validate the stiction verdict are an independently
 #: written simulator (their own PI and plant), so that the validation does not share the product's code.
 INDEPENDENT = ("valve_gym/diagnosis/stiction/loops.py",)
-#: The regulation block's gain-scheduled PI (envs/regulation.py BlockLaw) still computes its own integral
-#: gain; docs/architecture.md says what replaces it (control.pi_scan/pi_track). The set must shrink, never grow.
-KNOWN_SECOND_PI = {"valve_gym/envs/regulation.py: __init__"}
+#: PI laws outside valve_gym/control.py (the regulation block's scan is control.pi_scan1 since issue 41).
+KNOWN_SECOND_PI: set = set()
 
 
 def _not_independent(found) -> set:

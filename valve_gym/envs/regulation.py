@@ -11,7 +11,8 @@ block (:mod:`valve_gym.agents.learned`) must agree on:
 * :func:`draw_scenarios` (the per-episode draw from each sub-env's own generator);
 * :class:`LoopPlants` (the plants of a batch, grouped by friction model);
 * :class:`BlockLaw` (the observation layout and the action scaling: the PI with a gated
-  integrator and a bounded additive correction, whose inputs are SP, PV and its own OP only);
+  integrator and a bounded additive correction, whose inputs are SP, PV and its own OP only;
+  the PI scan itself is :func:`valve_gym.control.pi_scan1`, the one PI law);
 * :func:`step_reward` (the reward).
 
 Notes
@@ -41,6 +42,7 @@ import numpy as np
 from .. import core
 from .._numba import njit
 from ..config import ConfigError, check_episode_steps
+from ..control import integral_gain, pi_scan1
 from ..params import ModelParams, SlipJump, ValveParams
 from ..signals import ou_sequence
 
@@ -492,12 +494,7 @@ def _law_act(X, LP, action, first, u_out):  # pragma: no cover - compiled
         e = X[_XE, i]
         if first:
             X[_XI, i] = X[_XI, i] - c
-        v = kc * e + X[_XI, i] + c
-        u = min(max(v, lo), hi)
-        if u != v:
-            X[_XI, i] = u - kc * e - c
-        else:
-            X[_XI, i] = X[_XI, i] + g * ki * e
+        u, X[_XI, i] = pi_scan1(X[_XI, i], e, kc, ki, g, c, lo, hi, False)
         du = u - X[_XU, i]
         X[_XDU, i] += LP[_PA16] * (du - X[_XDU, i])
         X[_XU64, i] += LP[_PA64] * (u - X[_XU64, i])
@@ -535,7 +532,7 @@ class BlockLaw:
     def __init__(self, settings: BlockSettings, n: int):
         self.s = settings
         self.n = int(n)
-        self.ki = settings.Kc * settings.scan_s / settings.Ti
+        self.ki = integral_gain(settings.Kc, settings.Ti, settings.scan_s)
         self._alpha_e = np.array([1.0 - math.exp(-settings.scan_s / t) for t in _E_TAUS])
         self._a64 = 1.0 - math.exp(-settings.scan_s / 64.0)
         self._a256 = 1.0 - math.exp(-settings.scan_s / 256.0)
