@@ -229,6 +229,7 @@ def rollout(loops: TrainLoops, P: np.ndarray, frictionless: np.ndarray, scan: fl
     reps, n = P.shape[0], idx.size
     if n == 0:
         return {"idx": idx}
+    from valve_gym.agents.bench.scores import loop_iae
     from valve_gym.loop import Scenario, run_closed_loop
     from valve_gym.plant import PlantOutput
 
@@ -249,7 +250,7 @@ def rollout(loops: TrainLoops, P: np.ndarray, frictionless: np.ndarray, scan: fl
     travel = np.zeros(N)
     for k in range(T):
         travel += np.abs(run.stem[k + 1] - run.stem[k])
-    return {"idx": idx, "iae": (np.abs(e).sum(0) * scan).reshape(reps, n), "travel": travel.reshape(reps, n),
+    return {"idx": idx, "iae": loop_iae(e, scan).reshape(reps, n), "travel": travel.reshape(reps, n),
             "e": e.reshape(T, reps, n)}
 
 
