@@ -366,3 +366,21 @@ def my_loader(path):
     assert find_runners(src) == {"x/bad.py: my_loop", "x/bad.py: my_block_loop"}
     assert find_pi_laws(src) == {"x/bad.py: my_pi"}
     assert find_model_file_loaders(src) == {"x/bad.py"} and find_recording_readers(src) == {"x/bad.py"}
+
+
+def find_class_name_clashes(sources) -> dict:
+    """Class names defined in more than one module: ``{name: [paths]}``."""
+    seen: dict = {}
+    for path, tree in sources:
+        for n in ast.walk(tree):
+            if isinstance(n, ast.ClassDef):
+                seen.setdefault(n.name, set()).add(path)
+    return {k: sorted(v) for k, v in seen.items() if len(v) > 1}
+
+
+def test_one_class_per_name():
+    """One concept, one class: no two modules define a class of the same name (e.g. two RegulationConfigs)."""
+    assert find_class_name_clashes(_sources()) == {}
+    two = [("a.py", ast.parse("class RegulationConfig:\n    pass\n")),
+           ("b.py", ast.parse("class RegulationConfig: ..."))]
+    assert find_class_name_clashes(two) == {"RegulationConfig": ["a.py", "b.py"]}

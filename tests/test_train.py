@@ -354,10 +354,10 @@ def test_es_scores_the_measured_level_with_the_benchmarks_iae():
     """The trainer's IAE is the benchmark's loop score (bench.scores.loop_iae) of SP - PV measured."""
     from valve_gym.agents.bench.scores import loop_iae
     from valve_gym.agents.es import rollout_scores
-    from valve_gym.envs.regulation import RegulationConfig, pi_action
+    from valve_gym.envs.regulation import RegulationTaskConfig, pi_action
     from valve_gym.envs.regulation_env import ValveTankRegulationVectorEnv
 
-    task = RegulationConfig(episode_s=120.0, noise_std=(0.003, 0.003), reward="tracking")
+    task = RegulationTaskConfig(episode_s=120.0, noise_std=(0.003, 0.003), reward="tracking")
     seeds = [3, 4]
     sc = rollout_scores([None], task, seeds)
     env = ValveTankRegulationVectorEnv(2, task)

@@ -12,7 +12,7 @@ __all__ = ["ENV_IDS", "MAX_EPISODE_STEPS_BY_ID", "register_envs"]
 ENV_IDS = ("valve_gym/ValveTank-v0", "valve_gym/ValveTankFixed-v0", "valve_gym/ValveTankRegulation-v0")
 
 #: ``max_episode_steps`` of each id: ``EnvConfig().episode_steps``, ``preset("fixed").episode_steps`` and
-#: ``RegulationConfig().steps`` (checked by the tests).
+#: ``RegulationTaskConfig().steps`` (checked by the tests).
 MAX_EPISODE_STEPS_BY_ID = {
     "valve_gym/ValveTank-v0": 600,
     "valve_gym/ValveTankFixed-v0": 600,

@@ -47,7 +47,7 @@ from typing import NamedTuple
 import numpy as np
 
 from valve_gym.config import ConfigError, check_count, config_to_dict, load_config
-from valve_gym.envs.regulation import N_ACT, RegulationConfig, obs_names, pi_action
+from valve_gym.envs.regulation import N_ACT, RegulationTaskConfig, obs_names, pi_action
 
 from .learned import MAX_LAYER, MLPSpec, mlp_forward, normalise, save_learned, unflatten
 from .lifecycle import STOP, stop_on_signals
@@ -163,7 +163,7 @@ class LearnedTrainConfig:
     seed : int
     checkpoint_every : int
         Generations between checkpoints (also written on SIGINT/SIGTERM and at the end).
-    task : RegulationConfig
+    task : RegulationTaskConfig
     es : ESHyper
     eval : ESEvalConfig
     """
@@ -172,7 +172,7 @@ class LearnedTrainConfig:
     name: str = "learned"
     seed: int = 0
     checkpoint_every: int = 10
-    task: RegulationConfig = field(default_factory=RegulationConfig)
+    task: RegulationTaskConfig = field(default_factory=RegulationTaskConfig)
     es: ESHyper = field(default_factory=ESHyper)
     eval: ESEvalConfig = field(default_factory=ESEvalConfig)
 
@@ -247,14 +247,14 @@ class _Reversals:
         self.dir = new_dir
 
 
-def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None, lc: bool = False) -> RolloutScores:
+def rollout_scores(policies, task: RegulationTaskConfig, seeds, obs_norm=None, lc: bool = False) -> RolloutScores:
     """Run ``P`` policies on the loops of ``seeds`` (B,), all in one vector env of ``P * B`` loops.
 
     Parameters
     ----------
     policies : list
         Each ``None`` (the plain PI) or a weights dict of :func:`valve_gym.agents.learned.mlp_forward`.
-    task : RegulationConfig
+    task : RegulationTaskConfig
     seeds : sequence of int
     obs_norm : (mean, std), optional
         Observation normaliser of the networks.
@@ -403,7 +403,7 @@ def init_state(cfg: LearnedTrainConfig, seed: int) -> ESState:
                    obs_mean=sc.obs_mean, obs_std=std, rng_state=rng_state)
 
 
-def _train_task(cfg: LearnedTrainConfig) -> RegulationConfig:
+def _train_task(cfg: LearnedTrainConfig) -> RegulationTaskConfig:
     from dataclasses import replace
 
     return replace(cfg.task, episode_s=cfg.es.episode_s)

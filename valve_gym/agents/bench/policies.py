@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from valve_gym.agents.controllers.block import check_inputs, check_op_limits, check_step_inputs, not_reset_error
-from valve_gym.envs.regulation import N_ACT, BlockLaw, BlockSettings, RegulationConfig, obs_names
+from valve_gym.envs.regulation import N_ACT, BlockLaw, BlockSettings, RegulationTaskConfig, obs_names
 
 __all__ = ["FORMAT", "NumpyMLP", "ObsNormaliser", "PolicyBlock", "export_policy", "load_policy_block", "as_block",
            "as_blocks", "evaluate", "PolicyShapeError"]
@@ -221,7 +221,7 @@ def _check_shapes(n_in: int, n_out: int, settings: BlockSettings, what: str) -> 
                                f"{n_obs} observations and takes {N_ACT} actions (gate, correction){hint}")
 
 
-def _task_of(model=None, task: RegulationConfig | Mapping | str | None = None) -> RegulationConfig:
+def _task_of(model=None, task: RegulationTaskConfig | Mapping | str | None = None) -> RegulationTaskConfig:
     from valve_gym.envs.regulation_env import make_regulation_config
 
     if task is not None:
@@ -230,11 +230,11 @@ def _task_of(model=None, task: RegulationConfig | Mapping | str | None = None) -
     if env is not None:
         try:
             cfgs = env.get_attr("config")
-            if cfgs and isinstance(cfgs[0], RegulationConfig):
+            if cfgs and isinstance(cfgs[0], RegulationTaskConfig):
                 return cfgs[0]
         except (AttributeError, TypeError, ValueError):
             pass
-    return RegulationConfig()
+    return RegulationTaskConfig()
 
 
 def _find_vecnormalize(model):
@@ -256,7 +256,7 @@ def block_from_model(model, vecnormalize=None, task=None, name: str | None = Non
     vecnormalize : VecNormalize, optional
         Its observation statistics are used (default: the ``VecNormalize`` the model's env is wrapped in,
         if any).
-    task : RegulationConfig, mapping or YAML path, optional
+    task : RegulationTaskConfig, mapping or YAML path, optional
         The training task (default: the model's env's, else the registered default).
     name : str, optional
     """
@@ -281,7 +281,7 @@ def export_policy(model, path, vecnormalize=None, task=None, meta: Mapping | Non
         Output stem (``.json``/``.safetensors``/``.zip`` suffixes are dropped).
     vecnormalize : VecNormalize, optional
         Observation statistics to store (default: the model env's ``VecNormalize``, if any).
-    task : RegulationConfig, mapping or YAML path, optional
+    task : RegulationTaskConfig, mapping or YAML path, optional
         The training task (default: the model's env's).
     meta : mapping, optional
         More JSON (training command, seed, budget, ...).
