@@ -22,6 +22,11 @@ model found by a step test of the frictionless loop, ``tau_c = max(T/6, 3 theta)
 Usage::
 
     python benchmarks/learned_unseen_check.py [--n 36] [--seed 913] [--names pi knocker learned learned_adaptive]
+        [--policy LABEL=FILE ...]
+
+``--policy LABEL=FILE`` adds a row of one's own policy export (``valve_gym.agents.bench.policies.export_policy``,
+``NAME.json`` + ``NAME.safetensors``), given each loop's tuning and scan as every other block
+(:meth:`~valve_gym.agents.bench.policies.PolicyBlock.for_loop`).
 """
 from __future__ import annotations
 
@@ -38,6 +43,8 @@ from valve_gym.agents.bench.runner import ControllerBank, Runs
 from valve_gym.agents.bench.scores import compensation_ratio, score_runs
 
 KINDS = ("cascade", "thermal", "vessel")
+#: Rows of policy exports (``--policy LABEL=FILE``): label -> block.
+POLICIES: dict = {}
 VALVE_KINDS = ("he2007", "stenman")
 
 
@@ -161,7 +168,12 @@ def run(name: str, rows: list[dict], scan: float, Kc, Ti, frictionless: bool, du
                                                            >= np.array([r["t_step"] for r in rows]) * duration)
     load = step + walk
     try:
-        ctrl = load_controller(name, Kc=Kc, Ti=Ti, scan_s=scan)
+        if name in POLICIES:
+            blk = POLICIES[name]          # a policy export: one block per loop with the loop's tuning and scan
+            ctrl = ControllerBank([blk.for_loop(float(a), float(b), scan) for a, b in zip(Kc, Ti)],
+                                  [np.array([i]) for i in range(n)], n) if hasattr(blk, "for_loop") else blk
+        else:
+            ctrl = load_controller(name, Kc=Kc, Ti=Ti, scan_s=scan)
     except (ValueError, TypeError):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)
@@ -183,7 +195,18 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=913)
     ap.add_argument("--duration", type=float, default=3600.0, help="record length [s]")
     ap.add_argument("--names", nargs="+", default=["pi", "knocker", "learned", "learned_adaptive"])
+    ap.add_argument("--policy", action="append", default=[], metavar="LABEL=FILE",
+                    help="a policy export as one more row (repeatable)")
     a = ap.parse_args(argv)
+    from valve_gym.agents.bench.policies import as_block
+
+    for item in a.policy:
+        label, sep, path = item.partition("=")
+        if not sep or not label or not path:
+            ap.error(f"--policy takes LABEL=FILE (e.g. ppo_family=valve_gym/agents/policies/rl_family/ppo_seed0.json), "
+                     f"got {item!r}")
+        POLICIES[label] = as_block(path, name=label)
+        a.names.append(label)
     t0 = time.perf_counter()
     rows = draw(a.n, a.seed)
     cfg = BenchConfig()

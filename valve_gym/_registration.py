@@ -9,14 +9,16 @@ from __future__ import annotations
 __all__ = ["ENV_IDS", "MAX_EPISODE_STEPS_BY_ID", "register_envs"]
 
 #: The registered environment ids.
-ENV_IDS = ("valve_gym/ValveTank-v0", "valve_gym/ValveTankFixed-v0", "valve_gym/ValveTankRegulation-v0")
+ENV_IDS = ("valve_gym/ValveTank-v0", "valve_gym/ValveTankFixed-v0", "valve_gym/ValveTankRegulation-v0",
+           "valve_gym/ValveFamilyRegulation-v0")
 
 #: ``max_episode_steps`` of each id: ``EnvConfig().episode_steps``, ``preset("fixed").episode_steps`` and
-#: ``RegulationTaskConfig().steps`` (checked by the tests).
+#: ``RegulationTaskConfig().steps`` and ``FamilyConfig().steps`` (checked by the tests).
 MAX_EPISODE_STEPS_BY_ID = {
     "valve_gym/ValveTank-v0": 600,
     "valve_gym/ValveTankFixed-v0": 600,
     "valve_gym/ValveTankRegulation-v0": 1800,
+    "valve_gym/ValveFamilyRegulation-v0": 1200,
 }
 
 _ENTRY = {
@@ -26,6 +28,8 @@ _ENTRY = {
                                     "valve_gym.envs.vector:ValveTankVectorEnv", {"preset": "fixed"}),
     "valve_gym/ValveTankRegulation-v0": ("valve_gym.envs.regulation_env:ValveTankRegulationEnv",
                                          "valve_gym.envs.regulation_env:ValveTankRegulationVectorEnv", {}),
+    "valve_gym/ValveFamilyRegulation-v0": ("valve_gym.envs.family_env:ValveFamilyRegulationEnv",
+                                           "valve_gym.envs.family_env:ValveFamilyRegulationVectorEnv", {}),
 }
 
 

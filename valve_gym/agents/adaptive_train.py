@@ -46,7 +46,8 @@ from valve_gym.signals import ou_sequence
 
 from .controllers.adaptive import PARAM_NAMES, PARAMS
 
-__all__ = ["AdaptiveTrainConfig", "TrainLoops", "draw_loops", "train_adaptive", "to_params", "to_z", "main"]
+__all__ = ["AdaptiveTrainConfig", "TrainLoops", "draw_loops", "draw_loop", "train_adaptive", "to_params", "to_z",
+           "main"]
 
 _LO = np.array([p[2] for p in PARAMS])
 _HI = np.array([p[3] for p in PARAMS])
@@ -157,18 +158,38 @@ def draw_loops(cfg: AdaptiveTrainConfig, generation: int) -> TrainLoops:
     """The loops of one generation: loop ``i`` from ``default_rng([seed, generation, i])``."""
     rows, loads, noises = [], [], []
     for i in range(cfg.loops):
-        rng = np.random.default_rng([cfg.seed, generation, i])
-        r = _loop(rng)
-        T = int(round(cfg.episode_s / r["scan"]))
-        a = math.exp(-r["scan"] / r["load_tau"])
-        w = rng.standard_normal(T)
-        flow = r["q_max"] if r["kind"] != "first_order" else r["K"]
-        offset = (1.0 if rng.random() < 0.5 else -1.0) * rng.uniform(0.002, 0.03)
-        ou = ou_sequence(np.concatenate([[0.0], w[:-1]]), a, r["load"])   # x_k = a x_(k-1) + g w_(k-1)
-        loads.append((offset + ou) * flow)
-        noises.append(rng.standard_normal(T) * r["noise"])
+        r, load, noise = draw_loop(np.random.default_rng([cfg.seed, generation, i]), episode_s=cfg.episode_s)
+        loads.append(load)
+        noises.append(noise)
         rows.append(r)
     return TrainLoops(tuple(rows), tuple(loads), tuple(noises))
+
+
+def draw_loop(rng: np.random.Generator, episode_s: float = 1800.0, steps: int | None = None):
+    """One loop of the training family and its signals, from ``rng`` alone.
+
+    Parameters
+    ----------
+    rng : numpy Generator
+    episode_s : float, s
+        Record length (``round(episode_s / scan)`` scans) unless ``steps`` is given.
+    steps : int, optional
+        Record length in scans, whatever the loop's scan.
+
+    Returns
+    -------
+    row : dict of the loop's scalars (``kind``, ``band``, ``model``, ``S``, ``J``, ``scan``, ``Kc``, ``Ti``, ...)
+    load : (T,) extra inflow per scan [m^3/s; process input units for ``first_order``]
+    noise : (T,) measurement noise [m or pv units]
+    """
+    r = _loop(rng)
+    T = int(steps) if steps is not None else int(round(episode_s / r["scan"]))
+    a = math.exp(-r["scan"] / r["load_tau"])
+    w = rng.standard_normal(T)
+    flow = r["q_max"] if r["kind"] != "first_order" else r["K"]
+    offset = (1.0 if rng.random() < 0.5 else -1.0) * rng.uniform(0.002, 0.03)
+    ou = ou_sequence(np.concatenate([[0.0], w[:-1]]), a, r["load"])   # x_k = a x_(k-1) + g w_(k-1)
+    return r, (offset + ou) * flow, rng.standard_normal(T) * r["noise"]
 
 
 def _base(kind: str, rows: list):

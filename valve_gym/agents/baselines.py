@@ -1,5 +1,8 @@
 """SB3 baselines on ``valve_gym/ValveTankRegulation-v0``: PPO, A2C, SAC, TD3 from rl-zoo3-style YAML.
 
+A config may instead name ``env_id: valve_gym/ValveFamilyRegulation-v0`` (the randomised family of
+``learned_adaptive``, :mod:`valve_gym.envs.family_env`; ``configs/rl/ppo_family.yaml``, ``sac_family.yaml``).
+
 ``valve-gym train --config configs/rl/sac.yaml --seed 0 --out runs/sac_0`` (``algorithm: sac``; also
 ``ppo``, ``a2c``, ``td3``; a config with ``algorithm: ppo`` and ``env_id`` trains here, the older PPO
 configs of ``ValveTank-v0`` in :mod:`valve_gym.agents.train`).
@@ -42,6 +45,10 @@ __all__ = ["ALGORITHMS", "load_baseline_config", "make_model", "train_baseline",
 
 ALGORITHMS = ("ppo", "a2c", "sac", "td3")
 REGULATION_ID = "valve_gym/ValveTankRegulation-v0"
+#: The regulation task on the randomised family of ``learned_adaptive`` (:mod:`valve_gym.envs.family_env`).
+FAMILY_ID = "valve_gym/ValveFamilyRegulation-v0"
+#: The env ids a baseline config may name.
+ENV_IDS = (REGULATION_ID, FAMILY_ID)
 
 _COMMON = {"n_timesteps", "policy", "n_envs", "normalize", "policy_kwargs", "learning_rate", "gamma", "env_kwargs"}
 _KEYS = {
@@ -72,8 +79,8 @@ def load_baseline_config(path_or_dict) -> dict:
     if algo not in ALGORITHMS:
         raise ConfigError(f"algorithm must be one of {', '.join(ALGORITHMS)}, got {data.get('algorithm')!r}")
     env_id = str(data.get("env_id", REGULATION_ID))
-    if env_id != REGULATION_ID:
-        raise ConfigError(f"env_id: the baselines train on {REGULATION_ID}, got {env_id!r}")
+    if env_id not in ENV_IDS:
+        raise ConfigError(f"env_id: the baselines train on {' or '.join(ENV_IDS)}, got {env_id!r}")
     extra = [k for k in data if k not in _TOP and k != env_id]
     if extra:
         raise ConfigError(f"unknown key(s) {extra}; the keys are {sorted(_TOP)} and {env_id!r} "

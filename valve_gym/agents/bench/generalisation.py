@@ -31,6 +31,7 @@ import numpy as np
 
 from valve_gym.loop import Scenario, run_closed_loop
 from valve_gym.plant import PlantOutput
+from valve_gym.signals import ou_sequence
 
 from .config import BAND_NAMES, BenchConfig
 from .runner import ESTIMATE_MIN, ControllerBank, Runs
@@ -159,14 +160,9 @@ def _plant(rng: np.random.Generator, process: str, valve: str, S: float, J: floa
 
 
 def _ou(rng: np.random.Generator, sigma: float, tau: float, n: int, dt: float) -> np.ndarray:
-    a = math.exp(-dt / tau)
-    w = rng.standard_normal(n) * sigma * math.sqrt(1.0 - a * a)
-    out = np.empty(n)
-    d = 0.0
-    for k in range(n):
-        out[k] = d
-        d = a * d + w[k]
-    return out
+    """``n`` scans of an Ornstein-Uhlenbeck load (std ``sigma``, correlation time ``tau`` [s]), starting at 0."""
+    w = rng.standard_normal(n)
+    return ou_sequence(np.concatenate([[0.0], w[:-1]]), math.exp(-dt / tau), sigma)
 
 
 def gen_loops(family: GenFamily = GenFamily()) -> GenLoops:
@@ -215,7 +211,7 @@ class GenSpec:
     label : str
     name : str, for ``load_controller``
     family : str, ``frictionless``, ``pi``, ``detuned``, ``default`` (compensator, default settings),
-        ``known`` (compensator with the true ``S``) or ``learned``
+        ``known`` (compensator with the true ``S``), ``learned`` or ``policy`` (one's own block, ``--policy``)
     settings : tuple of (str, float)
     frictionless : bool
     """
@@ -246,6 +242,8 @@ def _controller(spec: GenSpec, loops: GenLoops, idx: np.ndarray, scan_s: float):
     """The block of ``spec`` for loops ``idx`` (one scan time): per-loop tuning, else one block per loop."""
     from valve_gym.agents import load_controller
 
+    if spec.family == "policy":
+        return _policy_controller(_GEN["policies"][spec.label], loops, idx, scan_s)
     kw: dict[str, Any] = dict(spec.settings, scan_s=scan_s)
     if spec.family == "known":
         kw["S"] = np.maximum(loops.S[idx], ESTIMATE_MIN)
@@ -275,6 +273,18 @@ class _UnseenLoopPlant:
         """One scan: ``(y, stem, level)`` after it."""
         y, x = self.plants.step(u, d)
         return y, x, y
+
+
+def _policy_controller(block, loops: GenLoops, idx: np.ndarray, scan_s: float):
+    """One's own block on loops ``idx``.
+
+    A policy block runs one copy per loop with the loop's ``Kc``, ``Ti`` and scan
+    (:meth:`~valve_gym.agents.bench.policies.PolicyBlock.for_loop`); any other block as it is.
+    """
+    if not hasattr(block, "for_loop"):
+        return block
+    blocks = [block.for_loop(float(loops.Kc[i]), float(loops.Ti[i]), scan_s) for i in idx]
+    return ControllerBank(blocks, [np.array([j]) for j in range(idx.size)], idx.size)
 
 
 def _run_group(spec: GenSpec, loops: GenLoops, idx: np.ndarray, scan_s: float) -> Runs:
@@ -391,7 +401,7 @@ def learned_names() -> tuple[str, ...]:
 
 def run_generalisation(config: BenchConfig, family: GenFamily = GenFamily(), jobs: int = 1,
                        progress: Callable[[str], None] | None = None,
-                       learned: tuple[str, ...] | None = None) -> GenResult:
+                       learned: tuple[str, ...] | None = None, policies: dict | None = None) -> GenResult:
     """Run every row of :func:`gen_lineup` on the family's loops and score them with the benchmark's scores.
 
     Parameters
@@ -404,6 +414,8 @@ def run_generalisation(config: BenchConfig, family: GenFamily = GenFamily(), job
     progress : callable, optional
     learned : tuple of str, optional
         Learned blocks to run (default: :func:`learned_names` when ``config.controllers.learned``, else none).
+    policies : dict of str to block, optional
+        One's own rows (``valve-gym benchmark --policy``; one block per row label), after the learned rows.
 
     Returns
     -------
@@ -413,8 +425,10 @@ def run_generalisation(config: BenchConfig, family: GenFamily = GenFamily(), job
     loops = gen_loops(family)
     if learned is None:
         learned = learned_names() if config.controllers.learned else ()
-    specs, notes = _available(gen_lineup(config, learned), loops)
-    _GEN.update(specs=specs, loops=loops, config=config)
+    _GEN.update(loops=loops, config=config, policies=dict(policies or {}))
+    specs, notes = _available(gen_lineup(config, learned) + tuple(GenSpec(str(k), str(k), "policy")
+                                                                   for k in _GEN["policies"]), loops)
+    _GEN.update(specs=specs)
     res = _execute(len(specs), max(1, min(int(jobs), len(specs))), progress)
     by = {i: s for i, s, _ in res}
     scores = {specs[i].label: by[i] for i in range(len(specs))}
@@ -422,7 +436,7 @@ def run_generalisation(config: BenchConfig, family: GenFamily = GenFamily(), job
     summary = summarise(scores, view, config)
     classical = tuple(s.label for s in specs if s.family in ("pi", "detuned", "default"))
     comps = {s.label: compare_learned(scores, view, config, classical, s.label) for s in specs
-             if s.family == "learned"}
+             if s.family in ("learned", "policy")}
     return GenResult(loops, tuple(specs), scores, summary, comps, tuple(notes), time.perf_counter() - t0)
 
 
@@ -510,7 +524,7 @@ def generalisation_markdown(res: GenResult, config: BenchConfig) -> str:
         out += [f"- {n}" for n in res.notes] + [""]
     out += _table(res, config) + [""] + _comparison_lines(res) + [""]
     out += ["Breakdown, sticky + severe loops:", ""] + breakdown(res, tuple(s.label for s in res.specs
-                                                                            if s.family in ("learned",)
+                                                                            if s.family in ("learned", "policy")
                                                                             or s.label == "knocker")) + [""]
     return "\n".join(out)
 

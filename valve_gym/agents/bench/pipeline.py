@@ -318,16 +318,19 @@ def run_benchmark(config: BenchConfig, jobs: int = 1, progress: Callable[[str], 
     classical = tuple(s.label for s in specs if s.family in ("pi", "detuned")
                       or (s.family == "compensator" and s.estimate == 1.0))
     comp = compare_learned(res.part_scores("regulation"), scen.regulation, config, classical)
-    gen = _generalisation(config, used, progress)
+    gen = _generalisation(config, used, progress, pblocks)
     return BenchmarkResult(config, scen, specs, results, summary, comp, res.example, notes,
                            time.perf_counter() - t0, used, int(jobs), len(tasks), gen)
 
 
-def _generalisation(config: BenchConfig, jobs: int, progress: Callable[[str], None] | None):
-    """The generalisation part (its own fixed family, made smaller for a smaller run such as ``--quick``)."""
+def _generalisation(config: BenchConfig, jobs: int, progress: Callable[[str], None] | None, policies=None):
+    """The generalisation part (its own fixed family, made smaller for a smaller run such as ``--quick``).
+
+    ``policies`` (``{row label: block}``, one per seed) run there too, each with the loop's tuning and scan.
+    """
     from .generalisation import GenFamily, run_generalisation
 
-    return run_generalisation(config, GenFamily.for_config(config), jobs=jobs, progress=progress)
+    return run_generalisation(config, GenFamily.for_config(config), jobs=jobs, progress=progress, policies=policies)
 
 
 def default_jobs() -> int:

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
@@ -130,6 +130,19 @@ class PolicyBlock:
         return {**asdict(self.block_settings), "algorithm": self.meta.get("algorithm"),
                 "policy": self.meta.get("policy_path")}
 
+    def for_loop(self, Kc: float, Ti: float, scan_s: float) -> PolicyBlock:
+        """The policy as the block of a loop with PI gain ``Kc`` [1/pv], integral time ``Ti`` [s], scan ``scan_s`` [s].
+
+        A policy trained on the family (``valve_gym/ValveFamilyRegulation-v0``; its export stores ``e_stroke``)
+        also takes the loop's error scale ``e_ref = e_stroke / Kc``, as in training; a policy of the regulation
+        env keeps its stored ``e_ref`` (it was trained on the benchmark tank only).
+        """
+        kw: dict = {"Kc": float(Kc), "Ti": float(Ti), "scan_s": float(scan_s)}
+        es = self.meta.get("e_stroke")
+        if es is not None:
+            kw["e_ref"] = float(es) / float(Kc)
+        return PolicyBlock(self.actor, replace(self.block_settings, **kw), self.normaliser, self.name, self.meta)
+
     def act(self, obs: np.ndarray) -> np.ndarray:
         """The policy's action ``(n, 2)`` for block observations ``(n, n_obs)`` (as the env gives them)."""
         x = np.asarray(obs, np.float32).astype(np.float64)
@@ -221,16 +234,20 @@ def _check_shapes(n_in: int, n_out: int, settings: BlockSettings, what: str) -> 
                                f"{n_obs} observations and takes {N_ACT} actions (gate, correction){hint}")
 
 
-def _task_of(model=None, task: RegulationTaskConfig | Mapping | str | None = None) -> RegulationTaskConfig:
+def _task_of(model=None, task=None):
+    """The training task: a ``RegulationTaskConfig`` or (``ValveFamilyRegulation-v0``) a ``FamilyConfig``."""
+    from valve_gym.envs.family_env import FamilyConfig
     from valve_gym.envs.regulation_env import make_regulation_config
 
+    if isinstance(task, FamilyConfig):
+        return task
     if task is not None:
         return make_regulation_config(task)
     env = getattr(model, "env", None)
     if env is not None:
         try:
             cfgs = env.get_attr("config")
-            if cfgs and isinstance(cfgs[0], RegulationTaskConfig):
+            if cfgs and isinstance(cfgs[0], (RegulationTaskConfig, FamilyConfig)):
                 return cfgs[0]
         except (AttributeError, TypeError, ValueError):
             pass
@@ -268,7 +285,9 @@ def block_from_model(model, vecnormalize=None, task=None, name: str | None = Non
     layers, algo = sb3_layers(model)
     vn = vecnormalize if vecnormalize is not None else _find_vecnormalize(model)
     norm = ObsNormaliser.from_vecnormalize(vn)
-    return PolicyBlock(NumpyMLP(layers), cfg.block, norm, name=name or algo, meta={"algorithm": algo})
+    e_stroke = getattr(cfg, "e_stroke", None)        # a policy of the family env (FamilyConfig)
+    meta = {"algorithm": algo, **({"e_stroke": float(e_stroke)} if e_stroke is not None else {})}
+    return PolicyBlock(NumpyMLP(layers), cfg.block, norm, name=name or algo, meta=meta)
 
 
 def export_policy(model, path, vecnormalize=None, task=None, meta: Mapping | None = None) -> str:
@@ -312,7 +331,8 @@ def export_policy(model, path, vecnormalize=None, task=None, meta: Mapping | Non
            "n_obs": blk.actor.n_in, "n_act": blk.actor.n_out, "obs_names": list(obs_names(cfg.block)),
            "normaliser": None if norm is None else {"clip_obs": norm.clip_obs, "epsilon": norm.epsilon},
            "block": asdict(cfg.block), "task": config_to_dict(cfg),
-           "versions": {"valve_gym": __version__, "numpy": np.__version__}, **dict(meta or {})}
+           "versions": {"valve_gym": __version__, "numpy": np.__version__},
+           **({"e_stroke": blk.meta["e_stroke"]} if "e_stroke" in blk.meta else {}), **dict(meta or {})}
     _, jpath = save_model_file(stem, tensors, doc)
     return jpath
 
