@@ -206,17 +206,26 @@ def find_first_order_recursions(sources) -> set:
     return out
 
 
-_PLANT_CALLS = {"run_packed", "advance", "step", "run_packed_reset"}
+_PLANT_CALLS = {"run_packed", "advance", "step", "run_packed_reset", "scan"}
+
+
+def _block_step(c: ast.Call) -> bool:
+    """``x.step(sp, pv)``: a DCS block's scan (two positional arguments)."""
+    return isinstance(c.func, ast.Attribute) and c.func.attr == "step" and len(c.args) == 2 and not c.keywords
 
 
 def find_runners(sources) -> set:
-    """Closed-loop runners of the PI law: a ``for`` loop that calls ``pi_step`` and advances a plant."""
+    """Closed-loop runners: a ``for`` loop that advances a plant and calls ``pi_step`` or a block's
+    ``.step(sp, pv)`` (a second call, beside the plant's own step/advance)."""
     out = set()
     for path, tree in sources:
         for fn in _functions(tree):
             for loop in (n for n in ast.walk(fn) if isinstance(n, ast.For)):
-                calls = {_called(c) for c in ast.walk(loop) if isinstance(c, ast.Call)}
-                if "pi_step" in calls and calls & _PLANT_CALLS:
+                calls = [c for c in ast.walk(loop) if isinstance(c, ast.Call)]
+                names = {_called(c) for c in calls}
+                plant = [c for c in calls if _called(c) in _PLANT_CALLS]
+                block = [c for c in calls if _block_step(c)]
+                if ("pi_step" in names and plant) or any(p is not b for b in block for p in plant):
                     out.add(f"{path}: {fn.name}")
     return out
 
@@ -271,9 +280,8 @@ KNOWN_SECOND_LOADER: set[str] = set()
 #: Written apart on purpose: the textbook loops that validate the stiction verdict are an independently
 #: written simulator (their own PI and plant), so that the validation does not share the product's code.
 INDEPENDENT = ("valve_gym/diagnosis/stiction/loops.py",)
-#: The regulation block's gain-scheduled PI (envs/regulation.py BlockLaw) still computes its own integral
-#: gain; docs/architecture.md says what replaces it (control.pi_scan/pi_track). The set must shrink, never grow.
-KNOWN_SECOND_PI = {"valve_gym/envs/regulation.py: __init__"}
+#: PI laws outside valve_gym/control.py (the regulation block's scan is control.pi_scan1 since issue 41).
+KNOWN_SECOND_PI: set = set()
 
 
 def _not_independent(found) -> set:
@@ -334,6 +342,17 @@ def my_loop(plant, pi, ctl, sp):
         ctl, u = pi_step(ctl, sp[k] - plant.y, pi)
         plant.step(u)
 
+def my_block_loop(plants, ctrl, sp, noise, load):
+    lv = sp[0].copy()
+    for k in range(len(sp)):
+        u = ctrl.step(sp[k], lv + noise[k])
+        for idx, p in plants:
+            lv[idx] = p.step(u[idx], load[k, idx]).pv
+
+def not_a_loop(bank, sp, pv):
+    for b in bank:
+        b.step(sp, pv)
+
 def my_pi(Kc, Ti, Ts, e, i):
     return i + Kc * Ts / Ti * e
 
@@ -344,5 +363,24 @@ def my_loader(path):
     src = [("x/bad.py", bad)]
     assert len(find_detectors(src)) == 3
     assert find_autocorrelations(src) and len(find_first_order_recursions(src)) == 2
-    assert find_runners(src) == {"x/bad.py: my_loop"} and find_pi_laws(src) == {"x/bad.py: my_pi"}
+    assert find_runners(src) == {"x/bad.py: my_loop", "x/bad.py: my_block_loop"}
+    assert find_pi_laws(src) == {"x/bad.py: my_pi"}
     assert find_model_file_loaders(src) == {"x/bad.py"} and find_recording_readers(src) == {"x/bad.py"}
+
+
+def find_class_name_clashes(sources) -> dict:
+    """Class names defined in more than one module: ``{name: [paths]}``."""
+    seen: dict = {}
+    for path, tree in sources:
+        for n in ast.walk(tree):
+            if isinstance(n, ast.ClassDef):
+                seen.setdefault(n.name, set()).add(path)
+    return {k: sorted(v) for k, v in seen.items() if len(v) > 1}
+
+
+def test_one_class_per_name():
+    """One concept, one class: no two modules define a class of the same name (e.g. two RegulationConfigs)."""
+    assert find_class_name_clashes(_sources()) == {}
+    two = [("a.py", ast.parse("class RegulationConfig:\n    pass\n")),
+           ("b.py", ast.parse("class RegulationConfig: ..."))]
+    assert find_class_name_clashes(two) == {"RegulationConfig": ["a.py", "b.py"]}

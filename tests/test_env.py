@@ -320,9 +320,9 @@ def test_pickled_env_continues_identically():
 
 # ----------------------------------------------------------------- the regulation task
 def _reg_cfg(**kw):
-    from valve_gym.envs.regulation import RegulationConfig
+    from valve_gym.envs.regulation import RegulationTaskConfig
 
-    return RegulationConfig(**{"episode_s": 60.0, **kw})
+    return RegulationTaskConfig(**{"episode_s": 60.0, **kw})
 
 
 def test_regulation_env_registered_and_checkers():

@@ -14,11 +14,11 @@ from valve_gym._registration import ENV_IDS, MAX_EPISODE_STEPS_BY_ID
 def test_every_id_is_registered_with_the_configs_time_limit():
     from valve_gym.config import EnvConfig, preset
     from valve_gym.envs.family_env import FamilyConfig
-    from valve_gym.envs.regulation import RegulationConfig
+    from valve_gym.envs.regulation import RegulationTaskConfig
 
     expected = {"valve_gym/ValveTank-v0": EnvConfig().episode_steps,
                 "valve_gym/ValveTankFixed-v0": preset("fixed").episode_steps,
-                "valve_gym/ValveTankRegulation-v0": RegulationConfig().steps,
+                "valve_gym/ValveTankRegulation-v0": RegulationTaskConfig().steps,
                 "valve_gym/ValveFamilyRegulation-v0": FamilyConfig().steps}
     assert set(ENV_IDS) == set(expected) == set(MAX_EPISODE_STEPS_BY_ID)
     for env_id, steps in expected.items():

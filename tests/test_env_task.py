@@ -248,3 +248,27 @@ def test_envs_run_a_friction_model_with_a_per_scan_law(he_model):
         assert r == vr[0]
         stems.append(info["stem"])
     assert np.ptp(stems) > 0.01
+
+
+def test_task_from_the_benchmark_config():
+    import warnings
+
+    from valve_gym.agents.bench.config import load_bench_config
+    from valve_gym.config import ConfigError
+    from valve_gym.envs import regulation
+    from valve_gym.envs.regulation import RegulationTaskConfig
+
+    bench = load_bench_config({"scan_s": 2.0, "models": ["kano"], "bands": {"sticky": {"n": 10}},
+                               "regulation": {"levels": [0.8, 1.2], "noise_std": 0.001}})
+    t = RegulationTaskConfig.from_benchmark(bench, episode_s=600.0)
+    assert (t.levels, t.noise_std, t.load_std, t.load_tau) == ((0.8, 1.2), (0.001, 0.001), (1e-4, 1e-4), (120.0, 120.0))
+    assert t.friction_models == ("kano",) and t.block.scan_s == 2.0 and t.steps == 300
+    assert t.S_bands == (0.0, 0.005, 0.05, 0.1) and t.band_weights == (30.0, 10.0, 45.0)
+    assert t.S_log_uniform == (False, True, False) and t.reward == "benchmark"
+    gap = load_bench_config({"bands": {"severe": {"S": [0.06, 0.1]}}})
+    with pytest.raises(ConfigError, match="not contiguous"):
+        RegulationTaskConfig.from_benchmark(gap)
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        assert regulation.RegulationConfig is RegulationTaskConfig      # the former name, deprecated
+    assert any(issubclass(x.category, DeprecationWarning) for x in w)

@@ -15,7 +15,7 @@ from valve_gym.agents.learned import (
     normalise,
     save_learned,
 )
-from valve_gym.envs.regulation import N_ACT, N_OBS, BlockSettings, RegulationConfig, pi_action
+from valve_gym.envs.regulation import N_ACT, N_OBS, BlockSettings, RegulationTaskConfig, pi_action
 from valve_gym.envs.regulation_env import ValveTankRegulationVectorEnv
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -75,7 +75,7 @@ def test_bumpless_start_and_output_limits(tmp_path):
 def test_block_equals_env_with_the_same_network(tmp_path):
     """The env's block law (training) and the DCS block (deployment) give the same outputs."""
     blk = _random_block(tmp_path, seed=3)
-    cfg = RegulationConfig(episode_s=120.0, block=blk.block_settings)
+    cfg = RegulationTaskConfig(episode_s=120.0, block=blk.block_settings)
     env = ValveTankRegulationVectorEnv(4, cfg)
     obs, info = env.reset(seed=11)
     loops = env._loops
@@ -92,7 +92,7 @@ def test_block_equals_env_with_the_same_network(tmp_path):
 
 def test_integral_action_no_offset_on_a_sticky_valve():
     """Shipped block on sticky valves with a load step: the mean error of the last half hour is < 1 mm."""
-    cfg = RegulationConfig(episode_s=3600.0, load_std=(0.0, 0.0), noise_std=(0.002, 0.002))
+    cfg = RegulationTaskConfig(episode_s=3600.0, load_std=(0.0, 0.0), noise_std=(0.002, 0.002))
     env = ValveTankRegulationVectorEnv(6, cfg)
     env.reset(seed=5, options={"S": [0.0, 0.01, 0.03, 0.05, 0.07, 0.09], "J": [0.0, 0.005, 0.01, 0.02, 0.03, 0.04],
                                "model": "choudhury", "level": 1.0})
@@ -172,7 +172,7 @@ def test_stick_features_layout_and_roundtrip(tmp_path):
     blk = load_learned(tmp_path / "stk.json")
     blk.reset(1.0, 1.0, 0.5)
     assert 0.0 <= blk.step(1.0, 1.003) <= 1.0
-    env = ValveTankRegulationVectorEnv(2, RegulationConfig(episode_s=10.0, block=bs))
+    env = ValveTankRegulationVectorEnv(2, RegulationTaskConfig(episode_s=10.0, block=bs))
     obs, _ = env.reset(seed=[1, 2])
     assert obs.shape == (2, n_obs) and env.single_observation_space.shape == (n_obs,)
 

@@ -16,7 +16,7 @@ from valve_gym.config import MAX_EPISODE_STEPS, ConfigError, EnvConfig
 from valve_gym.diagnosis import cli
 from valve_gym.diagnosis.recording import RecordingError
 from valve_gym.diagnosis.synthetic import write_csv
-from valve_gym.envs.regulation import RegulationConfig
+from valve_gym.envs.regulation import RegulationTaskConfig
 from valve_gym.fleet import FleetSettings, discover_loops, loop_key, run_fleet
 from valve_gym.fleet.analyse import failed_result
 from valve_gym.fleet.runner import check_out_dir
@@ -171,7 +171,7 @@ def test_an_episode_too_long_for_memory_is_a_config_error():
     with pytest.raises(ConfigError, match="at most 1,000,000 steps"):
         EnvConfig(episode_seconds=float(MAX_EPISODE_STEPS + 1))
     for s in (600.0, 1800.0, 3600.0):
-        assert EnvConfig(episode_seconds=s).episode_steps == RegulationConfig(episode_s=s).steps == int(s)
+        assert EnvConfig(episode_seconds=s).episode_steps == RegulationTaskConfig(episode_s=s).steps == int(s)
 
 
 # --------------------------------------------------------------------------- 4. benchmark --jobs

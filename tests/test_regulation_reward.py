@@ -13,10 +13,10 @@ import pytest
 from valve_gym.agents import load_controller
 from valve_gym.agents.bench.config import BenchConfig
 from valve_gym.agents.bench.scenarios import regulation_scenarios
-from valve_gym.envs.regulation import BlockSettings, RegulationConfig, pi_action
+from valve_gym.envs.regulation import BlockSettings, RegulationTaskConfig, pi_action
 from valve_gym.envs.regulation_env import ValveTankRegulationVectorEnv
 
-CFG = RegulationConfig(block=BlockSettings(stick_features=True, c_max=0.5))
+CFG = RegulationTaskConfig(block=BlockSettings(stick_features=True, c_max=0.5))
 
 
 @pytest.fixture(scope="module")
@@ -87,7 +87,7 @@ def test_bang_bang_wins_iae_but_loses_the_return(results):
 
 
 def test_tracking_reward_is_still_available():
-    cfg = RegulationConfig(reward="tracking")
+    cfg = RegulationTaskConfig(reward="tracking")
     env = ValveTankRegulationVectorEnv(2, cfg)
     env.reset(seed=0)
     _, r, _, _, info = env.step(pi_action(2))

@@ -348,3 +348,24 @@ def test_flags_of_the_other_trainer_are_refused(tmp_path, capsys):
     assert cli_main(["train", "--config", str(ppo), "--out", str(tmp_path / "y"), "--generations", "3"]) == 2
     assert "--timesteps" in capsys.readouterr().err
     assert not (tmp_path / "x").exists() and not (tmp_path / "y").exists()
+
+
+def test_es_scores_the_measured_level_with_the_benchmarks_iae():
+    """The trainer's IAE is the benchmark's loop score (bench.scores.loop_iae) of SP - PV measured."""
+    from valve_gym.agents.bench.scores import loop_iae
+    from valve_gym.agents.es import rollout_scores
+    from valve_gym.envs.regulation import RegulationTaskConfig, pi_action
+    from valve_gym.envs.regulation_env import ValveTankRegulationVectorEnv
+
+    task = RegulationTaskConfig(episode_s=120.0, noise_std=(0.003, 0.003), reward="tracking")
+    seeds = [3, 4]
+    sc = rollout_scores([None], task, seeds)
+    env = ValveTankRegulationVectorEnv(2, task)
+    env.reset(seed=seeds)
+    e, lv = np.empty((task.steps, 2)), np.empty((task.steps, 2))
+    for k in range(task.steps):
+        _, _, _, _, inf = env.step(pi_action(2))
+        fin = inf.get("final_info", inf)
+        e[k], lv[k] = fin["setpoint"] - fin["pv"], fin["level"]
+    np.testing.assert_array_equal(sc.iae[0], loop_iae(e, task.block.scan_s))
+    assert not np.allclose(sc.iae[0], np.abs(fin["setpoint"] - lv).sum(0) * task.block.scan_s)   # not the true level

@@ -13,7 +13,7 @@ ENV_IDS = ("valve_gym/ValveTank-v0", "valve_gym/ValveTankFixed-v0", "valve_gym/V
            "valve_gym/ValveFamilyRegulation-v0")
 
 #: ``max_episode_steps`` of each id: ``EnvConfig().episode_steps``, ``preset("fixed").episode_steps`` and
-#: ``RegulationConfig().steps`` and ``FamilyConfig().steps`` (checked by the tests).
+#: ``RegulationTaskConfig().steps`` and ``FamilyConfig().steps`` (checked by the tests).
 MAX_EPISODE_STEPS_BY_ID = {
     "valve_gym/ValveTank-v0": 600,
     "valve_gym/ValveTankFixed-v0": 600,

@@ -12,14 +12,28 @@ cannot run past the output limits), and starting from the current output
 ``u0`` with ``e_{-1} = e_0`` makes the start bumpless.
 
 The same law in positional form with an explicit integral ``I`` (the form of
-the DCS function blocks in :mod:`valve_gym.agents.controllers`) is :func:`pi_scan` and
+the DCS function blocks in :mod:`valve_gym.agents.controllers`) is :func:`pi_scan1`,
+one compiled scan of one loop, and its batched numpy faces :func:`pi_scan` and
 :func:`pi_track`::
 
-    I_k = I_{k-1} + Kc*Ts/Ti * e_k,     v_k = Kc*e_k + I_k,     u_k = sat(v_k + b_k)
+    I_k = I_{k-1} + g_k Kc*Ts/Ti * e_k,  v_k = Kc*e_k + I_k,     u_k = sat(v_k + b_k)
     I_k <- u_k - b_k - Kc*e_k           (output tracking, only where sat() acted)
 
-with ``b`` what a compensator adds to the PI output. With ``b = 0`` the two
-forms give the same outputs: :func:`pi_step` is written with them.
+with ``b`` what a compensator adds to the PI output and ``g`` an integrator
+gate in [0, 1] (1: plain PI; 0: a frozen integral, a dead zone). With
+``b = 0`` and ``g = 1`` the two forms give the same outputs: :func:`pi_step`
+is written with them. :func:`pi_scan1` also runs the law with the integral
+advanced *after* the output (``integrate_first=False``: ``v_k = Kc e_k +
+I_{k-1} + b_k``, then ``I_k = I_{k-1} + g_k Kc Ts/Ti e_k`` unless tracked), the
+form of the regulation block (:class:`valve_gym.envs.regulation.BlockLaw`).
+The formulas are written once, in the compiled helpers :func:`integral_gain`,
+:func:`pi_integrate` and :func:`pi_tracked`; the numpy functions evaluate the
+same Python functions (``.py_func``) on arrays.
+
+numba's on-disk cache (``cache=True``) of a compiled caller such as the regulation
+block's ``_law_act`` is keyed on the caller's own file: after editing this module,
+delete the callers' ``__pycache__/*.nbi`` and ``*.nbc`` files (a fresh install has
+none), or they keep the old law.
 
 References
 ----------
@@ -33,7 +47,74 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ["PIParams", "PIState", "pi_init", "pi_step", "pi_scan", "pi_track"]
+from ._numba import njit
+
+__all__ = ["PIParams", "PIState", "pi_init", "pi_step", "pi_scan", "pi_track", "pi_scan1", "integral_gain",
+           "pi_integrate", "pi_tracked"]
+
+
+@njit(cache=True, nogil=True)
+def integral_gain(Kc, Ti, Ts):
+    """Integral gain per scan ``ki = Kc Ts / Ti`` [output fraction per PV unit per scan].
+
+    Parameters
+    ----------
+    Kc : float or (n,), gain [output fraction per PV unit]
+    Ti : float or (n,), integral time [s] (> 0)
+    Ts : float, scan time [s]
+
+    Examples
+    --------
+    >>> round(integral_gain(1.89, 42.4, 1.0), 6)
+    0.044575
+    """
+    return Kc * Ts / Ti
+
+
+@njit(cache=True, nogil=True)
+def pi_integrate(integral, e, ki, gate):
+    """The integral after one scan: ``I + gate ki e`` (``gate`` in [0, 1]; 1 for the plain PI)."""
+    return integral + gate * ki * e
+
+
+@njit(cache=True, nogil=True)
+def pi_tracked(applied, bias, p):
+    """Integral that reproduces the applied output: ``I = u_applied - b - p`` (``p = Kc e``)."""
+    return applied - bias - p
+
+
+@njit(cache=True, nogil=True)
+def pi_scan1(integral, e, kc, ki, gate, bias, lo, hi, integrate_first=True):  # pragma: no cover - compiled
+    """One scan of the positional PI of one loop, limits and tracking anti-windup included.
+
+    Parameters
+    ----------
+    integral : float, integral part before the scan [output fraction]
+    e : float, control error ``sp - pv`` [PV unit]
+    kc : float, gain [output fraction per PV unit]
+    ki : float, integral gain per scan (:func:`integral_gain`)
+    gate : float, integrator gate in [0, 1] (1: plain PI, 0: frozen integral)
+    bias : float, what a compensator adds to the PI output [output fraction]
+    lo, hi : float, output limits
+    integrate_first : bool
+        True: the integral advances before the output (``v = Kc e + I_k + b``, the DCS blocks and
+        :func:`pi_scan`); False: after it (``v = Kc e + I_{k-1} + b``, the regulation block).
+
+    Returns
+    -------
+    u : float, the output ``sat(v)``
+    integral : float, the integral after the scan (tracked, ``u - b - Kc e``, where ``sat`` acted)
+    """
+    p = kc * e
+    if integrate_first:
+        integral = pi_integrate(integral, e, ki, gate)
+    v = p + integral + bias
+    u = min(max(v, lo), hi)
+    if u != v:  # tracking; b and p subtracted in the order each form has always used (same bits)
+        return u, pi_tracked(u, bias, p) if integrate_first else pi_tracked(u, p, bias)
+    if integrate_first:
+        return u, integral
+    return u, pi_integrate(integral, e, ki, gate)
 
 
 @dataclass(frozen=True)
@@ -109,7 +190,8 @@ def pi_scan(integral, e, Kc, Ti, Ts, integrate=True):
     """
     e = np.asarray(e, float)
     p = Kc * e
-    integral = np.where(integrate, integral + (Kc * Ts / Ti) * e, integral)
+    integral = np.where(integrate, pi_integrate.py_func(integral, e, integral_gain.py_func(Kc, Ti, Ts), 1.0),
+                        integral)
     return p, integral, p + integral
 
 
@@ -125,7 +207,7 @@ def pi_track(applied, bias, p):
     >>> float(pi_track(1.0, 0.0, 0.3))
     0.7
     """
-    return np.asarray(applied, float) - bias - p
+    return pi_tracked.py_func(np.asarray(applied, float), bias, p)
 
 
 def pi_step(state: PIState, e, p: PIParams):

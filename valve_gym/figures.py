@@ -49,7 +49,7 @@ import numpy as np
 from ._io import folder_problem
 from .control import PIParams
 from .core import array_to_state, initial_state, pack, run_packed, state_to_array
-from .loop import run_closed_loop
+from .loop import run_pi_loop
 from .params import ModelParams, ValveParams
 from .plant import Plant, PlantOutput
 
@@ -325,7 +325,7 @@ def closed_loop_pi(params: ModelParams, sp, Kc, Ti, control_period: float = 1.0,
                    seed: int | None = None, state=None, load=None) -> ClosedLoopResult:
     """Level loop: the PI law of :mod:`valve_gym.control` driving the model.
 
-    :func:`valve_gym.loop.run_closed_loop` on a :class:`~valve_gym.plant.Plant`: every
+    :func:`valve_gym.loop.run_pi_loop` on a :class:`~valve_gym.plant.Plant`: every
     ``control_period`` seconds the controller reads the level (plus white measurement noise of
     std ``noise_std``), computes its output with :func:`valve_gym.control.pi_step` and the plant
     integrates ``control_period / params.dt`` Euler steps with that output held.
@@ -420,8 +420,8 @@ def closed_loop_pi(params: ModelParams, sp, Kc, Ti, control_period: float = 1.0,
     if da.shape != (T,) or not np.isfinite(da).all():
         raise ValueError(f"load must be a finite number or a ({T},) profile of inflows (m^3/s), "
                          f"got shape {da.shape}")
-    run = run_closed_loop(plant, start, spa, pi, noise_std, np.random.default_rng(seed),
-                          d=None if load is None else da)
+    run = run_pi_loop(plant, start, spa, pi, noise_std, np.random.default_rng(seed),
+                      d=None if load is None else da)
     t = np.arange(T) * control_period
     return ClosedLoopResult(t=t, sp=spa, pv=run.pv[:T], op=run.op, stem=run.stem[:T], level=run.level[:T])
 

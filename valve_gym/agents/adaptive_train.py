@@ -250,29 +250,28 @@ def rollout(loops: TrainLoops, P: np.ndarray, frictionless: np.ndarray, scan: fl
     reps, n = P.shape[0], idx.size
     if n == 0:
         return {"idx": idx}
+    from valve_gym.agents.bench.scores import loop_iae
+    from valve_gym.loop import Scenario, run_closed_loop
+    from valve_gym.plant import PlantOutput
+
     plants = _plants(loops, idx, reps, frictionless, scan)
     N = reps * n
-    level, stem, u0 = np.empty(N), np.empty(N), np.empty(N)
+    start = PlantOutput(*(np.empty(N) for _ in range(4)))
     for cols, p, lv in plants:
-        out = p.reset(level=lv)
-        level[cols], stem[cols], u0[cols] = out.pv, out.stem, out.op
-    sp = level.copy()
+        for a, b in zip(start, p.reset(level=lv)):
+            a[cols] = b
+    sp = start.pv.copy()
     T = loops.noise[idx[0]].size
     noise = np.tile(np.stack([loops.noise[i] for i in idx], axis=1), (1, reps))
     load = np.tile(np.stack([loops.load[i] for i in idx], axis=1), (1, reps))
     blk = _block(P, [loops.rows[i] for i in idx], scan)
-    blk.reset(sp, level + noise[0], u0)
-    e = np.empty((T, N))
+    run = run_closed_loop([(cols, p) for cols, p, _ in plants], blk,
+                          Scenario(sp=np.broadcast_to(sp, (T, N)), scan_s=scan, load=load, noise=noise), start=start)
+    e = sp - run.level[:T] - noise
     travel = np.zeros(N)
     for k in range(T):
-        e[k] = sp - level - noise[k]
-        op = np.asarray(blk.step(sp, level + noise[k]), float)
-        for cols, p, _ in plants:
-            out = p.step(op[cols], load[k, cols])
-            level[cols] = out.pv
-            travel[cols] += np.abs(out.stem - stem[cols])
-            stem[cols] = out.stem
-    return {"idx": idx, "iae": (np.abs(e).sum(0) * scan).reshape(reps, n), "travel": travel.reshape(reps, n),
+        travel += np.abs(run.stem[k + 1] - run.stem[k])
+    return {"idx": idx, "iae": loop_iae(e, scan).reshape(reps, n), "travel": travel.reshape(reps, n),
             "e": e.reshape(T, reps, n)}
 
 

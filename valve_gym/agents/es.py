@@ -19,8 +19,9 @@ Fitness of a network on a batch of loops (higher is better)::
     l_b = log(IAE_b / IAE_PI,b)             (max(., 0) on healthy valves)
     r_b = log((rev_b + 1) / (rev_PI,b + 1))  (0 on healthy valves)
 
-with the IAE of the true level, the stem travel (strokes) and the stem reversals (privileged
-signals: only the policy's inputs are restricted), each against the plain PI on the same loop.
+with the IAE of the measured level (``sp - pv`` after each scan, the benchmark's own score,
+:func:`valve_gym.agents.bench.scores.loop_iae`), the stem travel (strokes) and the stem reversals
+(privileged signals: only the policy's inputs are restricted), each against the plain PI on the same loop.
 The log ratios weigh a healthy valve as much as a severe one; on healthy valves only a loss
 against the PI counts (the block is not rewarded for out-tuning the PI where there is no
 stiction), and on sticky valves fewer stem reversals than the PI's (fewer stick-slip cycles)
@@ -46,7 +47,7 @@ from typing import NamedTuple
 import numpy as np
 
 from valve_gym.config import ConfigError, check_count, config_to_dict, load_config
-from valve_gym.envs.regulation import N_ACT, RegulationConfig, obs_names, pi_action
+from valve_gym.envs.regulation import N_ACT, RegulationTaskConfig, obs_names, pi_action
 
 from .learned import MAX_LAYER, MLPSpec, mlp_forward, normalise, save_learned, unflatten
 from .lifecycle import STOP, stop_on_signals
@@ -162,7 +163,7 @@ class LearnedTrainConfig:
     seed : int
     checkpoint_every : int
         Generations between checkpoints (also written on SIGINT/SIGTERM and at the end).
-    task : RegulationConfig
+    task : RegulationTaskConfig
     es : ESHyper
     eval : ESEvalConfig
     """
@@ -171,7 +172,7 @@ class LearnedTrainConfig:
     name: str = "learned"
     seed: int = 0
     checkpoint_every: int = 10
-    task: RegulationConfig = field(default_factory=RegulationConfig)
+    task: RegulationTaskConfig = field(default_factory=RegulationTaskConfig)
     es: ESHyper = field(default_factory=ESHyper)
     eval: ESEvalConfig = field(default_factory=ESEvalConfig)
 
@@ -199,7 +200,7 @@ class RolloutScores(NamedTuple):
 
     Fields
     ------
-    iae : (P, B) IAE of the true level [m s]
+    iae : (P, B) IAE of the measured level, :func:`valve_gym.agents.bench.scores.loop_iae` [m s]
     travel : (P, B) stem travel [strokes]
     reversals : (P, B) stem reversals (moves back by more than :data:`REVERSAL_DEADBAND`)
     lc : (P, B) 1 where the limit-cycle detector fired (0 everywhere unless asked for)
@@ -246,14 +247,14 @@ class _Reversals:
         self.dir = new_dir
 
 
-def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None, lc: bool = False) -> RolloutScores:
+def rollout_scores(policies, task: RegulationTaskConfig, seeds, obs_norm=None, lc: bool = False) -> RolloutScores:
     """Run ``P`` policies on the loops of ``seeds`` (B,), all in one vector env of ``P * B`` loops.
 
     Parameters
     ----------
     policies : list
         Each ``None`` (the plain PI) or a weights dict of :func:`valve_gym.agents.learned.mlp_forward`.
-    task : RegulationConfig
+    task : RegulationTaskConfig
     seeds : sequence of int
     obs_norm : (mean, std), optional
         Observation normaliser of the networks.
@@ -261,6 +262,7 @@ def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None, lc: b
         Run the limit-cycle detector of the benchmark (:func:`valve_gym.oscillation.detect_oscillation`, benchmark rule)
         on each loop's measured error.
     """
+    from valve_gym.agents.bench.scores import loop_iae
     from valve_gym.envs.regulation_env import ValveTankRegulationVectorEnv
 
     P, B = len(policies), len(seeds)
@@ -273,13 +275,12 @@ def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None, lc: b
         stacked = {k: np.stack([policies[i][k] for i in nets]) for k in policies[nets[0]]}
     mean, std = (np.zeros(n_obs), np.ones(n_obs)) if obs_norm is None else obs_norm
     act = np.tile(pi_action(1), (P * B, 1)).reshape(P, B, N_ACT)
-    iae = np.zeros(P * B)
     trav = np.zeros(P * B)
     rev = _Reversals(P * B, REVERSAL_DEADBAND)
     stem = None
     s1 = np.zeros(n_obs)
     s2 = np.zeros(n_obs)
-    err = np.empty((task.steps, P * B)) if lc else None
+    err = np.empty((task.steps, P * B))
     for k in range(task.steps):
         if STOP["flag"]:
             raise Interrupted()
@@ -289,13 +290,9 @@ def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None, lc: b
         if stacked is not None:
             act[nets] = mlp_forward(stacked, normalise(o[nets], mean, std))
         obs, r, term, trunc, inf = env.step(act.reshape(P * B, N_ACT))
-        st = inf["final_info"]["stem"] if "final_info" in inf else inf["stem"]
-        lv = inf["final_info"]["level"] if "final_info" in inf else inf["level"]
-        sp = inf["final_info"]["setpoint"] if "final_info" in inf else inf["setpoint"]
-        iae += np.abs(sp - lv) * task.block.scan_s
-        if err is not None:
-            pv = inf["final_info"]["pv"] if "final_info" in inf else inf["pv"]
-            err[k] = sp - pv
+        fin = inf["final_info"] if "final_info" in inf else inf
+        st = fin["stem"]
+        err[k] = fin["setpoint"] - fin["pv"]
         if stem is not None:
             trav += np.abs(st - stem)
         rev.update(st)
@@ -304,7 +301,8 @@ def rollout_scores(policies, task: RegulationConfig, seeds, obs_norm=None, lc: b
     sd = np.sqrt(np.maximum(s2 / (B * task.steps) - m * m, 0.0))
     lc_present = np.zeros(P * B)
     lc_amp = np.zeros(P * B)
-    if err is not None:
+    iae = loop_iae(err, task.block.scan_s)
+    if lc:
         from valve_gym.oscillation import detect_oscillation
 
         res = [detect_oscillation(err[:, i], task.block.scan_s, "benchmark") for i in range(P * B)]
@@ -405,7 +403,7 @@ def init_state(cfg: LearnedTrainConfig, seed: int) -> ESState:
                    obs_mean=sc.obs_mean, obs_std=std, rng_state=rng_state)
 
 
-def _train_task(cfg: LearnedTrainConfig) -> RegulationConfig:
+def _train_task(cfg: LearnedTrainConfig) -> RegulationTaskConfig:
     from dataclasses import replace
 
     return replace(cfg.task, episode_s=cfg.es.episode_s)

@@ -76,7 +76,7 @@ class SyntheticCase:
 
 def simulate_closed_loop(params: ModelParams, sp, pi: PIParams, noise_std: float, rng,
                          n_sub: int, level0: float, d=None):
-    """PI loop on the plant, one controller sample at a time (:func:`valve_gym.loop.run_closed_loop`).
+    """PI loop on the plant, one controller sample at a time (:func:`valve_gym.loop.run_pi_loop`).
 
     Parameters
     ----------
@@ -94,7 +94,7 @@ def simulate_closed_loop(params: ModelParams, sp, pi: PIParams, noise_std: float
     op : (T,) controller output 0..1 over sample ``k``; pv : (T,) measured level [m],
     level : (T,) true level [m], stem : (T,) stem position 0..1, each at the end of sample ``k``
     """
-    from ..loop import run_closed_loop
+    from ..loop import run_pi_loop
     from ..plant import Plant
 
     sp = np.asarray(sp, float)
@@ -102,7 +102,7 @@ def simulate_closed_loop(params: ModelParams, sp, pi: PIParams, noise_std: float
     if plant.n_sub != n_sub:
         raise ValueError(f"n_sub = {n_sub} Euler steps per sample, but pi.Ts / params.dt = {plant.n_sub}")
     start = plant.reset(level=level0)
-    run = run_closed_loop(plant, start, sp[:, None], pi, noise_std, rng, None if d is None else np.asarray(d, float))
+    run = run_pi_loop(plant, start, sp[:, None], pi, noise_std, rng, None if d is None else np.asarray(d, float))
     return run.op[:, 0], run.pv[1:, 0], run.level[1:, 0], run.stem[1:, 0]
 
 

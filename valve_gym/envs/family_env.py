@@ -29,7 +29,7 @@ from .regulation import (
     BlockLaw,
     BlockSettings,
     References,
-    RegulationConfig,
+    RegulationTaskConfig,
     benchmark_reward,
     obs_names,
     pi_action,
@@ -62,7 +62,7 @@ class FamilyConfig:
     g_min : float
         Smallest integrator gate.
     r_floor, travel_budget, budget_weight, lc_weight : float
-        The benchmark reward's settings (:class:`~valve_gym.envs.regulation.RegulationConfig`).
+        The benchmark reward's settings (:class:`~valve_gym.envs.regulation.RegulationTaskConfig`).
     """
 
     steps: int = 1200
@@ -293,7 +293,7 @@ class ValveFamilyRegulationEnv(gym.Env):
                 info["R"] = float((ep.refs.iae_pi[0] - np.abs(self._err).sum()) / ep.refs.denom[0])
                 info["travel_vs_frictionless"] = float(self._travel[0] / ep.refs.travel_0[0])
                 info["lc_present"] = float(lc[0])
-            r, self._excess = benchmark_reward(cast(RegulationConfig, self.config), ep.refs, k, np.abs(e),
+            r, self._excess = benchmark_reward(cast(RegulationTaskConfig, self.config), ep.refs, k, np.abs(e),
                                                self._excess, self._travel, lc)
             reward = float(r[0])
         else:

@@ -7,11 +7,12 @@ which stiction shows as a limit cycle. This module holds, once, everything the s
 (:class:`~valve_gym.envs.regulation_env.ValveTankRegulationVectorEnv`) and the learned DCS
 block (:mod:`valve_gym.agents.learned`) must agree on:
 
-* :class:`RegulationConfig` and its validation (the task, loadable from YAML);
+* :class:`RegulationTaskConfig` and its validation (the task, loadable from YAML);
 * :func:`draw_scenarios` (the per-episode draw from each sub-env's own generator);
 * :class:`LoopPlants` (the plants of a batch, grouped by friction model);
 * :class:`BlockLaw` (the observation layout and the action scaling: the PI with a gated
-  integrator and a bounded additive correction, whose inputs are SP, PV and its own OP only);
+  integrator and a bounded additive correction, whose inputs are SP, PV and its own OP only;
+  the PI scan itself is :func:`valve_gym.control.pi_scan1`, the one PI law);
 * :func:`step_reward` (the reward).
 
 Notes
@@ -41,10 +42,11 @@ import numpy as np
 from .. import core
 from .._numba import njit
 from ..config import ConfigError, check_episode_steps
+from ..control import integral_gain, pi_scan1
 from ..params import ModelParams, SlipJump, ValveParams
 from ..signals import ou_sequence
 
-__all__ = ["RegulationConfig", "BlockSettings", "RegulationDraw", "draw_scenarios", "friction_params",
+__all__ = ["RegulationTaskConfig", "BlockSettings", "RegulationDraw", "draw_scenarios", "friction_params",
            "LoopPlants", "BlockLaw", "pi_action", "step_reward", "References", "reference_runs", "benchmark_reward",
            "BENCHMARK_FRICTION_MODELS", "REWARDS", "parse_options", "available_friction_models",
            "FRICTION_MODELS_FALLBACK", "N_OBS", "N_ACT",
@@ -54,7 +56,7 @@ __all__ = ["RegulationConfig", "BlockSettings", "RegulationDraw", "draw_scenario
 FRICTION_MODELS_FALLBACK = ("riihilahti", "choudhury")
 #: The benchmark's friction models (``configs/benchmark.yaml``), the task's default.
 BENCHMARK_FRICTION_MODELS = ("riihilahti", "choudhury", "kano")
-#: The reward kinds of :class:`RegulationConfig`.
+#: The reward kinds of :class:`RegulationTaskConfig`.
 REWARDS = ("benchmark", "tracking")
 
 Range = tuple[float, float]
@@ -121,8 +123,18 @@ class BlockSettings:
 
 
 @dataclass(frozen=True)
-class RegulationConfig:
-    """The regulation task.
+class RegulationTaskConfig:
+    """The regulation task: the randomised family of regulation loops the envs draw their episodes from.
+
+    How it relates to the benchmark's regulation part
+    (:class:`valve_gym.agents.bench.config.RegulationConfig`, inside
+    :class:`~valve_gym.agents.bench.config.BenchConfig`): the benchmark fixes one population of
+    loops (operating points, one noise level, one load, valves by band and friction model) and runs
+    every controller on it; this task draws a loop per episode from *ranges* around it (wider noise,
+    load and correlation time by default, a shorter episode) for training and evaluation in the envs.
+    :meth:`from_benchmark` gives the task whose draws are the benchmark's regulation loops (the same
+    levels' range, noise, load, friction models, bands, band counts and scan time). Formerly also
+    named ``RegulationConfig`` (that name is kept, deprecated, for old imports).
 
     Parameters
     ----------
@@ -243,6 +255,54 @@ class RegulationConfig:
         """Scans per episode."""
         return int(round(self.episode_s / self.block.scan_s))
 
+    @classmethod
+    def from_benchmark(cls, bench=None, **overrides) -> RegulationTaskConfig:
+        """The task of the benchmark's regulation part (``bench``: a BenchConfig, mapping or YAML path).
+
+        Levels drawn in ``[min, max]`` of ``bench.regulation.levels``; the noise, the load's sigma and tau
+        fixed at the benchmark's; its friction models; its bands (edges, loop counts as weights, log-uniform
+        flags; the bands must be contiguous); ``J`` uniform in ``[0, S]``; an episode of
+        ``regulation.duration_s`` at its ``scan_s``; the benchmark reward. ``overrides`` replace fields.
+
+        Examples
+        --------
+        >>> t = RegulationTaskConfig.from_benchmark()
+        >>> t.levels, t.noise_std, t.band_weights, t.steps
+        ((0.6, 1.4), (0.002, 0.002), (30.0, 60.0, 45.0), 3600)
+        """
+        from dataclasses import replace
+
+        from ..agents.bench.config import BAND_NAMES, BenchConfig, load_bench_config
+
+        b = bench if isinstance(bench, BenchConfig) else load_bench_config(bench)
+        bands = [getattr(b.bands, name) for name in BAND_NAMES]
+        edges = [float(bands[0].S[0])] + [float(x.S[1]) for x in bands]
+        if any(float(x.S[0]) != edges[i] for i, x in enumerate(bands)):
+            raise ConfigError("the benchmark's bands are not contiguous (each band's S must start where the "
+                              "previous one ends); a regulation task needs contiguous S_bands")
+        r = b.regulation
+        kw = dict(episode_s=float(r.duration_s), levels=(float(min(r.levels)), float(max(r.levels))),
+                  noise_std=(float(r.noise_std),) * 2, load_std=(float(r.load.sigma),) * 2,
+                  load_tau=(float(r.load.tau),) * 2, friction_models=tuple(b.models), S_bands=tuple(edges),
+                  band_weights=tuple(float(x.n) for x in bands),
+                  S_log_uniform=tuple(bool(x.log_uniform) for x in bands),
+                  J_frac=(0.0, 1.0), reward="benchmark",
+                  block=replace(cls.__dataclass_fields__["block"].default, scan_s=float(b.scan_s)))
+        kw.update(overrides)
+        return cls(**kw)  # type: ignore[arg-type]
+
+
+def __getattr__(name: str):
+    """``RegulationConfig``: the former name of :class:`RegulationTaskConfig` (deprecated)."""
+    if name == "RegulationConfig":
+        import warnings
+
+        warnings.warn("valve_gym.envs.regulation.RegulationConfig is now RegulationTaskConfig (the benchmark's "
+                      "RegulationConfig is its regulation part); import RegulationTaskConfig",
+                      DeprecationWarning, stacklevel=2)
+        return RegulationTaskConfig
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 # --------------------------------------------------------------------------- friction
 def available_friction_models() -> tuple[str, ...]:
@@ -320,7 +380,7 @@ class RegulationDraw(NamedTuple):
     load: np.ndarray
 
 
-def draw_scenarios(rngs: Sequence[np.random.Generator], cfg: RegulationConfig) -> RegulationDraw:
+def draw_scenarios(rngs: Sequence[np.random.Generator], cfg: RegulationTaskConfig) -> RegulationDraw:
     """Draw ``len(rngs)`` episodes, row ``j`` from ``rngs[j]`` only (a batch draw equals single draws).
 
     Each generator gives 8 uniforms, then ``2 (H + 1)`` standard normals, whatever the values.
@@ -364,7 +424,7 @@ class LoopPlants:
 
     Parameters
     ----------
-    cfg : RegulationConfig
+    cfg : RegulationTaskConfig
     draw : RegulationDraw
         The episodes (their valves and operating points).
     frictionless : (n,) bool array, optional
@@ -377,7 +437,7 @@ class LoopPlants:
     op0 : (n,) the steady valve input at the set point [fraction of stroke]
     """
 
-    def __init__(self, cfg: RegulationConfig, draw: RegulationDraw, frictionless=None):
+    def __init__(self, cfg: RegulationTaskConfig, draw: RegulationDraw, frictionless=None):
         n = draw.sp.shape[0]
         free = np.zeros(n, bool) if frictionless is None else np.broadcast_to(np.asarray(frictionless, bool), (n,))
         self.n = n
@@ -492,12 +552,7 @@ def _law_act(X, LP, action, first, u_out):  # pragma: no cover - compiled
         e = X[_XE, i]
         if first:
             X[_XI, i] = X[_XI, i] - c
-        v = kc * e + X[_XI, i] + c
-        u = min(max(v, lo), hi)
-        if u != v:
-            X[_XI, i] = u - kc * e - c
-        else:
-            X[_XI, i] = X[_XI, i] + g * ki * e
+        u, X[_XI, i] = pi_scan1(X[_XI, i], e, kc, ki, g, c, lo, hi, False)
         du = u - X[_XU, i]
         X[_XDU, i] += LP[_PA16] * (du - X[_XDU, i])
         X[_XU64, i] += LP[_PA64] * (u - X[_XU64, i])
@@ -535,7 +590,7 @@ class BlockLaw:
     def __init__(self, settings: BlockSettings, n: int):
         self.s = settings
         self.n = int(n)
-        self.ki = settings.Kc * settings.scan_s / settings.Ti
+        self.ki = integral_gain(settings.Kc, settings.Ti, settings.scan_s)
         self._alpha_e = np.array([1.0 - math.exp(-settings.scan_s / t) for t in _E_TAUS])
         self._a64 = 1.0 - math.exp(-settings.scan_s / 64.0)
         self._a256 = 1.0 - math.exp(-settings.scan_s / 256.0)
@@ -618,7 +673,7 @@ def pi_action(n: int) -> np.ndarray:
 OPTION_KEYS = ("model", "S", "J", "level", "frictionless")
 
 
-def parse_options(options, cfg: RegulationConfig, n: int) -> dict:
+def parse_options(options, cfg: RegulationTaskConfig, n: int) -> dict:
     """Validate ``reset(options=...)``: pins of the episode's friction model, ``S``, ``J`` and set point.
 
     Parameters
@@ -627,7 +682,7 @@ def parse_options(options, cfg: RegulationConfig, n: int) -> dict:
         ``model`` (a name of ``cfg.friction_models``), ``S`` and ``J`` (fraction of stroke,
         ``0 <= J <= S <= 0.5``), ``level`` (set point, m, within ``cfg.levels`` widened to
         [0.05, 10]); each a scalar or an ``(n,)`` array.
-    cfg : RegulationConfig
+    cfg : RegulationTaskConfig
     n : int
         Number of sub-environments.
 
@@ -675,12 +730,12 @@ def parse_options(options, cfg: RegulationConfig, n: int) -> dict:
     return pins
 
 
-def step_reward(cfg: RegulationConfig, level_err: np.ndarray, stem_move: np.ndarray) -> np.ndarray:
+def step_reward(cfg: RegulationTaskConfig, level_err: np.ndarray, stem_move: np.ndarray) -> np.ndarray:
     """Reward of one scan: ``-(|SP - L| / error_scale + travel_weight * |dh| / error_scale * ...)``.
 
     Parameters
     ----------
-    cfg : RegulationConfig
+    cfg : RegulationTaskConfig
     level_err : (n,) true level error ``SP - L`` after the scan [m]
     stem_move : (n,) stem travel during the scan [fraction of stroke]
 
@@ -768,7 +823,7 @@ def _scan1(X, LP, A, first, S, P, flags, buf, n_sub, dt, W, load_k, noise_k1, sp
     return u[0], level, W[3, 0], pv
 
 
-def reference_runs(cfg: RegulationConfig, draw: RegulationDraw) -> References:
+def reference_runs(cfg: RegulationTaskConfig, draw: RegulationDraw) -> References:
     """Run the SIMC PI on each episode's sticky valve and on its frictionless valve (the benchmark's references).
 
     Both see the episode's measurement noise and load, so ``R`` of a controller on the episode is the
@@ -794,13 +849,13 @@ def reference_runs(cfg: RegulationConfig, draw: RegulationDraw) -> References:
     return References(err[:n], err[n:].sum(axis=1), travel[n:], cfg.r_floor)
 
 
-def benchmark_reward(cfg: RegulationConfig, refs: References, k: int, abs_err: np.ndarray,
+def benchmark_reward(cfg: RegulationTaskConfig, refs: References, k: int, abs_err: np.ndarray,
                      excess_prev: np.ndarray, travel: np.ndarray, lc_present: np.ndarray | None = None):
     r"""Reward of scan ``k`` of the ``benchmark`` reward, and the travel excess after it.
 
     Parameters
     ----------
-    cfg : RegulationConfig
+    cfg : RegulationTaskConfig
     refs : References
         The episode's references (:func:`reference_runs`).
     k : int

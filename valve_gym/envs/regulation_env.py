@@ -21,8 +21,8 @@ from .regulation import (
     N_ACT,
     BlockLaw,
     LoopPlants,
-    RegulationConfig,
     RegulationDraw,
+    RegulationTaskConfig,
     _scan1,
     benchmark_reward,
     draw_scenarios,
@@ -35,11 +35,11 @@ from .regulation import (
 __all__ = ["ValveTankRegulationEnv", "ValveTankRegulationVectorEnv", "RegulationLoops", "make_regulation_config"]
 
 
-def make_regulation_config(config: RegulationConfig | Mapping | str | None = None) -> RegulationConfig:
-    """A :class:`RegulationConfig` from a config, a mapping of keys or a YAML file (``None``: defaults)."""
-    if isinstance(config, RegulationConfig):
+def make_regulation_config(config: RegulationTaskConfig | Mapping | str | None = None) -> RegulationTaskConfig:
+    """A :class:`RegulationTaskConfig` from a config, a mapping of keys or a YAML file (``None``: defaults)."""
+    if isinstance(config, RegulationTaskConfig):
         return config
-    return load_config(config, cls=RegulationConfig)
+    return load_config(config, cls=RegulationTaskConfig)
 
 
 def _apply_pins(d: RegulationDraw, pins: dict) -> RegulationDraw:
@@ -58,11 +58,11 @@ class RegulationLoops:
 
     Parameters
     ----------
-    cfg : RegulationConfig
+    cfg : RegulationTaskConfig
     n : int
     """
 
-    def __init__(self, cfg: RegulationConfig, n: int):
+    def __init__(self, cfg: RegulationTaskConfig, n: int):
         self.cfg = cfg
         self.n = int(n)
         self.H = cfg.steps
@@ -225,7 +225,7 @@ class RegulationLoops:
                 "S": d.S.copy(), "J": d.J.copy(), "setpoint": d.sp.copy()}
 
 
-def _spaces(cfg: RegulationConfig):
+def _spaces(cfg: RegulationTaskConfig):
     obs = spaces.Box(-10.0, 10.0, shape=(len(obs_names(cfg.block)),), dtype=np.float32)
     act = spaces.Box(-1.0, 1.0, shape=(N_ACT,), dtype=np.float32)
     return obs, act
@@ -295,8 +295,8 @@ class ValveTankRegulationEnv(gym.Env):
 
     ## Arguments
 
-    config : RegulationConfig, mapping or YAML path, optional
-        The task (:class:`~valve_gym.envs.regulation.RegulationConfig`): ranges of the draw, reward
+    config : RegulationTaskConfig, mapping or YAML path, optional
+        The task (:class:`~valve_gym.envs.regulation.RegulationTaskConfig`): ranges of the draw, reward
         weights, block settings.
     render_mode : {None, 'rgb_array'}, optional
 
@@ -309,7 +309,7 @@ class ValveTankRegulationEnv(gym.Env):
     * v0 (this release): the default task became the benchmark's regulation part (Kano's model added,
       band weights and log-uniform sticky band, 0.3-3 mm noise, the 14 observations with the
       stickiness features) and the reward the benchmark-aligned one; ``render_mode='rgb_array'``.
-      The id keeps ``-v0`` as no release published the earlier default; ``RegulationConfig(
+      The id keeps ``-v0`` as no release published the earlier default; ``RegulationTaskConfig(
       friction_models=('riihilahti', 'choudhury'), noise_std=(0.002, 0.002), band_weights=(1, 1, 1),
       S_log_uniform=(False, False, False), reward='tracking', block=BlockSettings())`` is the earlier one.
     * v0 (first): two friction models, 2 mm noise, 11 observations, tracking reward.
@@ -317,7 +317,7 @@ class ValveTankRegulationEnv(gym.Env):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
 
-    def __init__(self, config: RegulationConfig | Mapping | str | None = None, render_mode: str | None = None):
+    def __init__(self, config: RegulationTaskConfig | Mapping | str | None = None, render_mode: str | None = None):
         self.render_mode = _check_render(render_mode, self.metadata)
         self.config = make_regulation_config(config)
         self.observation_space, self.action_space = _spaces(self.config)
@@ -407,7 +407,7 @@ class ValveTankRegulationVectorEnv(VectorEnv):
     ## Arguments
 
     num_envs : int
-    config : RegulationConfig, mapping or YAML path, optional
+    config : RegulationTaskConfig, mapping or YAML path, optional
     max_episode_steps : int, optional (must equal the config's episode)
     render_mode : {None, 'rgb_array'}
 
@@ -418,7 +418,7 @@ class ValveTankRegulationVectorEnv(VectorEnv):
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10, "autoreset_mode": AutoresetMode.SAME_STEP}
 
-    def __init__(self, num_envs: int = 1, config: RegulationConfig | Mapping | str | None = None,
+    def __init__(self, num_envs: int = 1, config: RegulationTaskConfig | Mapping | str | None = None,
                  max_episode_steps: int | None = None, render_mode: str | None = None):
         self.render_mode = _check_render(render_mode, self.metadata)
         if not (isinstance(num_envs, (int, np.integer)) and num_envs >= 1):

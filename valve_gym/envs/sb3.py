@@ -209,7 +209,7 @@ class SB3RegulationVecEnv(_OneVectorEnv, VecEnv):
     Parameters
     ----------
     num_envs : int
-    config : RegulationConfig, mapping or YAML path, optional
+    config : RegulationTaskConfig, mapping or YAML path, optional
 
     Notes
     -----

@@ -118,6 +118,9 @@ class OULoad:
 class RegulationConfig:
     """Regulation part: constant set point, load and noise, starting at steady state.
 
+    The envs' randomised regulation task is :class:`valve_gym.envs.regulation.RegulationTaskConfig`;
+    ``RegulationTaskConfig.from_benchmark(bench_config)`` is the task whose draws are these loops.
+
     Parameters
     ----------
     duration_s : float, s

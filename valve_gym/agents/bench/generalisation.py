@@ -29,6 +29,8 @@ from typing import Any, cast
 
 import numpy as np
 
+from valve_gym.loop import Scenario, run_closed_loop
+from valve_gym.plant import PlantOutput
 from valve_gym.signals import ou_sequence
 
 from .config import BAND_NAMES, BenchConfig
@@ -256,6 +258,23 @@ def _controller(spec: GenSpec, loops: GenLoops, idx: np.ndarray, scan_s: float):
     return ControllerBank(blocks, [np.array([j]) for j in range(idx.size)], idx.size)
 
 
+class _UnseenLoopPlant:
+    """:class:`~.unseen_plants.UnseenPlants` as a :class:`valve_gym.loop.LoopPlant` (the sensor reads the level)."""
+
+    def __init__(self, plants: UnseenPlants):
+        self.plants, self.n, self.scan_s = plants, plants.n, plants.scan_s
+
+    def rest(self) -> PlantOutput:
+        """Reset at the operating point; the state the loops start in."""
+        y, x, u0 = self.plants.reset()
+        return PlantOutput(pv=y, stem=x, op=u0, y=y.copy())
+
+    def scan(self, u: np.ndarray, d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """One scan: ``(y, stem, level)`` after it."""
+        y, x = self.plants.step(u, d)
+        return y, x, y
+
+
 def _policy_controller(block, loops: GenLoops, idx: np.ndarray, scan_s: float):
     """One's own block on loops ``idx``.
 
@@ -270,20 +289,14 @@ def _policy_controller(block, loops: GenLoops, idx: np.ndarray, scan_s: float):
 
 def _run_group(spec: GenSpec, loops: GenLoops, idx: np.ndarray, scan_s: float) -> Runs:
     T = loops.load[idx[0]].size
-    plants = UnseenPlants([loops.specs[i] for i in idx], scan_s, frictionless=spec.frictionless)
-    y, x, u0 = plants.reset()
-    sp = y.copy()
+    plant = _UnseenLoopPlant(UnseenPlants([loops.specs[i] for i in idx], scan_s, frictionless=spec.frictionless))
+    start = plant.rest()
+    spT = np.broadcast_to(start.pv.copy(), (T, idx.size))
     load = np.stack([loops.load[i] for i in idx], axis=1)
     noise = np.stack([loops.noise[i] for i in idx], axis=1)
     ctrl = _controller(spec, loops, idx, scan_s)
-    ctrl.reset(sp, y + noise[0], u0)
-    level, stem, op = np.empty((T, idx.size)), np.empty((T, idx.size)), np.empty((T, idx.size))
-    for k in range(T):
-        level[k], stem[k] = y, x
-        op[k] = np.asarray(ctrl.step(sp, y + noise[k]), float)
-        y, x = plants.step(op[k], load[k])
-    spT = np.broadcast_to(sp, (T, idx.size))
-    return Runs(spec.label, PART, scan_s, spT, level + noise, level, op, stem)
+    run = run_closed_loop(plant, ctrl, Scenario(sp=spT, scan_s=scan_s, load=load, noise=noise), start=start)
+    return Runs(spec.label, PART, scan_s, spT, run.pv[:T], run.level[:T], run.op, run.stem[:T])
 
 
 def _concat(parts: list[tuple[np.ndarray, LoopScores]], n: int, label: str) -> LoopScores:

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from valve_gym.agents.controllers.block import check_inputs, check_op_limits, check_step_inputs, not_reset_error
-from valve_gym.envs.regulation import N_ACT, BlockLaw, BlockSettings, RegulationConfig, obs_names
+from valve_gym.envs.regulation import N_ACT, BlockLaw, BlockSettings, RegulationTaskConfig, obs_names
 
 __all__ = ["FORMAT", "NumpyMLP", "ObsNormaliser", "PolicyBlock", "export_policy", "load_policy_block", "as_block",
            "as_blocks", "evaluate", "PolicyShapeError"]
@@ -235,7 +235,7 @@ def _check_shapes(n_in: int, n_out: int, settings: BlockSettings, what: str) -> 
 
 
 def _task_of(model=None, task=None):
-    """The training task: a ``RegulationConfig`` or (``ValveFamilyRegulation-v0``) a ``FamilyConfig``."""
+    """The training task: a ``RegulationTaskConfig`` or (``ValveFamilyRegulation-v0``) a ``FamilyConfig``."""
     from valve_gym.envs.family_env import FamilyConfig
     from valve_gym.envs.regulation_env import make_regulation_config
 
@@ -247,11 +247,11 @@ def _task_of(model=None, task=None):
     if env is not None:
         try:
             cfgs = env.get_attr("config")
-            if cfgs and isinstance(cfgs[0], (RegulationConfig, FamilyConfig)):
+            if cfgs and isinstance(cfgs[0], (RegulationTaskConfig, FamilyConfig)):
                 return cfgs[0]
         except (AttributeError, TypeError, ValueError):
             pass
-    return RegulationConfig()
+    return RegulationTaskConfig()
 
 
 def _find_vecnormalize(model):
@@ -273,7 +273,7 @@ def block_from_model(model, vecnormalize=None, task=None, name: str | None = Non
     vecnormalize : VecNormalize, optional
         Its observation statistics are used (default: the ``VecNormalize`` the model's env is wrapped in,
         if any).
-    task : RegulationConfig, mapping or YAML path, optional
+    task : RegulationTaskConfig, mapping or YAML path, optional
         The training task (default: the model's env's, else the registered default).
     name : str, optional
     """
@@ -300,7 +300,7 @@ def export_policy(model, path, vecnormalize=None, task=None, meta: Mapping | Non
         Output stem (``.json``/``.safetensors``/``.zip`` suffixes are dropped).
     vecnormalize : VecNormalize, optional
         Observation statistics to store (default: the model env's ``VecNormalize``, if any).
-    task : RegulationConfig, mapping or YAML path, optional
+    task : RegulationTaskConfig, mapping or YAML path, optional
         The training task (default: the model's env's).
     meta : mapping, optional
         More JSON (training command, seed, budget, ...).

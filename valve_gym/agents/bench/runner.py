@@ -6,11 +6,11 @@ A controller is a DCS block from :func:`valve_gym.agents.load_controller` drivin
 :func:`valve_gym.friction.valve_model` and the plant from
 :class:`valve_gym.plant.Plant`, one batched plant per friction model.
 
-Per scan ``k`` (``t = k scan_s``)::
+Per scan ``k`` (``t = k scan_s``), in :func:`valve_gym.loop.run_closed_loop`::
 
     pv_k  = level_k + noise_k                  (measured level)
     op_k  = ctrl.step(sp_k, pv_k)
-    plant.step(op_k, load_k)  ->  level_{k+1}, stem_{k+1}
+    plant.advance(op_k, load_k)  ->  level_{k+1}, stem_{k+1}
 
 The loop starts at steady state at ``sp_0`` (``plant.reset(level=sp_0)``)
 and the controller bumplessly at the plant's steady input.
@@ -221,6 +221,9 @@ def _plants(scenarios: Scenarios, frictionless: bool) -> list:
 def run_loops(ctrl, scenarios: Scenarios, *, frictionless: bool = False, label: str = "") -> Runs:
     """Run every loop of ``scenarios`` under the block ``ctrl`` (one ``step`` per scan over all loops).
 
+    The loop is :func:`valve_gym.loop.run_closed_loop` (the one closed-loop runner), with one batched
+    plant per friction model over its columns, started at rest at ``sp_0``.
+
     Parameters
     ----------
     ctrl : block
@@ -235,27 +238,13 @@ def run_loops(ctrl, scenarios: Scenarios, *, frictionless: bool = False, label: 
     -------
     Runs
     """
-    T, n = scenarios.n_steps, scenarios.n
-    level = np.empty((T, n))
-    stem = np.empty((T, n))
-    op = np.empty((T, n))
-    plants = _plants(scenarios, frictionless)
-    lv, st, u0 = np.empty(n), np.empty(n), np.empty(n)
-    for idx, p in plants:
-        out = p.reset(level=scenarios.sp[0, idx])
-        lv[idx], st[idx], u0[idx] = out.pv, out.stem, out.op
-    pv = scenarios.sp[0] + scenarios.noise[0]
-    ctrl.reset(scenarios.sp[0], lv + scenarios.noise[0], u0)
-    for k in range(T):
-        level[k], stem[k] = lv, st
-        u = np.asarray(ctrl.step(scenarios.sp[k], lv + scenarios.noise[k]), float)
-        op[k] = u
-        for idx, p in plants:
-            out = p.step(u[idx], scenarios.load[k, idx])
-            lv[idx], st[idx] = out.pv, out.stem
-    pv = level + scenarios.noise
-    return Runs(label or str(ctrl.name), scenarios.part, scenarios.scan_s, scenarios.sp, pv, level, op, stem,
-                _settings_text(ctrl))
+    from valve_gym.loop import Scenario, run_closed_loop
+
+    T = scenarios.n_steps
+    sc = Scenario(sp=scenarios.sp, scan_s=scenarios.scan_s, load=scenarios.load, noise=scenarios.noise)
+    run = run_closed_loop(_plants(scenarios, frictionless), ctrl, sc)
+    return Runs(label or str(ctrl.name), scenarios.part, scenarios.scan_s, scenarios.sp, run.pv[:T], run.level[:T],
+                run.op, run.stem[:T], _settings_text(ctrl))
 
 
 def _settings_text(ctrl) -> str:

@@ -24,7 +24,7 @@ from .scenarios import Scenarios
 
 __all__ = ["LoopScores", "score_runs", "compensation_ratio", "Estimate", "bootstrap_median", "bootstrap_mean",
            "SummaryRow", "summarise", "Comparison", "compare_learned", "BAND_GROUPS", "METRICS",
-           "REFERENCE_PI", "REFERENCE_FRICTIONLESS", "loop_table"]
+           "REFERENCE_PI", "REFERENCE_FRICTIONLESS", "loop_table", "loop_iae"]
 
 #: Band groups of the summary: each band, and the sticky and severe valves together.
 BAND_GROUPS = (*BAND_NAMES, "sticky+severe")
@@ -76,6 +76,20 @@ class LoopScores:
     reversals_per_h: np.ndarray
 
 
+def loop_iae(e, scan_s: float) -> np.ndarray:
+    """IAE of each loop: ``sum_k |e_k| scan_s`` over the time axis [m s], ``e = sp - pv`` measured, (T, n) -> (n,).
+
+    The one loop score of IAE: the benchmark (:func:`score_runs`) and the learned compensator's trainer
+    (:func:`valve_gym.agents.es.rollout_scores`) both score the measured error with it.
+
+    Examples
+    --------
+    >>> loop_iae(np.array([[0.1, -0.2], [0.3, 0.0]]), 2.0).round(6).tolist()
+    [0.8, 0.4]
+    """
+    return np.abs(np.asarray(e, float)).sum(axis=0) * scan_s
+
+
 def score_runs(runs: Runs, config: BenchConfig) -> LoopScores:
     """Score every loop of ``runs`` (metrics on the measured error ``sp - pv``, the stem as the valve)."""
     e = runs.sp - runs.pv
@@ -88,7 +102,7 @@ def score_runs(runs: Runs, config: BenchConfig) -> LoopScores:
         lc_present=np.array([x.present for x in lc]),
         lc_amplitude=np.array([x.amplitude for x in lc]),
         lc_period=np.array([x.period_s if x.present else np.inf for x in lc]),
-        iae_per_h=np.abs(e).sum(axis=0) * runs.scan_s / hours,
+        iae_per_h=loop_iae(e, runs.scan_s) / hours,
         offset=e.mean(axis=0),
         travel_per_h=travel / hours,
         reversals_per_h=rev / hours)
