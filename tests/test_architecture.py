@@ -384,3 +384,31 @@ def test_one_class_per_name():
     two = [("a.py", ast.parse("class RegulationConfig:\n    pass\n")),
            ("b.py", ast.parse("class RegulationConfig: ..."))]
     assert find_class_name_clashes(two) == {"RegulationConfig": ["a.py", "b.py"]}
+
+
+def find_loop_scorers(sources) -> set:
+    """Code that scores loops itself: calls of the stem-reversal counter or of the IAE sum outside the scores."""
+    out = set()
+    for path, tree in sources:
+        for n in ast.walk(tree):
+            if isinstance(n, ast.Call) and _called(n) in ("reversal_counts", "loop_iae", "valve_motion"):
+                out.add(path)
+    return out
+
+
+#: The one loop-scoring module (IAE of the measured error, stem travel and reversals, limit cycles).
+LOOP_SCORES = "valve_gym/agents/bench/scores.py"
+
+
+def test_one_loop_scoring_function():
+    """The benchmark and the ES trainer score loops through ``agents.bench.scores`` (the ES used its own
+    reversal counter with another dead band, and the true level's IAE)."""
+    src = _sources()
+    users = find_loop_scorers(src)
+    assert LOOP_SCORES in users and "valve_gym/agents/es.py" in users
+    es = next(t for p, t in src if p == "valve_gym/agents/es.py")
+    assert not any(isinstance(n, ast.ClassDef) and "Reversal" in n.name for n in ast.walk(es)), \
+        "the ES trainer counts reversals with the benchmark's valve_motion"
+    calls = {p for p, t in src for n in ast.walk(t)
+             if isinstance(n, ast.Call) and _called(n) == "reversal_counts"}
+    assert calls == {LOOP_SCORES}

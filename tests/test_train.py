@@ -310,13 +310,11 @@ def test_learned_config_errors(tmp_path):
 
 
 def test_es_fitness_terms_and_reversal_count():
-    from valve_gym.agents.es import ESHyper, RolloutScores, _Reversals, centered_ranks, fitness
+    from valve_gym.agents.bench.scores import valve_motion
+    from valve_gym.agents.es import ESHyper, RolloutScores, centered_ranks, fitness
 
-    r = _Reversals(2, 0.01)
     x = np.array([[0.0, 0.0], [0.05, 0.005], [0.02, -0.004], [0.06, 0.003], [0.01, 0.0]])
-    for row in x:
-        r.update(row)
-    assert r.count.tolist() == [3.0, 0.0]                      # moves under the dead band do not count
+    assert valve_motion(x, 0.01)[1].tolist() == [3, 0]          # moves under the dead band do not count
     S = np.array([0.001, 0.03])                                # one healthy, one sticky loop
     ref_iae, ref_rev, ref_lc = np.array([1.0, 2.0]), np.array([10.0, 10.0]), np.array([0.0, 1.0])
 

@@ -21,7 +21,8 @@ Fitness of a network on a batch of loops (higher is better)::
 
 with the IAE of the measured level (``sp - pv`` after each scan, the benchmark's own score,
 :func:`valve_gym.agents.bench.scores.loop_iae`), the stem travel (strokes) and the stem reversals
-(privileged signals: only the policy's inputs are restricted), each against the plain PI on the same loop.
+(:func:`~valve_gym.agents.bench.scores.valve_motion`, the benchmark's reversal dead band; privileged
+signals: only the policy's inputs are restricted), each against the plain PI on the same loop.
 The log ratios weigh a healthy valve as much as a severe one; on healthy valves only a loss
 against the PI counts (the block is not rewarded for out-tuning the PI where there is no
 stiction), and on sticky valves fewer stem reversals than the PI's (fewer stick-slip cycles)
@@ -202,7 +203,7 @@ class RolloutScores(NamedTuple):
     ------
     iae : (P, B) IAE of the measured level, :func:`valve_gym.agents.bench.scores.loop_iae` [m s]
     travel : (P, B) stem travel [strokes]
-    reversals : (P, B) stem reversals (moves back by more than :data:`REVERSAL_DEADBAND`)
+    reversals : (P, B) stem reversals (:func:`valve_gym.agents.bench.scores.valve_motion`, the benchmark's dead band)
     lc : (P, B) 1 where the limit-cycle detector fired (0 everywhere unless asked for)
     obs : (n_obs,) mean and (n_obs,) std of the observations (of the last policy)
     S : (B,) stick band of each loop [fraction of stroke]
@@ -217,34 +218,6 @@ class RolloutScores(NamedTuple):
     obs_std: np.ndarray
     S: np.ndarray
     lc_amp: np.ndarray | None = None
-
-
-#: Stem moves smaller than this (fraction of stroke) do not count as reversals.
-REVERSAL_DEADBAND = 0.001
-
-
-class _Reversals:
-    """Running count of direction reversals of ``n`` signals with a dead band (hysteresis)."""
-
-    def __init__(self, n: int, deadband: float):
-        self.db = deadband
-        self.ext = None
-        self.dir = np.zeros(n)
-        self.count = np.zeros(n)
-
-    def update(self, x: np.ndarray) -> None:
-        """Take the next sample ``x`` (n,)."""
-        if self.ext is None:
-            self.ext = x.copy()
-            return
-        d = x - self.ext
-        turn = ((self.dir > 0) & (d < -self.db)) | ((self.dir < 0) & (d > self.db))
-        start = (self.dir == 0) & (np.abs(d) > self.db)
-        self.count += turn
-        new_dir = np.where(turn | start, np.sign(d), self.dir)
-        follow = ((new_dir > 0) & (x > self.ext)) | ((new_dir < 0) & (x < self.ext)) | turn | start
-        self.ext = np.where(follow, x, self.ext)
-        self.dir = new_dir
 
 
 def rollout_scores(policies, task: RegulationTaskConfig, seeds, obs_norm=None, lc: bool = False) -> RolloutScores:
@@ -262,7 +235,8 @@ def rollout_scores(policies, task: RegulationTaskConfig, seeds, obs_norm=None, l
         Run the limit-cycle detector of the benchmark (:func:`valve_gym.oscillation.detect_oscillation`, benchmark rule)
         on each loop's measured error.
     """
-    from valve_gym.agents.bench.scores import loop_iae
+    from valve_gym.agents.bench.config import ScoresConfig
+    from valve_gym.agents.bench.scores import limit_cycles, loop_iae, valve_motion
     from valve_gym.envs.regulation_env import ValveTankRegulationVectorEnv
 
     P, B = len(policies), len(seeds)
@@ -275,9 +249,7 @@ def rollout_scores(policies, task: RegulationTaskConfig, seeds, obs_norm=None, l
         stacked = {k: np.stack([policies[i][k] for i in nets]) for k in policies[nets[0]]}
     mean, std = (np.zeros(n_obs), np.ones(n_obs)) if obs_norm is None else obs_norm
     act = np.tile(pi_action(1), (P * B, 1)).reshape(P, B, N_ACT)
-    trav = np.zeros(P * B)
-    rev = _Reversals(P * B, REVERSAL_DEADBAND)
-    stem = None
+    stem = np.empty((task.steps, P * B))
     s1 = np.zeros(n_obs)
     s2 = np.zeros(n_obs)
     err = np.empty((task.steps, P * B))
@@ -291,24 +263,19 @@ def rollout_scores(policies, task: RegulationTaskConfig, seeds, obs_norm=None, l
             act[nets] = mlp_forward(stacked, normalise(o[nets], mean, std))
         obs, r, term, trunc, inf = env.step(act.reshape(P * B, N_ACT))
         fin = inf["final_info"] if "final_info" in inf else inf
-        st = fin["stem"]
+        stem[k] = fin["stem"]
         err[k] = fin["setpoint"] - fin["pv"]
-        if stem is not None:
-            trav += np.abs(st - stem)
-        rev.update(st)
-        stem = st
     m = s1 / (B * task.steps)
     sd = np.sqrt(np.maximum(s2 / (B * task.steps) - m * m, 0.0))
     lc_present = np.zeros(P * B)
     lc_amp = np.zeros(P * B)
     iae = loop_iae(err, task.block.scan_s)
+    trav, rev = valve_motion(stem, ScoresConfig().reversal_deadband)
     if lc:
-        from valve_gym.oscillation import detect_oscillation
-
-        res = [detect_oscillation(err[:, i], task.block.scan_s, "benchmark") for i in range(P * B)]
+        res = limit_cycles(err, task.block.scan_s)
         lc_present = np.array([float(r.present) for r in res])
         lc_amp = np.array([float(r.amplitude) if r.present else 0.0 for r in res])
-    return RolloutScores(iae=iae.reshape(P, B), travel=trav.reshape(P, B), reversals=rev.count.reshape(P, B),
+    return RolloutScores(iae=iae.reshape(P, B), travel=trav.reshape(P, B), reversals=rev.reshape(P, B).astype(float),
                          lc=lc_present.reshape(P, B), obs_mean=m, obs_std=sd, S=np.asarray(info["S"]).reshape(P, B)[0],
                          lc_amp=lc_amp.reshape(P, B))
 

@@ -24,7 +24,7 @@ from .scenarios import Scenarios
 
 __all__ = ["LoopScores", "score_runs", "compensation_ratio", "Estimate", "bootstrap_median", "bootstrap_mean",
            "SummaryRow", "summarise", "Comparison", "compare_learned", "BAND_GROUPS", "METRICS",
-           "REFERENCE_PI", "REFERENCE_FRICTIONLESS", "loop_table", "loop_iae"]
+           "REFERENCE_PI", "REFERENCE_FRICTIONLESS", "loop_table", "loop_iae", "valve_motion", "limit_cycles"]
 
 #: Band groups of the summary: each band, and the sticky and severe valves together.
 BAND_GROUPS = (*BAND_NAMES, "sticky+severe")
@@ -90,13 +90,40 @@ def loop_iae(e, scan_s: float) -> np.ndarray:
     return np.abs(np.asarray(e, float)).sum(axis=0) * scan_s
 
 
+def valve_motion(stem, deadband: float) -> tuple[np.ndarray, np.ndarray]:
+    """Stem travel [full strokes] and stem reversals (moves under ``deadband`` not counted) of each loop.
+
+    The one valve-wear score: the benchmark (:func:`score_runs`) and the learned compensator's trainer
+    (:func:`valve_gym.agents.es.rollout_scores`) both use it. ``stem`` (T, n), fraction of stroke ->
+    ``(travel (n,), reversals (n,))``.
+
+    Examples
+    --------
+    >>> x = np.array([[0.0, 0.5, 0.4, 0.6]]).T
+    >>> travel, rev = valve_motion(x, 0.05)
+    >>> round(float(travel[0]), 6), int(rev[0])
+    (0.8, 2)
+    """
+    stem = np.asarray(stem, float)
+    return np.abs(np.diff(stem, axis=0)).sum(axis=0), reversal_counts(stem, deadband)
+
+
+def limit_cycles(e, scan_s: float) -> list:
+    """The benchmark's limit-cycle reading of each loop's measured error ``e`` (T, n).
+
+    One :class:`~valve_gym.oscillation.Oscillation` per loop (benchmark rule); the benchmark and the learned
+    compensator's trainer both read limit cycles with it.
+    """
+    e = np.asarray(e, float)
+    return [detect_oscillation(e[:, i], scan_s, "benchmark") for i in range(e.shape[1])]
+
+
 def score_runs(runs: Runs, config: BenchConfig) -> LoopScores:
     """Score every loop of ``runs`` (metrics on the measured error ``sp - pv``, the stem as the valve)."""
     e = runs.sp - runs.pv
     hours = e.shape[0] * runs.scan_s / 3600.0
-    lc = [detect_oscillation(e[:, i], runs.scan_s, "benchmark") for i in range(e.shape[1])]
-    travel = np.abs(np.diff(runs.stem, axis=0)).sum(axis=0)
-    rev = reversal_counts(runs.stem, config.scores.reversal_deadband)
+    lc = limit_cycles(e, runs.scan_s)
+    travel, rev = valve_motion(runs.stem, config.scores.reversal_deadband)
     return LoopScores(
         label=runs.label, part=runs.part,
         lc_present=np.array([x.present for x in lc]),
