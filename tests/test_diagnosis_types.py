@@ -15,7 +15,7 @@ from valve_gym.diagnosis.verdict import FreeRunTest, FrictionVerdict, KStepTest
 
 PKG = Path(__file__).resolve().parents[1] / "valve_gym" / "diagnosis"
 #: The modules that run a diagnosis and decide and write its friction verdict.
-STAGE_MODULES = ("diagnose.py", "verdict.py", "explain.py", "stiction/assess.py", "stiction/combine.py")
+STAGE_MODULES = ("diagnose.py", "verdict.py", "explain.py", "causes.py", "stiction/assess.py", "stiction/combine.py")
 #: Most positional parameters a function of those modules takes (options are keyword-only).
 MAX_POSITIONAL = 6
 #: The batch engine keeps its public signature (``jobs`` positional) for its callers.

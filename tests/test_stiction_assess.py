@@ -213,7 +213,8 @@ def test_naming_and_verdict_conflict_is_reported():
     c = explain_naming_conflict(v)
     assert c.startswith(" Caution: the stiction verdict is no (probability of stiction 0.03)") and "valve test" in c
     assert explain_naming_conflict(replace(v, naming_agrees=True)) == ""
-    assert explain_naming_conflict(FrictionVerdict.untested()) == "" and FrictionVerdict.untested().naming_agrees is None
+    pump = FrictionVerdict.untested()
+    assert explain_naming_conflict(pump) == "" and pump.naming_agrees is None
     v = replace(v, verdict_source="stem")
     assert "recorded valve position follows the output" in explain_naming_conflict(v)
     # decide_friction: naming agrees unless the slip-jump effect is named and the verdict is no
