@@ -166,20 +166,33 @@ def test_stem_size_comes_first_and_the_others_check_it(sticky_loop):
 
 
 def test_a_position_that_never_moves_seized_or_frozen():
-    """The process model tells a seized valve from a frozen position signal (diagnose._seized)."""
-    from valve_gym.diagnosis.diagnose import SEIZED_TRAVEL, _seized
-    from valve_gym.diagnosis.stiction import Evidence
+    """The process model tells a seized valve from a frozen position signal (verdict.frozen_position)."""
+    from dataclasses import replace
 
-    frozen = Evidence("stem", "", False, float("nan"), 0.0, "undetermined", "", "", {"frozen": 1.0})
-    s = {"present": False, "verdict_source": "methods", "band": 0.30, "op_working_range": 0.40, "band_needed": 0.01}
-    assert "seized" in _seized(frozen, s) and s["present"] is True and s["verdict_source"] == "stem+model"
-    s = {"present": False, "verdict_source": "methods", "band": 0.02, "op_working_range": 0.40, "band_needed": 0.01}
-    assert "transmitter" in _seized(frozen, s) and s["present"] is False and s["verdict_source"] == "methods"
+    from valve_gym.diagnosis.explain import explain_friction
+    from valve_gym.diagnosis.stiction import Evidence, StictionAssessment
+    from valve_gym.diagnosis.stiction.hammerstein import SEIZED_TRAVEL
+    from valve_gym.diagnosis.verdict import FreeRunTest, decide_friction, frozen_position
+
+    nan = float("nan")
+    frozen = Evidence("stem", "", False, nan, 0.0, "undetermined", "", "", {"frozen": 1.0})
+    a = StictionAssessment(0.2, "no stiction", nan, nan, (nan, nan), (nan, nan), None, [], [frozen])
+    t = FreeRunTest(parameters={"model": "slip_jump", "S": 0.30, "J": 0.0, "band": 0.30}, delta_ic=5.0,
+                    significant=False, band=0.30, slips=0, band_needed=0.01, op_working_range=0.40, n_eff=100.0,
+                    frictionless_model="tank + valve", frictionless_rmse=1.0, friction_rmse=1.0, compared={})
+    v = decide_friction(t, None, a, None)
+    assert frozen_position(frozen, t) == "seized" and v.present is True and v.verdict_source == "stem+model"
+    assert "the valve is seized" in explain_friction(v)
+    t = replace(t, band=0.02)
+    v = decide_friction(t, None, a, None)
+    assert frozen_position(frozen, t) == "frozen_signal" and v.present is False and v.verdict_source == "methods"
+    assert "transmitter" in explain_friction(v)
     quiet = 0.5 * SEIZED_TRAVEL          # too little travel to tell: nothing concluded, even with a wide band
-    s = {"present": False, "verdict_source": "methods", "band": quiet, "op_working_range": quiet, "band_needed": 0.01}
-    assert "too little" in _seized(frozen, s) and s["present"] is False
+    t = replace(t, band=quiet, op_working_range=quiet)
+    v = decide_friction(t, None, a, None)
+    assert frozen_position(frozen, t) == "short_travel" and v.present is False and "too little" in explain_friction(v)
     moving = Evidence("stem", "", True, 0.03, 1.0, "stiction", "", "", {"S": 0.03})
-    assert _seized(moving, dict(s)) is None and _seized(None, dict(s)) is None
+    assert frozen_position(moving, t) is None and frozen_position(None, t) is None
 
 
 @pytest.mark.slow

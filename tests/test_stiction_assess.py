@@ -201,28 +201,31 @@ def test_kstep_fit_band_calls_a_sticky_valve_the_free_run_fit_sets_free():
 
 def test_naming_and_verdict_conflict_is_reported():
     """A slip-jump term named while the verdict is no: flagged in the paragraph and in ``naming_agrees``."""
-    from valve_gym.diagnosis.diagnose import _note_friction_conflict
+    from dataclasses import replace
 
-    expl = ["Leak paragraph.", "Slip-jump paragraph."]
-    s = {"tested": True, "present": False, "probability": 0.03}
-    _note_friction_conflict(expl, ["leak", "slip_jump"], s)
-    assert s["naming_agrees"] is False
-    assert expl[0] == "Leak paragraph."
-    assert expl[1].startswith("Slip-jump paragraph. Caution: the stiction verdict is no (probability of "
-                              "stiction 0.03)") and "valve test" in expl[1]
-    for effects, present, agrees in ((["slip_jump"], True, True), (["leak"], False, True), ([], True, True)):
-        expl = ["x"] * max(len(effects), 1)
-        s = {"tested": True, "present": present, "probability": 0.9}
-        _note_friction_conflict(expl, effects, s)
-        assert s["naming_agrees"] is agrees and expl == ["x"] * max(len(effects), 1)
-    s = {"tested": False, "present": False}
-    _note_friction_conflict(["x"], ["slip_jump"], s)
-    assert s["naming_agrees"] is None
-    expl = ["Slip-jump paragraph."]
-    s = {"tested": True, "present": False, "probability": 0.9, "verdict_source": "stem"}
-    _note_friction_conflict(expl, ["slip_jump"], s)
-    assert s["naming_agrees"] is False and "recorded valve position follows the output" in expl[0]
+    from valve_gym.diagnosis.explain import explain_naming_conflict
+    from valve_gym.diagnosis.stiction import StictionAssessment
+    from valve_gym.diagnosis.verdict import FreeRunTest, FrictionVerdict, decide_friction
 
+    nan = float("nan")
+    a = StictionAssessment(0.03, "no stiction", nan, nan, (nan, nan), (nan, nan), None)
+    v = FrictionVerdict(tested=True, present=False, combined=a, naming_agrees=False)
+    c = explain_naming_conflict(v)
+    assert c.startswith(" Caution: the stiction verdict is no (probability of stiction 0.03)") and "valve test" in c
+    assert explain_naming_conflict(replace(v, naming_agrees=True)) == ""
+    pump = FrictionVerdict.untested()
+    assert explain_naming_conflict(pump) == "" and pump.naming_agrees is None
+    v = replace(v, verdict_source="stem")
+    assert "recorded valve position follows the output" in explain_naming_conflict(v)
+    # decide_friction: naming agrees unless the slip-jump effect is named and the verdict is no
+    t = FreeRunTest(parameters={"model": "slip_jump", "S": 0.0, "J": 0.0, "band": 0.0}, delta_ic=3.0,
+                    significant=False, band=0.0, slips=0, band_needed=0.01, op_working_range=0.2, n_eff=100.0,
+                    frictionless_model="tank + valve", frictionless_rmse=1.0, friction_rmse=1.0, compared={})
+    sticks = replace(a, probability=0.9, verdict="stiction")
+    for named, assessment, present, agrees in ((True, a, False, False), (False, a, False, True),
+                                               (True, sticks, True, True), (False, sticks, True, True)):
+        v = decide_friction(t, None, assessment, None, named_slip_jump=named)
+        assert v.present is present and v.naming_agrees is agrees
 
 def test_diagnosis_reports_whether_naming_agrees(sticky_result):
     s = sticky_result.to_dict()["stiction"]

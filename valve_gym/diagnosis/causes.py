@@ -314,7 +314,7 @@ def _at_limit(op: np.ndarray, span_known: bool) -> tuple[float, str]:
     return (hi, "the top of its range") if hi >= lo else (lo, "the bottom of its range")
 
 
-def _tuning_evidence(u, y, s, dt: float, period: float, plant: str, physical, op_span: float,
+def _tuning_evidence(u, y, s, dt: float, period: float, *, plant: str, physical, op_span: float,
                      ev: list[CauseEvidence], scores: dict[str, float]):
     """Aggressive tuning: the gain margin of the fitted loop and its -180 deg period (adds to ``ev``, ``scores``)."""
     ctrl = estimate_pi(u, y, s, dt)
@@ -397,7 +397,7 @@ def _noise_driven_evidence(e, dt: float, period: float, ev: list[CauseEvidence],
         scores["disturbance"] += 1.5
 
 
-def _disturbance_evidence(y, s, period: float, y_model, evidence, ev: list[CauseEvidence],
+def _disturbance_evidence(y, s, period: float, y_model, *, evidence, ev: list[CauseEvidence],
                           scores: dict[str, float]) -> None:
     """External disturbance: the set point, the PV's oscillation the model leaves, linearity."""
     pv_band = _band_rms(y, period)
@@ -520,8 +520,9 @@ def oscillation_cause(op, pv, dt: float, *, sp=None, plant: str = "first_order",
     ev.append(CauseEvidence("stiction", scores["stiction"],
                             f"The stiction methods combined (OP-PV shape and phase tests, friction fits) give "
                             f"p = {p:.2f} that the valve sticks."))
-    ctrl, gm, p180, suggested = _tuning_evidence(u, y, s, dt, period, plant, physical, op_span, ev, scores)
-    _disturbance_evidence(y, s, period, y_model, evidence, ev, scores)
+    ctrl, gm, p180, suggested = _tuning_evidence(u, y, s, dt, period, plant=plant, physical=physical,
+                                                 op_span=op_span, ev=ev, scores=scores)
+    _disturbance_evidence(y, s, period, y_model, evidence=evidence, ev=ev, scores=scores)
     _fault_evidence(u, y, period, span_known, ev, scores)
     T_s = period * dt
     probs = _softmax(scores)

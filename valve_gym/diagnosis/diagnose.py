@@ -8,7 +8,6 @@ parallel worker processes.  Plots and the markdown report are separate
 from __future__ import annotations
 
 import json
-import math
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -18,8 +17,8 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from ..effects import candidate_effects, effect_spec
-from .causes import CAUSE_WORDS, OscillationCause, oscillation_cause
-from .explain import explain_combined, explain_effect, explain_none, explain_stiction
+from .causes import OscillationCause, oscillation_cause
+from .explain import explain_effect, explain_naming_conflict, explain_none
 from .fit import (
     AUTO_THOROUGH_SAMPLES,
     FitResult,
@@ -47,9 +46,9 @@ from .pairing import controller_reaction
 from .plant_choice import resolve_plant
 from .recording import Recording, RecordingError
 from .select import Selection, SelectionRule, friction_band, op_working_range, select_effects
-from .stiction import assess_stiction
-from .stiction.combine import public_present
-from .stiction.hammerstein import SEIZED_TRAVEL, friction_moves
+from .stiction import StictionAssessment, assess_stiction
+from .verdict import FreeRunTest, FrictionVerdict, KStepTest, decide_friction, json_ready, model_based_readings
+from .verdict import finite_or_none as _f
 
 __all__ = ["DiagnosisResult", "diagnose", "diagnose_many", "validate_on", "simulate_same_state",
            "JSON_SCHEMA_KEYS", "AUTO_THOROUGH_SAMPLES", "coarse_factor"]
@@ -60,33 +59,11 @@ JSON_SCHEMA_KEYS = ("recording", "settings", "effects", "base", "final", "holdou
                     "explanation", "stiction", "cause", "validation", "timing")
 
 
-def _f(x):
-    if x is None:
-        return None
-    x = float(x)
-    return x if math.isfinite(x) else None
-
-
-def _clean(o: Any) -> Any:
-    """Make ``o`` JSON-safe (numpy scalars, nan -> None)."""
-    if isinstance(o, dict):
-        return {str(k): _clean(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_clean(v) for v in o]
-    if isinstance(o, (np.floating, float)):
-        return _f(o)
-    if isinstance(o, (np.integer,)):
-        return int(o)
-    if isinstance(o, np.bool_):
-        return bool(o)
-    if isinstance(o, np.ndarray):
-        return _clean(o.tolist())
-    return o
-
-
-@dataclass
+@dataclass(frozen=True)
 class DiagnosisResult:
     """Everything a diagnosis found (compute only; plotting is in :mod:`.report`).
+
+    Built once by :func:`diagnose` and frozen (its fields are not reassigned).
 
     Attributes
     ----------
@@ -100,7 +77,7 @@ class DiagnosisResult:
     mismatch : MismatchReport of the base model (whole record)
     mismatch_final : MismatchReport of the selected model
     explanation : list of str, one paragraph per added effect (or why none)
-    stiction : dict, friction verdict (see :meth:`to_dict`)
+    stiction : FrictionVerdict, the friction verdict (``to_dict()``: the JSON's ``stiction``)
     cause : OscillationCause, the probabilities of the causes of an oscillation, with their evidence
     validation : dict or None, results on another recording
     timing : dict, seconds per stage
@@ -119,7 +96,7 @@ class DiagnosisResult:
     mismatch: MismatchReport
     mismatch_final: MismatchReport
     explanation: list[str]
-    stiction: dict
+    stiction: FrictionVerdict
     validation: dict | None
     timing: dict
     settings: dict
@@ -157,12 +134,12 @@ class DiagnosisResult:
             "candidates": [c.summary() for c in self.selection.candidates],
             "skipped": dict(self.selection.skipped),
             "explanation": list(self.explanation),
-            "stiction": self.stiction,
+            "stiction": self.stiction.to_dict(),
             "cause": self.cause.to_dict() if self.cause is not None else None,
             "validation": self.validation,
             "timing": self.timing,
         }
-        return _clean(d)
+        return json_ready(d)
 
     def to_json(self, indent: int = 2) -> str:
         """The result as a JSON string (see :meth:`to_dict`)."""
@@ -177,7 +154,7 @@ class DiagnosisResult:
                 "base_fit_percent": self.base.fit_percent_all,
                 "final_fit_percent": self.final.fit_percent_all,
                 "holdout_base_rmse": h["base_rmse"], "holdout_final_rmse": h["final_rmse"],
-                "stiction": self.stiction.get("present"),
+                "stiction": self.stiction.present,
                 "cause": self.cause.cause if self.cause is not None else None,
                 "regions": len(self.mismatch.regions),
                 "seconds": self.timing.get("total")}
@@ -185,7 +162,7 @@ class DiagnosisResult:
     def __repr__(self):
         return (f"DiagnosisResult({self.recording.name!r}, plant={self.plant!r}, "
                 f"effects={self.effects}, rmse {self.base.rmse_all:.4g} -> "
-                f"{self.final.rmse_all:.4g}, stiction={self.stiction.get('present')})")
+                f"{self.final.rmse_all:.4g}, stiction={self.stiction.present})")
 
 
 def _region(r):
@@ -303,8 +280,18 @@ def coarse_factor(n_samples: int) -> int:
     return max(1, n_samples // 1200) if n_samples >= COARSE_FROM_SAMPLES else 1
 
 
-def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, seed: int,
-                      effort: str, mm: MismatchReport, coarse: int = 1, fast: bool = False, executor=None):
+class _FrictionTests(NamedTuple):
+    """The model-based friction tests of :func:`_friction_tests` (all None for a pump)."""
+
+    free_run: FreeRunTest | None    # friction against frictionless models, free-run, whole record
+    kstep: KStepTest | None         # the same on k-step-ahead predictions (None where it did not run)
+    frictionless: FitResult | None  # the best frictionless model of the free-run test
+    final: FitResult                # the final model, or the test's nested optimum of it where that is better
+    slip: FitResult | None          # the slip-jump friction fit (for S and J with intervals)
+
+
+def _friction_tests(final: FitResult, rec: Recording, mm: MismatchReport, cfg: _Config,
+                    executor=None) -> _FrictionTests:
     """Does the valve stick?  Friction models against frictionless ones, whole record.
 
     Friction (the paper's valve and the slip-jump valve, each with the final
@@ -323,9 +310,8 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
     """
     st = final.structure
     if st.actuator != "valve":
-        return ({"present": False, "tested": False,
-                 "reason": "the actuator is a pump: there is no valve to stick",
-                 "model": None, "parameters": {}}, None, final, None)
+        return _FrictionTests(None, None, None, final, None)
+    rule, seed, effort, coarse, fast = cfg.rule, cfg.seed, cfg.plan["verdict"], cfg.q, cfg.fast
     u, y = rec.op, rec.pv
     base_eff = tuple(e for e in st.effects if e != "slip_jump")
     tasks, n_frictionless = _verdict_tasks(final, base_eff)
@@ -348,22 +334,23 @@ def _friction_verdict(final: FitResult, rec: Recording, rule: SelectionRule, see
         return information_criterion(f.cost, n_eff, f.k, n, rule.criterion)
 
     best1 = min(fric, key=ic)
-    verdict = _verdict_dict(best0, best1, ic(best1) - ic(best0), n_eff, frictionless + fric, u, rule, mm,
-                            lag_alt=[e for e in best0.structure.effects if e not in base_eff])
+    free_run = _free_run_test(best0, best1, frictionless + fric, u, d_ic=ic(best1) - ic(best0), n_eff=n_eff,
+                              rule=rule, mm=mm, lag_alt=tuple(e for e in best0.structure.effects if e not in base_eff))
+    kstep = None
     if kfits:
         n_kf = len(ks) - (len(tasks) - n_frictionless)
-        verdict.update(_kstep_verdict(kfits[:n_kf], kfits[n_kf:], rule, horizon, u))
+        kstep = _kstep_test(kfits[:n_kf], kfits[n_kf:], u, rule=rule, horizon=horizon)
     # keep the nested optimum as the final model when it is the same structure and better
     new_final = final
     for f in fric:
         if f.structure.effects == st.effects and f.cost < final.cost:
             new_final = f
     slip = next((f for f in fric if "slip_jump" in f.structure.effects), None)
-    return verdict, best0, new_final, slip
+    return _FrictionTests(free_run, kstep, best0, new_final, slip)
 
 
-def _kstep_verdict(frictionless: list[FitResult], friction: list[FitResult], rule: SelectionRule,
-                   horizon: int, u: np.ndarray) -> dict:
+def _kstep_test(frictionless: list[FitResult], friction: list[FitResult], u: np.ndarray, *,
+                rule: SelectionRule, horizon: int) -> KStepTest:
     """The friction test on k-step-ahead predictions: criterion change from the best frictionless fit.
 
     Each list holds fits on k-step predictions (``frictionless``: the frictionless valve, and with a
@@ -383,10 +370,10 @@ def _kstep_verdict(frictionless: list[FitResult], friction: list[FitResult], rul
         return information_criterion(f.cost, n_eff, f.k, n, rule.criterion)
 
     best0, best1 = min(frictionless, key=ic), min(friction, key=ic)
-    return {"kstep_delta_ic": float(ic(best1) - ic(best0)), "kstep_horizon": int(horizon),
-            "kstep_band": friction_band(best1), "kstep_slips": valve_slips(best1, u),
-            "kstep_rmse": {"frictionless": float(best0.rmse_all), "friction": float(best1.rmse_all)},
-            "kstep_models": {"frictionless": best0.label, "friction": best1.label}}
+    return KStepTest(delta_ic=float(ic(best1) - ic(best0)), horizon=int(horizon), band=friction_band(best1),
+                     slips=valve_slips(best1, u),
+                     rmse={"frictionless": float(best0.rmse_all), "friction": float(best1.rmse_all)},
+                     models={"frictionless": best0.label, "friction": best1.label})
 
 
 def _verdict_tasks(final: FitResult,
@@ -449,135 +436,35 @@ def valve_slips(fit: FitResult, u: np.ndarray) -> int:
     return int(np.count_nonzero(moving[1:] & ~moving[:-1]) + (1 if moving.size and moving[0] else 0))
 
 
-def _verdict_dict(best0: FitResult, best1: FitResult, d_ic: float, n_eff: float,
-                  compared: list[FitResult], u: np.ndarray, rule: SelectionRule, mm: MismatchReport,
-                  lag_alt: list[str]) -> dict:
-    """The friction verdict of the best frictionless (``best0``) and friction (``best1``) fits.
+def _free_run_test(best0: FitResult, best1: FitResult, compared: list[FitResult], u: np.ndarray, *,
+                   d_ic: float, n_eff: float, rule: SelectionRule, mm: MismatchReport,
+                   lag_alt: tuple[str, ...]) -> FreeRunTest:
+    """The free-run friction test of the best frictionless (``best0``) and friction (``best1``) fits.
 
     ``d_ic`` is the change of the information criterion from ``best0`` to
-    ``best1``; ``compared`` are all the fits of the verdict.
+    ``best1``; ``compared`` are all the fits of the test.
     """
-    band = friction_band(best1)
-    op_range = op_working_range(u)
-    need = rule.band_needed(u)
-    significant = d_ic < -rule.ic_margin
-    big = band >= need
-    slips = valve_slips(best1, u)
-    moves = friction_moves(slips, op_range)
-    present = bool(significant and big and moves)
-    params = _friction_params(best1)
-    verdict = {"present": present, "tested": True, "model": params["model"],
-               "parameters": params,
-               "units": {"S": "fraction of stroke", "J": "fraction of stroke",
-                         "z_max": "s (integrated error)", "e_dead": "fraction of stroke",
-                         "dead_band": "fraction of stroke", "band": "fraction of stroke"},
-               "delta_ic": d_ic, "significant": bool(significant), "band": band, "slips": slips,
-               "band_needed": need, "op_working_range": op_range, "n_eff": n_eff,
-               "frictionless_model": best0.label, "frictionless_rmse": best0.rmse_all,
-               "friction_rmse": best1.rmse_all,
-               "compared": {f.label: f.rmse_all for f in compared}}
-    verdict["explanation"] = explain_stiction(present, best1, best0, d_ic, float("nan"), mm,
-                                              significant=significant, band=band,
-                                              min_band=need, lag_alt=lag_alt,
-                                              op_range=op_range, abs_band=rule.abs_band,
-                                              rel_band=rule.rel_band, floor=rule.min_band)
-    if significant and big and not moves:
-        verdict["explanation"] = _still_valve_sentence(d_ic, band, slips, op_range)
-    return verdict
+    return FreeRunTest(parameters=_friction_params(best1), delta_ic=d_ic, significant=bool(d_ic < -rule.ic_margin),
+                       band=friction_band(best1), slips=valve_slips(best1, u), band_needed=rule.band_needed(u),
+                       op_working_range=op_working_range(u), n_eff=n_eff, frictionless_model=best0.label,
+                       frictionless_rmse=best0.rmse_all, friction_rmse=best1.rmse_all,
+                       compared={f.label: f.rmse_all for f in compared}, lag_alt=lag_alt,
+                       reversal=mm.condition("near_op_reversal"), rule=rule)
 
 
-def _still_valve_sentence(d_ic: float, band: float, slips: int, op_range: float) -> str:
-    """Why a friction fit that lowers the criterion with a band that matters is no sticking valve."""
-    moved = "never moves" if slips == 0 else "moves only once"
-    return (f"No sticking valve shown: friction lowers the criterion ({d_ic:+.1f}) with a band of "
-            f"{100 * band:.2g} % of the stroke, but the fitted valve {moved} over the record (the controller "
-            f"output's working range is {100 * op_range:.2g} %): the model explains the process without the "
-            f"output's moves, as it does a quiet healthy loop whose output moves answer the measurement noise. "
-            f"A sticking valve slips; a seized one would be told only over an output travel of "
-            f"{100 * SEIZED_TRAVEL:.0f} % or more.")
+def _assess(rec: Recording, logged: Recording, plant: str, tests: _FrictionTests,
+            executor=None) -> StictionAssessment:
+    """The combined assessment of the stiction methods (:func:`~.stiction.assess_stiction`).
 
-
-def _combine_verdict(stiction: dict, rec: Recording, logged: Recording, plant: str, slip: FitResult | None,
-                     executor=None) -> None:
-    """Add the combined assessment of the stiction methods to the friction verdict.
-
-    The data-driven methods read ``logged`` (the record as logged), the S profile of ``slip``
-    reads ``rec`` (the record as paired for the model).
-
-    Adds ``probability`` and ``verdict`` (``'stiction'``, ``'no stiction'``,
-    ``'undecided'``) of the logistic combination, ``S``, ``J``, ``S_interval``,
-    ``J_interval`` (fractions of stroke, 90 %), ``sizes_agree``, ``sizes``,
-    ``evidence``, ``features`` and ``contributions``.  ``present`` becomes True
-    when the combination says ``'stiction'``, or when the free-run model-based verdict
-    (kept under ``model_based_present``) finds friction that the k-step test does not
-    contradict, or the k-step test finds a friction band that matters on its own
-    (:func:`~valve_gym.diagnosis.stiction.combine.public_present`);
-    ``'undecided'`` alone is False.  Held out, this beats the model-based verdict alone
-    (``docs/diagnosis.md``, section 4).  Where the record holds the valve's position (``mv``)
-    and the stem test applies (:mod:`~valve_gym.diagnosis.stiction.stem`), ``present`` is the
-    stem test's verdict instead (``verdict_source`` ``'stem'``, else ``'methods'``); where the
-    position never moved, :func:`_seized` tells a seized valve from a frozen signal.
+    The data-driven methods read ``logged`` (the record as logged), the S profile of the slip-jump fit
+    reads ``rec`` (the record as paired for the model); the model-based evidence reads the two
+    friction tests (:func:`~.verdict.model_based_readings`), the stem test the recorded position.
     """
-    a = assess_stiction(logged.op, logged.pv, float(logged.dt or 1.0), plant, sp=logged.sp, verdict=stiction,
-                        slip_fit=slip, map_fn=None if executor is None else executor.map,
-                        fit_data=None if logged is rec else (rec.op, rec.pv), mv=logged.mv)
-    d = a.to_dict()
-    stiction["model_based_present"] = bool(stiction["present"])
-    stiction["present"] = public_present(a.verdict, stiction)
-    if stiction["present"] and a.verdict != "stiction" and not stiction["model_based_present"]:
-        stiction["explanation"] += (
-            f" Yet on {stiction['kstep_horizon']}-sample-ahead predictions, where a slow unmeasured load cannot "
-            f"accumulate, friction pays (criterion change {stiction['kstep_delta_ic']:.1f}) with a band of "
-            f"{100 * max(stiction['band'], stiction['kstep_band']):.2g} % of the stroke (free-run fit "
-            f"{100 * stiction['band']:.2g} %, k-step fit {100 * stiction['kstep_band']:.2g} %): the free run, which "
-            f"must reproduce every slow load and drift from the controller output alone, missed it, and the "
-            f"verdict is that the valve sticks.")
-    stem = next((e for e in a.evidence if e.method == "stem"), None)
-    stiction["verdict_source"] = "methods"
-    if stem is not None and stem.applicable:
-        # the valve's position is recorded: whether the stem follows the output is read, not inferred
-        stiction["present"] = stem.verdict == "stiction"
-        stiction["verdict_source"] = "stem"
-    seized = _seized(stem, stiction)
-    for k in ("probability", "verdict", "S", "J", "S_interval", "J_interval", "sizes_agree", "sizes",
-              "evidence", "features", "contributions"):
-        stiction[k] = d[k]
-    stiction["explanation"] = (stiction.get("explanation", "") + " " + explain_combined(a)).strip()
-    if stem is not None and seized is not None:
-        stiction["explanation"] += f" Recorded valve position: {seized}"
-    elif stem is not None:
-        stiction["explanation"] += (f" Recorded valve position: {stem.reason}" + (
-            "; the verdict reads the stem." if stem.applicable else "; the verdict rests on the other methods."))
-
-
-def _seized(stem, stiction: dict) -> str | None:
-    """A position that never moved: seized valve or frozen signal, told apart by the process model.
-
-    Where the recorded position stays put while the output travels (the stem test's ``frozen``), the
-    friction fit of the process model says which: where the output's working range is at least
-    :data:`SEIZED_TRAVEL` of the stroke, a valve that does not move needs a friction band of at least
-    half that range (and the band that matters) to explain a process that does not follow the output,
-    and is then called seized (``present`` True, ``verdict_source`` ``'stem+model'``); a process that
-    follows the output with a smaller band means the valve moves and the position signal is frozen
-    (the verdict stays the other methods').  Below that travel a frozen signal on a healthy valve
-    with a quiet output fits a band of the output's size as well, and nothing is concluded.
-    Returns the sentence for the explanation, or None where the position moved or was not recorded.
-    """
-    if stem is None or not stem.details.get("frozen"):
-        return None
-    band, travel = float(stiction.get("band", 0.0)), float(stiction.get("op_working_range", 0.0))
-    if travel >= SEIZED_TRAVEL and band >= 0.5 * travel and band >= float(stiction.get("band_needed", 0.0)):
-        stiction["present"] = True
-        stiction["verdict_source"] = "stem+model"
-        return (f"it stays put while the output travels {100 * travel:.2g} %, and the process model needs a "
-                f"friction band of {100 * band:.2g} % of the stroke to explain a process that does not follow "
-                f"the output: the valve is seized; free it or replace it.")
-    if travel < SEIZED_TRAVEL:
-        return (f"it stays put while the output travels only {100 * travel:.2g} % of the stroke: too little to "
-                f"tell a seized valve from a frozen position signal; the verdict rests on the other methods.")
-    return (f"it stays put while the output travels {100 * travel:.2g} %, yet the process follows the output "
-            f"(the process model needs a friction band of only {100 * band:.2g} %): the position signal is "
-            f"frozen, not the valve; check the position transmitter. The verdict rests on the other methods.")
+    assert tests.free_run is not None
+    return assess_stiction(logged.op, logged.pv, float(logged.dt or 1.0), plant, sp=logged.sp,
+                           verdict=model_based_readings(tests.free_run, tests.kstep), slip_fit=tests.slip,
+                           map_fn=None if executor is None else executor.map,
+                           fit_data=None if logged is rec else (rec.op, rec.pv), mv=logged.mv)
 
 
 #: Searches :func:`diagnose` knows (``search=``).
@@ -723,53 +610,53 @@ def diagnose(recording: Recording, plant: str = "auto", actuator: str = "valve",
     if not isinstance(n_sub, (int, np.integer)) or n_sub < 1:
         raise ValueError(f"n_sub must be a positive whole number, got {n_sub!r}")
     say = progress or (lambda s: None)
-    timing: dict = {}
     effort_asked, effort = effort, resolve_effort(effort, len(recording))
-    plan = _EFFORT_PLAN[effort]
-    q = _resolve_coarse(coarse, len(recording))
-    fast = _resolve_search(search)
+    cfg = _Config(plant=plant, actuator=actuator, holdout=holdout, saturation=saturation, n_sub=int(n_sub),
+                  seed=seed, effort=effort, q=_resolve_coarse(coarse, len(recording)), fast=_resolve_search(search),
+                  rule=rule, op_lag=op_lag, candidates=cands, jobs=jobs)
     ex = process_pool(jobs) if jobs > 1 else None      # one pool for every stage
     try:
-        stages = _fit_stages(recording, lags, plant, actuator, holdout, saturation, int(n_sub), seed, plan,
-                             q, fast, ex, say, rule, op_lag, cands, jobs, timing)
+        stages = _fit_stages(recording, lags, cfg, ex, say)
     finally:
         if ex is not None:
             ex.shutdown()
-    rec, base_split, sel, fv, lag, align = stages
+    rec, base_split, sel, fv, lag, align, timing = stages
     st, sc = base_split.structure, base_split.structure.scales
-    final_split = sel.final
-    base, final, mm, mm_final = fv.base, fv.final, fv.mismatch, fv.mismatch_final
+    base, final, mm = fv.base, fv.final, fv.mismatch
     if validate is not None:
         validate = validate.with_op_lag(lag)
-    cause = _cause(rec, recording, plant, base, final, fv.stiction) if actuator == "valve" else None
+    cause = None
+    if fv.assessment is None or fv.tests.free_run is None:
+        stiction = FrictionVerdict.untested()
+    else:
+        cause = _cause(rec, recording, plant, base, final, fv.assessment)
+        stiction = decide_friction(fv.tests.free_run, fv.tests.kstep, fv.assessment, cause, horch=fv.horch,
+                                   named_slip_jump="slip_jump" in sel.effects)
     expl = _explanations(rec, sel, base, final, mm)
-    _note_friction_conflict(expl, list(sel.effects), fv.stiction)
+    if "slip_jump" in sel.effects:
+        expl[list(sel.effects).index("slip_jump")] += explain_naming_conflict(stiction)
     _note_poor_fit(expl, final, plant)
     # ---- validation
-    validation = None
+    validation, series = None, None
     if validate is not None:
         t0 = time.perf_counter()
         say(f"{rec.name}: validating on {validate.name}")
         validation = _validate_other(base, final, validate, seed)
+        series = (validation.pop("_y_base"), validation.pop("_y_final"), validate)
         timing["validation"] = time.perf_counter() - t0
     timing["total"] = time.perf_counter() - t_all
     settings = {"plant": plant, "plant_choice": plant_choice, "actuator": actuator, "candidates": list(cands),
                 "holdout": float(holdout), "effort": effort, "effort_asked": effort_asked,
-                "seed": seed, "coarse_to_fine": q, "search": search, "op_lag": lag, "op_lag_test": align,
+                "seed": seed, "coarse_to_fine": cfg.q, "search": search, "op_lag": lag, "op_lag_test": align,
                 "rule": dict(rule.__dict__), "n_sub_search": st.n_sub,
                 "sensor_range": {"lo": sc.sat_lo, "hi": sc.sat_hi},
                 "valve_model": ("quasi-static: tau = dt/n_sub, v_max = inf"
                                 if actuator == "valve" else None)}
-    res = DiagnosisResult(recording=rec, plant=plant, actuator=actuator, effects=list(sel.effects),
-                          base=base, final=final, base_split=base_split, final_split=final_split,
-                          selection=sel, mismatch=mm, mismatch_final=mm_final, explanation=expl,
-                          stiction=fv.stiction, validation=None, timing=timing, settings=settings,
-                          frictionless=fv.frictionless, cause=cause)
-    if validation is not None:
-        assert validate is not None
-        res._validation_series = (validation.pop("_y_base"), validation.pop("_y_final"), validate)
-        res.validation = validation
-    return res
+    return DiagnosisResult(recording=rec, plant=plant, actuator=actuator, effects=list(sel.effects),
+                           base=base, final=final, base_split=base_split, final_split=sel.final,
+                           selection=sel, mismatch=mm, mismatch_final=fv.mismatch_final, explanation=expl,
+                           stiction=stiction, validation=validation, timing=timing, settings=settings,
+                           frictionless=fv.tests.frictionless, cause=cause, _validation_series=series)
 
 
 def _refit_task(args):
@@ -777,44 +664,66 @@ def _refit_task(args):
 
 
 def _cause(rec: Recording, logged: Recording, plant: str, base: FitResult, final: FitResult,
-           stiction: dict) -> OscillationCause:
-    """The cause of the loop's oscillation (:func:`~.causes.oscillation_cause`); the stiction verdict follows it.
+           assessment: StictionAssessment) -> OscillationCause:
+    """The cause of the loop's oscillation (:func:`~.causes.oscillation_cause`), given the stiction methods combined.
 
-    Where the loop oscillates and another cause is more probable than stiction, with the stiction
-    probability below one half, ``stiction['present']`` becomes False and ``stiction['verdict']``
-    ``'no stiction'`` (the verdicts before are kept in ``present_before_cause`` and
-    ``verdict_before_cause``) and the explanation says why: an oscillation alone is no evidence
-    against the valve when the tuning, a disturbance or the sensor explains it.
+    The friction verdict follows it (:func:`~.verdict.decide_friction`): where the loop oscillates and
+    another cause is more probable than stiction, with the stiction probability below one half, the
+    verdict is no stiction.
     """
     physical = dict(base.physical)
     if "dead_time.theta" in final.physical:
         physical["dead_time.theta"] = final.physical["dead_time.theta"]
     said = tuple(rec.notes) + tuple(rec.repairs)
     span_known = not any("OP span unknown" in s for s in said)
-    p = stiction.get("probability")
-    c = oscillation_cause(logged.op, logged.pv, float(logged.dt or 1.0), sp=logged.sp, plant=plant,
-                          p_stiction=float(p) if isinstance(p, (int, float)) else math.nan, physical=physical,
-                          y_model=final.y_sim if len(final.y_sim) == len(logged) else None,
-                          evidence=stiction.get("evidence") or (),
-                          op_span=float(rec.op_range[1] - rec.op_range[0]), span_known=span_known)
-    stiction["present_before_cause"] = bool(stiction.get("present", False))
-    if (c.oscillating and stiction.get("present") and c.cause != "stiction" and c.p_stiction < 0.5
-            and stiction.get("verdict_source") != "stem"):
-        stiction["present"] = False
-        stiction["verdict_before_cause"] = stiction.get("verdict")
-        stiction["verdict"] = "no stiction"
-        stiction["explanation"] = (stiction.get("explanation", "") + " " + (
-            f"The oscillation is better explained as {CAUSE_WORDS[c.cause]} (p = {c.probabilities[c.cause]:.2f}, "
-            f"stiction {c.p_stiction:.2f}): the verdict is no stiction.")).strip()
-    return c
+    return oscillation_cause(logged.op, logged.pv, float(logged.dt or 1.0), sp=logged.sp, plant=plant,
+                             p_stiction=float(assessment.probability), physical=physical,
+                             y_model=final.y_sim if len(final.y_sim) == len(logged) else None,
+                             evidence=assessment.evidence,
+                             op_span=float(rec.op_range[1] - rec.op_range[0]), span_known=span_known)
 
 
+@dataclass(frozen=True)
+class _Config:
+    """What :func:`diagnose` was asked, checked and resolved (the stages' settings)."""
+
+    plant: str
+    actuator: str
+    holdout: float
+    saturation: Any
+    n_sub: int
+    seed: int
+    effort: str                 # resolved: 'fast', 'normal' or 'thorough'
+    q: int                      # decimation of the coarse-to-fine search (1: off)
+    fast: bool                  # the fast search (warm-start clouds, early stops)
+    rule: SelectionRule
+    op_lag: int | str           # as asked ('auto', 0 or 1)
+    candidates: tuple[str, ...]
+    jobs: int
+
+    @property
+    def plan(self) -> dict:
+        """Search budgets of the stages (:data:`_EFFORT_PLAN`)."""
+        return _EFFORT_PLAN[self.effort]
 
 
-def _fit_stages(recording: Recording, lags, plant, actuator, holdout, saturation, n_sub: int, seed: int,
-                plan: dict, q: int, fast: bool, ex, say, rule: SelectionRule, op_lag, cands, jobs: int,
-                timing: dict):
-    """Base fit, selection, whole-record refits and friction verdict, on the process pool ``ex`` (or none)."""
+class _Stages(NamedTuple):
+    """Outcome of :func:`_fit_stages`."""
+
+    rec: Recording              # the record as paired for the model
+    base_split: FitResult       # base model, fit part
+    selection: Selection
+    friction: _FrictionStage
+    op_lag: int
+    op_lag_test: dict
+    timing: dict                # seconds per stage
+
+
+def _fit_stages(recording: Recording, lags: tuple[int, ...], cfg: _Config, ex,
+                say: Callable[[str], None]) -> _Stages:
+    """Base fit, selection, whole-record refits and friction tests, on the process pool ``ex`` (or none)."""
+    plant, seed, plan, q, fast, rule = cfg.plant, cfg.seed, cfg.plan, cfg.q, cfg.fast, cfg.rule
+    timing: dict = {}
     t0 = time.perf_counter()       # ---- base fit on the fit part (on each OP/PV pairing asked for)
     reaction = None
     if len(lags) > 1 and plant in POSITIVE_GAIN_PLANTS:
@@ -822,16 +731,15 @@ def _fit_stages(recording: Recording, lags, plant, actuator, holdout, saturation
         reaction = controller_reaction(recording.op, recording.pv, 1.0)
         if reaction["op_lag"] is not None:
             lags = (reaction["op_lag"],)
-    bases = _base_fits(recording, lags, plant, actuator, holdout, saturation, n_sub, seed, plan["base"], q,
-                       fast, ex, say)
-    lag, align = _choose_op_lag(bases, rule, op_lag, recording, reaction)
+    bases = _base_fits(recording, lags, cfg, ex, say)
+    lag, align = _choose_op_lag(bases, rule, cfg.op_lag, recording, reaction)
     rec, base_split, n_fit = bases[lag]
     timing["base_fit"] = time.perf_counter() - t0
     # ---- selection
     t0 = time.perf_counter()
-    sel = select_effects(base_split, rec.op, rec.pv, cands, rule=rule, seed=seed,
+    sel = select_effects(base_split, rec.op, rec.pv, cfg.candidates, rule=rule, seed=seed,
                          effort=plan["confirm"], screen_effort=plan["screen"],
-                         n_confirm=plan["n_confirm"], jobs=jobs, coarse=q, fast=fast,
+                         n_confirm=plan["n_confirm"], jobs=cfg.jobs, coarse=q, fast=fast,
                          progress=lambda s: say(f"{rec.name}: {s}"), executor=ex)
     timing["selection"] = time.perf_counter() - t0
     timing["per_candidate"] = timing["selection"] / max(len(sel.candidates), 1)
@@ -851,10 +759,9 @@ def _fit_stages(recording: Recording, lags, plant, actuator, holdout, saturation
     timing["locate"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     say(f"{rec.name}: friction verdict")
-    fv = _friction_stage(rec, recording, plant, actuator, base, final, mm, mm_final, rule, seed, plan["verdict"],
-                         q, fast, executor=ex)
+    fv = _friction_stage(rec, recording, _Fits(base, final, mm, mm_final), cfg, executor=ex)
     timing["friction_verdict"] = time.perf_counter() - t0
-    return rec, base_split, sel, fv, lag, align
+    return _Stages(rec, base_split, sel, fv, lag, align, timing)
 
 
 def _resolve_op_lag(op_lag) -> tuple[int, ...]:
@@ -867,13 +774,14 @@ def _resolve_op_lag(op_lag) -> tuple[int, ...]:
                      f"got {op_lag!r}")
 
 
-def _base_task(args):
-    rec, plant, actuator, holdout, saturation, n_sub, seed, effort, q, fast = args
+def _base_task(args: tuple[Recording, _Config]):
+    rec, cfg = args
     T = len(rec)
-    n_fit = T - int(round(float(holdout) * T))
-    _check_fit_part(rec, n_fit, holdout)
-    st = ModelStructure(plant, actuator, (), _data_scales(rec, n_fit, saturation), n_sub=n_sub)
-    base, _ = fit_with_friction(st, rec.op, rec.pv, n_fit, rng=seed, effort=effort, coarse=q, fast=fast)
+    n_fit = T - int(round(float(cfg.holdout) * T))
+    _check_fit_part(rec, n_fit, cfg.holdout)
+    st = ModelStructure(cfg.plant, cfg.actuator, (), _data_scales(rec, n_fit, cfg.saturation), n_sub=cfg.n_sub)
+    base, _ = fit_with_friction(st, rec.op, rec.pv, n_fit, rng=cfg.seed, effort=cfg.plan["base"], coarse=cfg.q,
+                                fast=cfg.fast)
     return rec, base, n_fit
 
 
@@ -897,13 +805,11 @@ def _check_fit_part(rec: Recording, n_fit: int, holdout: float) -> None:
                          f"finer PV tag)")
 
 
-def _base_fits(recording: Recording, lags: tuple[int, ...], plant: str, actuator: str, holdout: float,
-               saturation, n_sub: int, seed: int, effort: str, q: int, fast: bool, executor,
+def _base_fits(recording: Recording, lags: tuple[int, ...], cfg: _Config, executor,
                say: Callable[[str], None]) -> dict[int, tuple[Recording, FitResult, int]]:
     """Base fit (with friction, fit part) of the record paired at each OP lag: ``{lag: (rec, fit, n_fit)}``."""
-    args = [(recording.with_op_lag(lag), plant, actuator, holdout, saturation, n_sub, seed, effort, q, fast)
-            for lag in lags]
-    say(f"{recording.name}: fitting the base model ({plant} + {actuator}"
+    args = [(recording.with_op_lag(lag), cfg) for lag in lags]
+    say(f"{recording.name}: fitting the base model ({cfg.plant} + {cfg.actuator}"
         + ("; OP paired with the same and with the next PV sample)" if len(lags) > 1 else ")"))
     return dict(zip(lags, pool_map(executor, _base_task, args)))
 
@@ -990,39 +896,48 @@ def _data_scales(rec: Recording, n_fit: int, saturation) -> DataScales:
     return sc
 
 
-class _FrictionStage(NamedTuple):
-    """Outcome of the friction stage of :func:`diagnose`."""
+class _Fits(NamedTuple):
+    """The base and final models on the whole record, with where each misses."""
 
-    stiction: dict                  # the friction verdict (``DiagnosisResult.stiction``)
-    frictionless: FitResult | None  # best frictionless model of the verdict (None for a pump)
+    base: FitResult                 # base model, whole record
+    final: FitResult                # final model, whole record
+    mismatch: MismatchReport        # of ``base``
+    mismatch_final: MismatchReport  # of ``final``
+
+
+class _FrictionStage(NamedTuple):
+    """Outcome of the friction stage of :func:`diagnose`: the readings the friction verdict is decided from."""
+
+    tests: _FrictionTests                    # the model-based friction tests
+    horch: dict | None                       # Horch's test (None for a pump)
+    assessment: StictionAssessment | None    # the stiction methods combined (None for a pump)
     base: FitResult                 # base model, whole record (the nested optimum if it was the final one)
     final: FitResult                # final model, whole record
     mismatch: MismatchReport        # of ``base``
     mismatch_final: MismatchReport  # of ``final``
 
 
-def _friction_stage(rec: Recording, logged: Recording, plant: str, actuator: str, base: FitResult,
-                    final: FitResult, mm: MismatchReport, mm_final: MismatchReport, rule: SelectionRule,
-                    seed: int, effort: str, coarse: int, fast: bool = False, executor=None) -> _FrictionStage:
-    """Friction verdict, Horch's test and the combined assessment; the final model it keeps.
+def _friction_stage(rec: Recording, logged: Recording, fits: _Fits, cfg: _Config, executor=None) -> _FrictionStage:
+    """Friction tests, Horch's test and the combined assessment; the final model it keeps.
 
     The model fits read ``rec`` (the record as paired for the model, :meth:`Recording.with_op_lag`);
     the data-driven methods read ``logged``, the record as it was logged (``rec`` itself when the
     pairing is the model's own), so their evidence does not move with the pairing chosen.
     """
-    stiction, fr0, final_v, slip = _friction_verdict(final, rec, rule, seed, effort, mm,
-                                                     coarse=coarse, fast=fast, executor=executor)
-    if actuator == "valve":
-        stiction["horch"] = horch_ccf(logged.op, logged.pv, _dt(logged), plant)
-        _combine_verdict(stiction, rec, logged, plant, slip, executor)
-    if final_v is not final:
+    base, final, mm, mm_final = fits
+    tests = _friction_tests(final, rec, mm, cfg, executor=executor)
+    horch = assessment = None
+    if cfg.actuator == "valve" and tests.free_run is not None:
+        horch = horch_ccf(logged.op, logged.pv, _dt(logged), cfg.plant)
+        assessment = _assess(rec, logged, cfg.plant, tests, executor)
+    if tests.final is not final:
         same = final is base
-        final = final_v
+        final = tests.final
         if same:
             base = final
             mm = _locate(rec, base)
         mm_final = mm if final is base else _locate(rec, final)
-    return _FrictionStage(stiction, fr0, base, final, mm, mm_final)
+    return _FrictionStage(tests, horch, assessment, base, final, mm, mm_final)
 
 
 def _explanations(rec: Recording, sel: Selection, base: FitResult, final: FitResult,
@@ -1062,38 +977,6 @@ def _note_poor_fit(expl: list[str], final: FitResult, plant: str) -> None:
                 f"model suits the loop (--plant; now '{plant}': the tank reads the PV as the level above its "
                 f"outlet, so a PV with a large offset or in odd units does not fit it), the PV's units and the "
                 f"output's range (--op-range).")
-
-
-def _note_friction_conflict(expl: list[str], effects: list[str], stiction: dict) -> None:
-    """Say so, in place, where the slip-jump effect is named but the stiction verdict is no.
-
-    The two answer different questions: naming asks whether a slip-jump term improves the fit
-    enough (criterion and held-out test); the verdict (``stiction['present']``) whether the
-    valve sticks, from every method combined, and it is the one validated on labelled plant
-    loops.  A record without a limit cycle or stick episodes can pay for the term and still
-    give those methods nothing to confirm it.  ``stiction['naming_agrees']`` records whether
-    the two agree (None where no valve was tested).
-    """
-    if not stiction.get("tested", False):
-        stiction["naming_agrees"] = None
-        return
-    named = "slip_jump" in effects
-    stiction["naming_agrees"] = (not named) or bool(stiction["present"])
-    if named and not stiction["present"]:
-        i = effects.index("slip_jump")
-        p = stiction.get("probability")
-        pr = f" (probability of stiction {p:.2f})" if isinstance(p, float) and np.isfinite(p) else ""
-        if stiction.get("verdict_source") == "stem":
-            expl[i] += (" Caution: the recorded valve position follows the output (the stem test finds no "
-                        "stiction that matters): the slip-jump term is a model correction, not a finding "
-                        "against the valve.")
-            return
-        expl[i] += (f" Caution: the stiction verdict is no{pr}. The slip-jump term pays in the fit, but "
-                    f"the methods that judge whether the valve sticks (the limit cycle's shape, stick "
-                    f"episodes, friction against frictionless models on the whole record) do not "
-                    f"confirm it: treat it as a model correction, not as a finding against the valve, "
-                    f"until a valve test (a slow output ramp or small steps with the loop in manual) "
-                    f"shows the stem sticking.")
 
 
 # --------------------------------------------------------------------------- many

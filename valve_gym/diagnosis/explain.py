@@ -6,17 +6,24 @@ parameters in the recording's units.
 """
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from ..effects import candidate_effects, effect_spec
-from ..effects.text import cond as _cond
-from ..effects.text import derivative_correlation
+from ..effects.text import condition_text, derivative_correlation
 from ..effects.text import num as _num
 from ..effects.text import pct as _pct
+from .causes import CAUSE_WORDS
 from .fit import FitResult
 from .locate import MismatchReport
+from .stiction.hammerstein import SEIZED_TRAVEL
 
-__all__ = ["explain_effect", "explain_none", "explain_stiction", "derivative_correlation"]
+if TYPE_CHECKING:
+    from .verdict import FreeRunTest, FrictionVerdict, KStepTest
+
+__all__ = ["explain_effect", "explain_none", "explain_free_run", "explain_friction", "explain_combined",
+           "explain_naming_conflict", "derivative_correlation"]
 
 
 def _improvement(before: FitResult, after: FitResult) -> str:
@@ -87,42 +94,137 @@ def explain_none(base: FitResult, mm: MismatchReport, best_candidate: str | None
     return s
 
 
-def explain_stiction(present: bool, with_fr: FitResult, without: FitResult, d_ic: float,
-                     h_change: float, mm: MismatchReport, significant: bool | None = None,
-                     band: float | None = None, min_band: float | None = None, lag_alt=(),
-                     op_range: float | None = None, abs_band: float = 0.01, rel_band: float = 0.5,
-                     floor: float = 0.001) -> str:
-    """One paragraph on the friction verdict (``min_band``: the band needed, see ``SelectionRule``)."""
-    p = with_fr.physical
-    if "slip_jump.S" in p:
-        fr = (f"slip-jump friction S = {_pct(p['slip_jump.S'])}, J = {_pct(p['slip_jump.J'])} "
-              f"of the stroke")
+def explain_free_run(t: FreeRunTest) -> str:
+    """One paragraph on the free-run friction test (:class:`~.verdict.FreeRunTest`)."""
+    p = t.parameters
+    if t.model == "slip_jump":
+        fr = f"slip-jump friction S = {_pct(p['S'])}, J = {_pct(p['J'])} of the stroke"
     else:
-        fr = (f"dead band 2 e_dead = {_pct(2 * p.get('valve.e_dead', 0.0))} of the stroke, "
-              f"friction band z_max = {_num(p.get('valve.z_max', 0.0), 's')}")
-    alt = f"a frictionless valve ({without.label})"
-    if lag_alt:
-        alt += " -- a frictionless valve with a " + " / ".join(e.replace("_", " ") for e in lag_alt)
+        z_max = p.get("z_max")
+        fr = (f"dead band 2 e_dead = {_pct(p['dead_band'])} of the stroke, "
+              f"friction band z_max = {_num(0.0 if z_max is None else z_max, 's')}")
+    if t.significant and t.big and not t.moves:
+        return _still_valve(t)
+    r = t.rule
+    d_ic, band, need, op_range = t.delta_ic, t.band, t.band_needed, t.op_working_range
+    alt = f"a frictionless valve ({t.frictionless_model})"
+    if t.lag_alt:
+        alt += " -- a frictionless valve with a " + " / ".join(e.replace("_", " ") for e in t.lag_alt)
         alt += " explains the delays as well as friction could"
-    ev = _cond(mm, "near_op_reversal")
-    if present:
+    ev = condition_text(t.reversal)
+    if t.present:
         return (f"The valve sticks: the model with friction ({fr}) beats the best frictionless "
-                f"alternative, {without.label} (criterion {d_ic:+.1f}; RMSE "
-                f"{_num(without.rmse_all)} -> {_num(with_fr.rmse_all)}), and the band, "
-                f"{_pct(band)} of the stroke, reaches the {_pct(min_band)} that matters in this "
-                f"loop (the smaller of {_pct(abs_band)} of the stroke, more dead band than a "
-                f"healthy valve is allowed, and {rel_band:g} x the controller output's working "
-                f"range of {_pct(op_range or 0.0)}; at least {_pct(floor)}, a positioner's "
+                f"alternative, {t.frictionless_model} (criterion {d_ic:+.1f}; RMSE "
+                f"{_num(t.frictionless_rmse)} -> {_num(t.friction_rmse)}), and the band, "
+                f"{_pct(band)} of the stroke, reaches the {_pct(need)} that matters in this "
+                f"loop (the smaller of {_pct(r.abs_band)} of the stroke, more dead band than a "
+                f"healthy valve is allowed, and {r.rel_band:g} x the controller output's working "
+                f"range of {_pct(op_range or 0.0)}; at least {_pct(r.min_band)}, a positioner's "
                 f"resolution): the controller keeps pushing a valve that "
                 f"does not follow. " + (f"At reversals of the output: {ev}." if ev else ""))
-    if significant and band is not None and min_band is not None and band < min_band:
+    if t.significant and band < need:
         return (f"No sticking valve that matters: friction improves the fit (criterion "
-                f"{d_ic:+.1f} against {without.label}) but its band, {_pct(band)} of the stroke, "
-                f"is below the {_pct(min_band)} that matters in this loop (the smaller of "
-                f"{_pct(abs_band)} of the stroke and {rel_band:g} x the controller output's "
-                f"working range of {_pct(op_range or 0.0)}; at least {_pct(floor)}): fitted {fr}.")
+                f"{d_ic:+.1f} against {t.frictionless_model}) but its band, {_pct(band)} of the stroke, "
+                f"is below the {_pct(need)} that matters in this loop (the smaller of "
+                f"{_pct(r.abs_band)} of the stroke and {r.rel_band:g} x the controller output's "
+                f"working range of {_pct(op_range or 0.0)}; at least {_pct(r.min_band)}): fitted {fr}.")
     return (f"No significant valve friction: {alt} explains the record as well "
             f"(criterion {d_ic:+.1f}); fitted {fr}.")
+
+
+def _still_valve(t: FreeRunTest) -> str:
+    """Why a friction fit that lowers the criterion with a band that matters is no sticking valve."""
+    moved = "never moves" if t.slips == 0 else "moves only once"
+    return (f"No sticking valve shown: friction lowers the criterion ({t.delta_ic:+.1f}) with a band of "
+            f"{100 * t.band:.2g} % of the stroke, but the fitted valve {moved} over the record (the controller "
+            f"output's working range is {100 * t.op_working_range:.2g} %): the model explains the process without "
+            f"the output's moves, as it does a quiet healthy loop whose output moves answer the measurement noise. "
+            f"A sticking valve slips; a seized one would be told only over an output travel of "
+            f"{100 * SEIZED_TRAVEL:.0f} % or more.")
+
+
+def _kstep_decides(t: FreeRunTest, k: KStepTest) -> str:
+    """Why the k-step test alone calls the valve sticky."""
+    return (f" Yet on {k.horizon}-sample-ahead predictions, where a slow unmeasured load cannot "
+            f"accumulate, friction pays (criterion change {k.delta_ic:.1f}) with a band of "
+            f"{100 * max(t.band, k.band):.2g} % of the stroke (free-run fit "
+            f"{100 * t.band:.2g} %, k-step fit {100 * k.band:.2g} %): the free run, which "
+            f"must reproduce every slow load and drift from the controller output alone, missed it, and the "
+            f"verdict is that the valve sticks.")
+
+
+def _frozen_position(code: str, t: FreeRunTest) -> str:
+    """What a recorded position that never moved says (:func:`~.verdict.frozen_position`)."""
+    travel, band = 100 * float(t.op_working_range), 100 * float(t.band)
+    if code == "seized":
+        return (f"it stays put while the output travels {travel:.2g} %, and the process model needs a "
+                f"friction band of {band:.2g} % of the stroke to explain a process that does not follow "
+                f"the output: the valve is seized; free it or replace it.")
+    if code == "short_travel":
+        return (f"it stays put while the output travels only {travel:.2g} % of the stroke: too little to "
+                f"tell a seized valve from a frozen position signal; the verdict rests on the other methods.")
+    return (f"it stays put while the output travels {travel:.2g} %, yet the process follows the output "
+            f"(the process model needs a friction band of only {band:.2g} %): the position signal is "
+            f"frozen, not the valve; check the position transmitter. The verdict rests on the other methods.")
+
+
+#: Why there is no friction verdict (a pump has no valve).
+UNTESTED = "the actuator is a pump: there is no valve to stick"
+
+
+def explain_friction(v: FrictionVerdict) -> str:
+    """The friction verdict (:class:`~.verdict.FrictionVerdict`) in words: one paragraph.
+
+    The free-run friction test (:func:`explain_free_run`), the k-step test where it alone calls the
+    valve sticky, the methods combined (:func:`explain_combined`), what the recorded valve position
+    says and, where a cause of the oscillation overrules the verdict, that cause.  Where no valve was
+    tested, why not.
+    """
+    t = v.free_run
+    if not v.tested or t is None:
+        return UNTESTED
+    txt = explain_free_run(t)
+    if v.kstep_decides and v.kstep is not None:
+        txt += _kstep_decides(t, v.kstep)
+    if v.combined is None:
+        return txt
+    txt = (txt + " " + explain_combined(v.combined)).strip()
+    stem = v.evidence_of("stem")
+    if stem is not None and v.frozen is not None:
+        txt += f" Recorded valve position: {_frozen_position(v.frozen, t)}"
+    elif stem is not None:
+        txt += (f" Recorded valve position: {stem.reason}" + (
+            "; the verdict reads the stem." if stem.applicable else "; the verdict rests on the other methods."))
+    c = v.overruled_by
+    if c is not None:
+        txt = (txt + " " + (
+            f"The oscillation is better explained as {CAUSE_WORDS[c.cause]} (p = {c.probabilities[c.cause]:.2f}, "
+            f"stiction {c.p_stiction:.2f}): the verdict is no stiction.")).strip()
+    return txt
+
+
+def explain_naming_conflict(v: FrictionVerdict) -> str:
+    """The caution added to the slip-jump paragraph where the effect is named but the verdict is no ('' otherwise).
+
+    The two answer different questions: naming asks whether a slip-jump term improves the fit
+    enough (criterion and held-out test); the verdict whether the valve sticks, from every method
+    combined, and it is the one validated on labelled plant loops.  A record without a limit cycle
+    or stick episodes can pay for the term and still give those methods nothing to confirm it.
+    """
+    if not v.tested or v.naming_agrees is not False:
+        return ""
+    p = v.probability
+    pr = f" (probability of stiction {p:.2f})" if np.isfinite(p) else ""
+    if v.verdict_source == "stem":
+        return (" Caution: the recorded valve position follows the output (the stem test finds no "
+                "stiction that matters): the slip-jump term is a model correction, not a finding "
+                "against the valve.")
+    return (f" Caution: the stiction verdict is no{pr}. The slip-jump term pays in the fit, but "
+            f"the methods that judge whether the valve sticks (the limit cycle's shape, stick "
+            f"episodes, friction against frictionless models on the whole record) do not "
+            f"confirm it: treat it as a model correction, not as a finding against the valve, "
+            f"until a valve test (a slow output ramp or small steps with the loop in manual) "
+            f"shows the stem sticking.")
 
 
 def explain_combined(a) -> str:

@@ -173,11 +173,11 @@ def plot_stem(res, path=None):
     """
     from .stiction.stem import _stem
 
-    ev = next((e for e in res.stiction.get("evidence", []) if e.get("method") == "stem"), None)
+    ev = res.stiction.evidence_of("stem")
     rec = res.recording
-    if ev is None or not ev.get("applicable") or rec.mv is None:
+    if ev is None or not ev.applicable or rec.mv is None:
         return None
-    d = ev["details"]
+    d = ev.details
     lag = float(d["lag_s"]) / float(rec.dt or 1.0)
     x = _stem(rec.op, d["S"], d["J"], float(np.exp(-1.0 / lag)) if lag > 0 else 0.0, int(d["law"]))
     fits = [d["offset"] + d["span"] * (x if j == 0 else np.r_[x[0], x[:-1]]) for j in (0, 1)]
@@ -191,7 +191,7 @@ def plot_stem(res, path=None):
                                                                   f"J {100 * d['J']:.2g} %)")
     a1.set_xlabel("t [s]")
     a1.set_ylabel("% of stroke")
-    a1.set_title(f"stem test: {ev['verdict']}")
+    a1.set_title(f"stem test: {ev.verdict}")
     a1.legend(fontsize=8)
     a2.plot(100 * rec.op, 100 * rec.mv, ".", ms=2, color="tab:blue", label="recorded")
     a2.plot(100 * rec.op, 100 * fit, lw=0.6, color="tab:red", alpha=0.7, label="fitted")

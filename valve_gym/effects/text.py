@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["pct", "num", "derivative_correlation", "cond", "plateau_evidence", "rate_evidence"]
+__all__ = ["pct", "num", "derivative_correlation", "cond", "condition_text", "plateau_evidence", "rate_evidence"]
 
 
 def pct(x):
@@ -47,7 +47,11 @@ def derivative_correlation(residual, y_sim) -> float:
 
 def cond(mm: Any, name: str) -> str:
     """The located condition ``name`` of ``mm`` as evidence: residual RMS inside against outside."""
-    c = mm.condition(name)
+    return condition_text(mm.condition(name))
+
+
+def condition_text(c: Any) -> str:
+    """A located condition (a ``ConditionStat``, or None) as evidence: residual RMS inside against outside."""
     if c is None:
         return ""
     sig = "significant" if c.significant else "not significant alone"

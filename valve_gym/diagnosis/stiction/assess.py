@@ -79,7 +79,7 @@ def _fitted_band(fit: FitResult | None) -> float:
     return float("nan") if fit is None else float(fit.physical.get("slip_jump.S", float("nan")))
 
 
-def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", sp=None,
+def assess_stiction(op, pv, dt: float = 1.0, plant: str = "first_order", *, sp=None,
                     verdict: Mapping | None = None, slip_fit: FitResult | None = None,
                     model: LogisticModel | None = None, map_fn=None, fit_data=None,
                     mv=None) -> StictionAssessment:

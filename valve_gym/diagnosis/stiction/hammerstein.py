@@ -86,7 +86,7 @@ DISCREPANCY_HAMMERSTEIN_J = 1.5
 #: Output travel (working range, fraction of stroke) above which a valve that does not move is seized:
 #: a valve with less than 10 % stiction moves over such a travel (``benchmarks/stem_verdict.py``: healthy
 #: textbook loops with a frozen position signal and 2.5-8 % of travel fitted bands of 3-6 %).  Read by the
-#: stem test's frozen position (:func:`valve_gym.diagnosis.diagnose._seized`) and by :func:`friction_moves`.
+#: stem test's frozen position (:func:`valve_gym.diagnosis.verdict.frozen_position`) and by :func:`friction_moves`.
 SEIZED_TRAVEL = 0.1
 
 #: Slips of a fitted friction valve below which the fit shows no stick-slip: a valve that sticks also
