@@ -31,6 +31,7 @@ from .regulation import (
     References,
     RegulationTaskConfig,
     benchmark_reward,
+    check_reward_numbers,
     obs_names,
     pi_action,
 )
@@ -78,14 +79,7 @@ class FamilyConfig:
     def __post_init__(self):
         if not (isinstance(self.steps, int) and 64 <= self.steps <= 100_000):
             raise ConfigError(f"steps must be an integer in [64, 100000] (scans per episode), got {self.steps!r}")
-        for name in ("e_stroke", "u_ref", "r_floor", "travel_budget"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ConfigError(f"{name} must be a positive number, got {v!r}")
-        for name in ("budget_weight", "lc_weight"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ConfigError(f"{name} must be a number >= 0, got {v!r}")
+        check_reward_numbers(self, ("e_stroke", "u_ref", "r_floor", "travel_budget"))
         self.block_for(*_DEFAULT_LOOP)           # c_max, g_min checked by BlockSettings
 
     def block_for(self, Kc: float, Ti: float, scan_s: float) -> BlockSettings:

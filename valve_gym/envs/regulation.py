@@ -62,6 +62,25 @@ REWARDS = ("benchmark", "tracking")
 Range = tuple[float, float]
 
 
+def check_reward_numbers(cfg, positive: Sequence[str] = ("r_floor", "travel_budget"),
+                         nonnegative: Sequence[str] = ("budget_weight", "lc_weight")) -> None:
+    """Check the reward's numbers of a task config: ``positive`` ones finite and > 0, ``nonnegative`` ones >= 0.
+
+    Raises
+    ------
+    ConfigError
+        Naming the field and the value.
+    """
+    for name in positive:
+        v = getattr(cfg, name)
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+            raise ConfigError(f"{name} must be a positive number, got {v!r}")
+    for name in nonnegative:
+        v = getattr(cfg, name)
+        if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+            raise ConfigError(f"{name} must be a number >= 0, got {v!r}")
+
+
 def _range(name: str, r, lo: float = 0.0, hi: float = math.inf, open_lo: bool = False) -> None:
     a, b = float(r[0]), float(r[1])
     if not (math.isfinite(a) and math.isfinite(b)) or a > b or a < lo or b > hi or (open_lo and a <= lo):
@@ -241,14 +260,7 @@ class RegulationTaskConfig:
             raise ConfigError("S_log_uniform: a band starting at S = 0 cannot be log-uniform")
         if self.reward not in REWARDS:
             raise ConfigError(f"reward must be one of {', '.join(REWARDS)}, got {self.reward!r}")
-        for name in ("r_floor", "travel_budget"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ConfigError(f"{name} must be a positive number, got {v!r}")
-        for name in ("budget_weight", "lc_weight"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
-                raise ConfigError(f"{name} must be a number >= 0, got {v!r}")
+        check_reward_numbers(self, ("r_floor", "travel_budget"))
 
     @property
     def steps(self) -> int:

@@ -32,13 +32,14 @@ import os
 import re
 from dataclasses import dataclass
 
-from ..diagnosis.recording import Recording, RecordingError, load_recording
+from ..diagnosis.recording import RecordingError, load_recording
 from ..diagnosis.recording.sniff import recording_files
 from ..diagnosis.recording.wide import (
     TEXT_FRACTION,
     TIME_COLUMN_NAMES,
     WIDE_SUFFIXES,
     Gap,
+    WideLoop,
     WideTag,
     file_header,
     load_wide_tag,
@@ -79,20 +80,9 @@ class LoopSource:
     problem: str = ""
 
 
-@dataclass(frozen=True)
-class LoadedLoop:
-    """A loop's recording and what loading it found.
-
-    Attributes
-    ----------
-    recording : Recording, uniform grid, OP normalised to 0..1
-    gaps : tuple of Gap, stretches without samples longer than ``max_gap`` scans
-    notes : tuple of str, every resampling or repair done (also in ``recording.repairs``)
-    """
-
-    recording: Recording
-    gaps: tuple[Gap, ...]
-    notes: tuple[str, ...]
+#: A loop's recording and what reading it found (recording, gaps, notes): the recording pipeline's own type,
+#: for a wide export's tag and a single-loop file alike.
+LoadedLoop = WideLoop
 
 
 def safe_name(name: str) -> str:
@@ -287,9 +277,9 @@ def load_loop(src: LoopSource, columns=None, op_range=None, max_gap: int = 5, mv
         w = load_wide_tag(WideTag(src.path, src.tag, src.time_column, src.columns), name=src.name,
                           op_range=op_range, max_gap=max_gap, off=off, dayfirst=dayfirst, time_unit=time_unit,
                           gaps=gaps)
-        return LoadedLoop(w.recording, w.gaps, w.notes)
+        return w
     rec = load_recording(src.path, columns=columns, op_range=op_range, name=src.name, max_gap=max_gap,
                          gaps=gaps, mv_range=mv_range, dayfirst=dayfirst, time_unit=time_unit, dt=dt)
     n_gaps = sum(int(m) for r in rec.repairs for m in re.findall(r"(\d+) gap\(s\)", r))
     found = tuple(Gap("pv", math.nan, math.nan) for _ in range(n_gaps))     # times are in the notes
-    return LoadedLoop(rec, found, tuple(rec.repairs) + tuple(rec.notes))
+    return WideLoop(rec, found, tuple(rec.repairs) + tuple(rec.notes))
