@@ -367,3 +367,35 @@ def test_es_scores_the_measured_level_with_the_benchmarks_iae():
         e[k], lv[k] = fin["setpoint"] - fin["pv"], fin["level"]
     np.testing.assert_array_equal(sc.iae[0], loop_iae(e, task.block.scan_s))
     assert not np.allclose(sc.iae[0], np.abs(fin["setpoint"] - lv).sum(0) * task.block.scan_s)   # not the true level
+
+
+def test_es_rollouts_on_the_runner_equal_the_regulation_env():
+    """The ES trainer rolls its networks out with the closed-loop runner; the loops, the block law and so the
+    scores are those of the regulation vector env driven step by step with the same networks."""
+    from dataclasses import replace
+
+    from valve_gym.agents.bench.scores import loop_iae, valve_motion
+    from valve_gym.agents.es import rollout_scores
+    from valve_gym.agents.learned import load_learned, mlp_forward, normalise
+    from valve_gym.envs.regulation import N_ACT, RegulationTaskConfig, pi_action
+    from valve_gym.envs.regulation_env import ValveTankRegulationVectorEnv
+
+    blk = load_learned()
+    task = replace(RegulationTaskConfig(), episode_s=300.0)
+    seeds = [5, 11]
+    sc = rollout_scores([None, blk.weights], task, seeds, (blk.obs_mean, blk.obs_std))
+    env = ValveTankRegulationVectorEnv(4, task)
+    obs, _ = env.reset(seed=seeds + seeds)
+    err, stem = np.empty((task.steps, 4)), np.empty((task.steps, 4))
+    for k in range(task.steps):
+        act = np.tile(pi_action(1), (4, 1))
+        act[2:] = mlp_forward(blk.weights, normalise(obs[2:].astype(np.float64), blk.obs_mean, blk.obs_std))
+        obs, _, _, _, inf = env.step(act.reshape(4, N_ACT))
+        fin = inf["final_info"] if "final_info" in inf else inf
+        err[k], stem[k] = fin["setpoint"] - fin["pv"], fin["stem"]
+    iae = loop_iae(err, task.block.scan_s).reshape(2, 2)
+    travel, rev = valve_motion(stem, 0.0005)
+    np.testing.assert_array_equal(sc.iae, iae)
+    np.testing.assert_array_equal(sc.travel, travel.reshape(2, 2))
+    np.testing.assert_array_equal(sc.reversals, rev.reshape(2, 2))
+    assert not np.array_equal(sc.iae[0], sc.iae[1])            # the network is not the PI

@@ -15,9 +15,10 @@ block is anything with ``reset(sp, pv, op)`` and ``step(sp, pv) -> (n,)`` (the c
 friction model). The inputs are checked once, up front; the block's outputs every scan (finite).
 
 Users: the benchmark (:func:`valve_gym.agents.bench.runner.run_loops`) and its generalisation part,
-the synthetic recordings (:mod:`valve_gym.diagnosis.synthetic`, and through them the fleet
-simulator) and the teaching figures (:func:`valve_gym.figures.closed_loop_pi`), the last two
-through :func:`run_pi_loop`.
+the trainers' rollouts (:func:`valve_gym.agents.es.rollout_scores`, the adaptive trainer), the
+synthetic recordings (:mod:`valve_gym.diagnosis.synthetic`, and through them the fleet simulator)
+and the teaching figures (:func:`valve_gym.figures.closed_loop_pi`), the last two through
+:func:`run_pi_loop`.
 
 Example
 -------

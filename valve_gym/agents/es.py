@@ -220,8 +220,65 @@ class RolloutScores(NamedTuple):
     lc_amp: np.ndarray | None = None
 
 
+class _TaskPlants:
+    """The regulation task's plants of a draw as a :class:`~valve_gym.loop.LoopPlant` of the runner."""
+
+    def __init__(self, plants, scan_s: float):
+        self.plants, self.n, self.scan_s = plants, plants.level.size, scan_s
+
+    def scan(self, u: np.ndarray, d: np.ndarray) -> tuple:
+        """One scan at input ``u`` (n,) and load ``d`` (n,): ``(y, stem, level)``."""
+        self.plants.step(u, d)
+        level = self.plants.level.copy()
+        return level, self.plants.stem.copy(), level
+
+
+class _NetworkBank:
+    """``P`` policies on ``B`` loops each, as one DCS block of ``P * B`` loops.
+
+    The regulation block law (:class:`~valve_gym.envs.regulation.BlockLaw`) acts on the networks' outputs
+    (the plain PI's action for a ``None`` policy). It also sums the observations of the last policy's loops
+    (the normaliser's statistics).
+    """
+
+    def __init__(self, policies, task: RegulationTaskConfig, B: int, obs_norm):
+        from valve_gym.envs.regulation import BlockLaw
+
+        self.P, self.B = len(policies), B
+        self.law = BlockLaw(task.block, self.P * B)
+        self.n_obs = len(obs_names(task.block))
+        self.nets = [i for i, w in enumerate(policies) if w is not None]
+        self.stacked = None
+        if self.nets:
+            self.stacked = {k: np.stack([policies[i][k] for i in self.nets]) for k in policies[self.nets[0]]}
+        self.mean, self.std = (np.zeros(self.n_obs), np.ones(self.n_obs)) if obs_norm is None else obs_norm
+        self.act = np.tile(pi_action(1), (self.P * B, 1)).reshape(self.P, B, N_ACT)
+        self.s1, self.s2, self.k = np.zeros(self.n_obs), np.zeros(self.n_obs), 0
+
+    def reset(self, sp, pv, op) -> None:
+        """Bumpless start of every loop."""
+        self.law.reset(sp, pv, op)
+
+    def step(self, sp, pv) -> np.ndarray:
+        """Measure, run the networks, act: the outputs (P * B,)."""
+        if STOP["flag"]:
+            raise Interrupted()
+        o = self.law.observe(sp, pv).astype(np.float32).reshape(self.P, self.B, self.n_obs).astype(np.float64)
+        self.s1 += o[-1].sum(0)
+        self.s2 += (o[-1] ** 2).sum(0)
+        self.k += 1
+        if self.stacked is not None:
+            self.act[self.nets] = mlp_forward(self.stacked, normalise(o[self.nets], self.mean, self.std))
+        return self.law.act(self.act.reshape(self.P * self.B, N_ACT))
+
+
 def rollout_scores(policies, task: RegulationTaskConfig, seeds, obs_norm=None, lc: bool = False) -> RolloutScores:
-    """Run ``P`` policies on the loops of ``seeds`` (B,), all in one vector env of ``P * B`` loops.
+    """Run ``P`` policies on the loops of ``seeds`` (B,): one closed-loop run of ``P * B`` loops.
+
+    The loops are the regulation task's episodes of ``seeds`` (the draws of
+    ``ValveTankRegulationVectorEnv.reset(seed=...)``), run by the closed-loop runner
+    (:func:`valve_gym.loop.run_closed_loop`) with the policies as one block (:class:`_NetworkBank`), and
+    scored with the benchmark's loop scores.
 
     Parameters
     ----------
@@ -235,49 +292,34 @@ def rollout_scores(policies, task: RegulationTaskConfig, seeds, obs_norm=None, l
         Run the limit-cycle detector of the benchmark (:func:`valve_gym.oscillation.detect_oscillation`, benchmark rule)
         on each loop's measured error.
     """
+    from gymnasium.utils import seeding
+
     from valve_gym.agents.bench.config import ScoresConfig
     from valve_gym.agents.bench.scores import limit_cycles, loop_iae, valve_motion
-    from valve_gym.envs.regulation_env import ValveTankRegulationVectorEnv
+    from valve_gym.envs.regulation import LoopPlants, draw_scenarios
+    from valve_gym.loop import Scenario, run_closed_loop
+    from valve_gym.plant import PlantOutput
 
     P, B = len(policies), len(seeds)
-    n_obs = len(obs_names(task.block))
-    env = ValveTankRegulationVectorEnv(P * B, task)
-    obs, info = env.reset(seed=[int(s) for p in range(P) for s in seeds])
-    nets = [i for i, w in enumerate(policies) if w is not None]
-    stacked = None
-    if nets:
-        stacked = {k: np.stack([policies[i][k] for i in nets]) for k in policies[nets[0]]}
-    mean, std = (np.zeros(n_obs), np.ones(n_obs)) if obs_norm is None else obs_norm
-    act = np.tile(pi_action(1), (P * B, 1)).reshape(P, B, N_ACT)
-    stem = np.empty((task.steps, P * B))
-    s1 = np.zeros(n_obs)
-    s2 = np.zeros(n_obs)
-    err = np.empty((task.steps, P * B))
-    for k in range(task.steps):
-        if STOP["flag"]:
-            raise Interrupted()
-        o = obs.reshape(P, B, n_obs).astype(np.float64)
-        s1 += o[-1].sum(0)
-        s2 += (o[-1] ** 2).sum(0)
-        if stacked is not None:
-            act[nets] = mlp_forward(stacked, normalise(o[nets], mean, std))
-        obs, r, term, trunc, inf = env.step(act.reshape(P * B, N_ACT))
-        fin = inf["final_info"] if "final_info" in inf else inf
-        stem[k] = fin["stem"]
-        err[k] = fin["setpoint"] - fin["pv"]
-    m = s1 / (B * task.steps)
-    sd = np.sqrt(np.maximum(s2 / (B * task.steps) - m * m, 0.0))
-    lc_present = np.zeros(P * B)
-    lc_amp = np.zeros(P * B)
-    iae = loop_iae(err, task.block.scan_s)
-    trav, rev = valve_motion(stem, ScoresConfig().reversal_deadband)
+    n, T, scan = P * B, task.steps, task.block.scan_s
+    d = draw_scenarios([seeding.np_random(int(s))[0] for _ in range(P) for s in seeds], task)
+    plants = LoopPlants(task, d)
+    start = PlantOutput(pv=plants.level.copy(), stem=plants.stem.copy(), op=plants.op0.copy(), y=plants.level.copy())
+    bank = _NetworkBank(policies, task, B, obs_norm)
+    sc = Scenario(sp=np.broadcast_to(d.sp, (T, n)), scan_s=scan, load=d.load[:, :T].T, noise=d.noise.T)
+    run = run_closed_loop(_TaskPlants(plants, scan), bank, sc, start=start)
+    err = d.sp - run.pv[1:]                      # the measured error after each scan
+    m = bank.s1 / (B * T)
+    sd = np.sqrt(np.maximum(bank.s2 / (B * T) - m * m, 0.0))
+    trav, rev = valve_motion(run.stem[1:], ScoresConfig().reversal_deadband)
+    lc_present, lc_amp = np.zeros(n), np.zeros(n)
     if lc:
-        res = limit_cycles(err, task.block.scan_s)
+        res = limit_cycles(err, scan)
         lc_present = np.array([float(r.present) for r in res])
         lc_amp = np.array([float(r.amplitude) if r.present else 0.0 for r in res])
-    return RolloutScores(iae=iae.reshape(P, B), travel=trav.reshape(P, B), reversals=rev.reshape(P, B).astype(float),
-                         lc=lc_present.reshape(P, B), obs_mean=m, obs_std=sd, S=np.asarray(info["S"]).reshape(P, B)[0],
-                         lc_amp=lc_amp.reshape(P, B))
+    return RolloutScores(iae=loop_iae(err, scan).reshape(P, B), travel=trav.reshape(P, B),
+                         reversals=rev.reshape(P, B).astype(float), lc=lc_present.reshape(P, B), obs_mean=m,
+                         obs_std=sd, S=d.S.reshape(P, B)[0], lc_amp=lc_amp.reshape(P, B))
 
 
 def fitness(sc: RolloutScores, ref_iae: np.ndarray, ref_rev: np.ndarray, hyper: ESHyper, hours: float,

@@ -8,6 +8,7 @@ parallel worker processes.  Plots and the markdown report are separate
 from __future__ import annotations
 
 import json
+import math
 import os
 import time
 from collections.abc import Callable, Sequence
