@@ -5,8 +5,10 @@ The same screening and the same verdicts either way; without Ray (and without py
 from __future__ import annotations
 
 import builtins
+import importlib
 import importlib.util
 import json
+import math
 import os
 
 import numpy as np
@@ -142,3 +144,25 @@ def test_the_local_executor_runs_in_worker_processes_and_stops_when_asked():
     for i, r, _ in local_results(math.sqrt, items, 1, stop=lambda: len(seen) >= 2):
         seen.append(r)
     assert seen == [1.0, 2.0]
+
+
+def _die_on_first(task):
+    """A diagnosis job whose worker process dies (as when the system kills it for memory)."""
+    if task[0].endswith("die.csv"):
+        os._exit(1)
+    return {"path": task[0], "ok": False, "error": "not run", "seconds": 0.0}
+
+
+def test_a_lost_worker_is_reported_per_recording_not_raised(monkeypatch):
+    """``diagnose_many`` on local workers: a worker process that dies gives its recordings an error row
+    ("worker lost"), never an exception or a hole in the results."""
+    import multiprocessing
+
+    diag_mod = importlib.import_module("valve_gym.diagnosis.diagnose")
+    if multiprocessing.get_start_method(allow_none=True) not in (None, "fork"):
+        pytest.skip("the patched job reaches the workers only when they fork")
+    monkeypatch.setattr(diag_mod, "_diagnose_job", _die_on_first)
+    out = diag_mod.diagnose_many(["a/die.csv", "b/ok.csv", "c/ok.csv"], jobs=2)
+    assert len(out) == 3 and all(r is not None for r in out)
+    lost = [r for r in out if "worker lost" in r.get("error", "")]
+    assert lost and all(not r["ok"] and math.isnan(r["seconds"]) for r in lost)
