@@ -24,6 +24,11 @@ Usage::
     python benchmarks/learned_unseen_check.py [--n 36] [--seed 913] [--names pi knocker learned learned_adaptive]
         [--policy LABEL=FILE ...]
 
+``--diagnosed`` adds the rows of a plant's workflow: each loop's record under the PI is diagnosed
+(:func:`valve_gym.diagnosis.diagnose`, the process kind an engineer knows: ``cascade``, and ``first_order``
+for the thermal loop and the vessel), and the knocker and ``learned_adaptive`` get the diagnosed ``S`` where
+the verdict is stiction (``S0``; frozen or adapting), nothing elsewhere.
+
 ``--policy LABEL=FILE`` adds a row of one's own policy export (``valve_gym.agents.bench.policies.export_policy``,
 ``NAME.json`` + ``NAME.safetensors``), given each loop's tuning and scan as every other block
 (:meth:`~valve_gym.agents.bench.policies.PolicyBlock.for_loop`).
@@ -46,6 +51,10 @@ KINDS = ("cascade", "thermal", "vessel")
 #: Rows of policy exports (``--policy LABEL=FILE``): label -> block.
 POLICIES: dict = {}
 VALVE_KINDS = ("he2007", "stenman")
+#: ``--diagnosed`` rows: label -> (block, whether its estimate adapts); the process kind given to the diagnosis.
+DIAGNOSED = {"knocker (S diagnosed)": ("knocker", None), "learned_adaptive (S diagnosed, adapts)":
+             ("learned_adaptive", True), "learned_adaptive (S diagnosed, frozen)": ("learned_adaptive", False)}
+DIAG_KIND = {"cascade": "cascade", "thermal": "first_order", "vessel": "first_order"}
 
 
 def draw(n: int, seed: int) -> list[dict]:
@@ -168,7 +177,12 @@ def run(name: str, rows: list[dict], scan: float, Kc, Ti, frictionless: bool, du
                                                            >= np.array([r["t_step"] for r in rows]) * duration)
     load = step + walk
     try:
-        if name in POLICIES:
+        if name in DIAGNOSED:
+            block, adapts = DIAGNOSED[name]
+            S = np.maximum([r["S_diag"] for r in rows], 0.001)
+            kw = {"S": S} if adapts is None else {"S0": np.clip(S, 0.001, 0.06), **({} if adapts else {"eta": 0.01})}
+            ctrl = load_controller(block, Kc=Kc, Ti=Ti, scan_s=scan, **kw)
+        elif name in POLICIES:
             blk = POLICIES[name]          # a policy export: one block per loop with the loop's tuning and scan
             ctrl = ControllerBank([blk.for_loop(float(a), float(b), scan) for a, b in zip(Kc, Ti)],
                                   [np.array([i]) for i in range(n)], n) if hasattr(blk, "for_loop") else blk
@@ -189,12 +203,50 @@ def run(name: str, rows: list[dict], scan: float, Kc, Ti, frictionless: bool, du
     return Runs(name, "check", scan, np.broadcast_to(sp, (T, n)), lv + noise, lv, op, st)
 
 
+def _diagnose_one(args) -> tuple[bool, float]:
+    t, op, pv, sp, kind = args
+    from valve_gym.diagnosis import diagnose
+    from valve_gym.diagnosis.recording import Recording
+
+    v = diagnose(Recording(t=t, op=op, pv=pv, sp=sp, name="loop"), plant=kind, candidates=(), effort="fast").stiction
+    ok = v["present"] and v["S"] is not None and math.isfinite(v["S"])
+    return bool(v["present"]), float(v["S"]) if ok else 0.0
+
+
+def diagnose_loops(rows: list[dict], scans: np.ndarray, duration: float, jobs: int = 2) -> None:
+    """Record every loop under its PI, diagnose the record, store the diagnosed ``S`` as ``row['S_diag']``."""
+    from multiprocessing import get_context
+
+    tasks, where = [], []
+    for scan in np.unique(scans):
+        idx = np.flatnonzero(scans == scan)
+        sub = [rows[i] for i in idx]
+        Kc, Ti = tune(sub, float(scan))
+        r = run("pi", sub, float(scan), Kc, Ti, False, duration)
+        t = np.arange(r.pv.shape[0]) * float(scan)
+        for j, i in enumerate(idx):
+            tasks.append((t, np.clip(r.op[:, j], 0.0, 1.0), r.pv[:, j], r.sp[:, j], DIAG_KIND[rows[i]["kind"]]))
+            where.append(int(i))
+    with get_context("fork").Pool(jobs) as pool:
+        found = pool.map(_diagnose_one, tasks)
+    for i, (called, S) in zip(where, found):
+        rows[i]["S_diag"], rows[i]["called"] = S, called
+    sticky = np.array([r["S"] > 0.005 for r in rows])
+    called = np.array([r["called"] for r in rows])
+    ok = called & sticky & (np.array([r["S_diag"] for r in rows]) > 0)
+    err = [abs(rows[i]["S_diag"] / rows[i]["S"] - 1.0) for i in np.flatnonzero(ok)]
+    print(f"diagnosis of the PI's records: stiction called on {int((called & sticky).sum())} of {int(sticky.sum())} "
+          f"sticky loops and {int((called & ~sticky).sum())} of {int((~sticky).sum())} healthy ones; median "
+          f"|S_est / S - 1| = {np.median(err) if err else float('nan'):.2f} over {int(ok.sum())}", flush=True)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     ap.add_argument("--n", type=int, default=36, help="loops (every third healthy)")
     ap.add_argument("--seed", type=int, default=913)
     ap.add_argument("--duration", type=float, default=3600.0, help="record length [s]")
     ap.add_argument("--names", nargs="+", default=["pi", "knocker", "learned", "learned_adaptive"])
+    ap.add_argument("--diagnosed", action="store_true", help="add the rows with the diagnosed S (see above)")
     ap.add_argument("--policy", action="append", default=[], metavar="LABEL=FILE",
                     help="a policy export as one more row (repeatable)")
     a = ap.parse_args(argv)
@@ -212,6 +264,9 @@ def main(argv=None) -> int:
     cfg = BenchConfig()
     scans = np.array([r["scan"] for r in rows])
     sticky = np.array([r["S"] > 0.005 for r in rows])
+    if a.diagnosed:
+        diagnose_loops(rows, scans, a.duration)
+        a.names += list(DIAGNOSED)
     res = {}
     for label, name, fr in [("PI frictionless", "pi", True)] + [(nm, nm, False) for nm in a.names]:
         per = {f: np.empty(a.n) for f in ("lc", "amp", "iae", "travel", "offset")}
