@@ -46,6 +46,18 @@ class _OneVectorEnv:
         """Store the actions of the next :meth:`step_wait`."""
         self._actions = actions
 
+    def _reset_done(self, obs, reset_infos: list):
+        """After a reset of every loop: keep its infos, forget the pending seeds and options, allow steps."""
+        self.reset_infos = reset_infos
+        self._reset_seeds()        # type: ignore[attr-defined]  (VecEnv's)
+        self._reset_options()      # type: ignore[attr-defined]
+        self._started = True
+        return obs
+
+    def _check_started(self) -> None:
+        if not getattr(self, "_started", False):
+            raise RuntimeError("call reset() before step()")
+
     def set_attr(self, attr_name: str, value: Any, indices=None) -> None:
         """Set an attribute of the vector env (shared by all indices)."""
         setattr(self.venv, attr_name, value)
@@ -143,16 +155,11 @@ class SB3VecEnv(_OneVectorEnv, VecEnv):
                                          f"options pin the valve: {', '.join(VALVE_KEYS)}")
                     options.setdefault(key, np.full(self.num_envs, np.nan))[i] = float(val)
         obs, info = self.venv.reset(seed=seeds, options=options)
-        self.reset_infos = _split(info, self.num_envs)
-        self._reset_seeds()
-        self._reset_options()
-        self._started = True
-        return obs
+        return self._reset_done(obs, _split(info, self.num_envs))
 
     def step_wait(self):
         """Step every loop; returns SB3's ``(obs, rewards, dones, infos)``."""
-        if not self._started:
-            raise RuntimeError("call reset() before step()")
+        self._check_started()
         acts = np.asarray(self._actions, dtype=np.float32).reshape(self.num_envs, -1)
         obs, rew, term, trunc, info = self.venv.step(acts)
         dones = term | trunc
@@ -243,16 +250,11 @@ class SB3RegulationVecEnv(_OneVectorEnv, VecEnv):
         seeds = self._seeds if any(s is not None for s in self._seeds) else None
         opts = [o for o in self._options if o]
         obs, info = self.venv.reset(seed=seeds, options=opts[0] if opts else None)
-        self.reset_infos = [{} for _ in range(self.num_envs)]
-        self._reset_seeds()
-        self._reset_options()
-        self._started = True
-        return obs
+        return self._reset_done(obs, [{} for _ in range(self.num_envs)])
 
     def step_wait(self):
         """Step every loop; returns SB3's ``(obs, rewards, dones, infos)``."""
-        if not self._started:
-            raise RuntimeError("call reset() before step()")
+        self._check_started()
         obs, rew, term, trunc, info = self.venv.step(np.asarray(self._actions, dtype=np.float32))
         dones = term | trunc
         self.last_info = info
