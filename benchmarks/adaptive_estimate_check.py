@@ -25,32 +25,50 @@ FROZEN = "learned_adaptive, S_hat from the true S (frozen)"
 ADAPTS = "learned_adaptive, S_hat from the true S (adapts)"
 
 
-def main() -> int:
-    import valve_gym.agents.bench.generalisation as gen
+class LoopRows:
+    """A row of the generalisation part whose block is built per group of loops: ``make(loops, idx, scan_s)``
+    (the part's ``for_loops`` hook, so a row may read each loop's settings)."""
+
+    def __init__(self, make):
+        self.make = make
+
+    def for_loops(self, loops, idx, scan_s):
+        """The block of loops ``idx``."""
+        return self.make(loops, idx, scan_s)
+
+
+def adaptive_row(S_of, frozen: bool) -> LoopRows:
+    """``learned_adaptive`` with its estimate starting at ``S_of(loops, idx)`` (clipped to ``S0``'s range),
+    frozen there (``eta`` at its minimum) or adapting at the trained rate."""
     from valve_gym.agents import load_controller
-    from valve_gym.agents.bench.config import BenchConfig
 
-    base_controller, base_lineup = gen._controller, gen.gen_lineup
+    def make(loops, idx, scan_s):
+        kw = {"S0": np.clip(S_of(loops, idx), 0.001, 0.06), **({"eta": 0.01} if frozen else {})}
+        return load_controller("learned_adaptive", Kc=loops.Kc[idx], Ti=loops.Ti[idx], scan_s=scan_s, **kw)
+    return LoopRows(make)
 
-    def controller(spec, loops, idx, scan_s):
-        if spec.label in (FROZEN, ADAPTS):
-            kw = {"S0": np.clip(loops.S[idx], 0.001, 0.06)}
-            if spec.label == FROZEN:
-                kw["eta"] = 0.01
-            return load_controller("learned_adaptive", Kc=loops.Kc[idx], Ti=loops.Ti[idx], scan_s=scan_s, **kw)
-        return base_controller(spec, loops, idx, scan_s)
 
-    def lineup(config, learned=("learned",)):
-        return base_lineup(config, learned) + (gen.GenSpec(FROZEN, "learned_adaptive", "learned"),
-                                               gen.GenSpec(ADAPTS, "learned_adaptive", "learned"))
+def print_rows(res, cfg, labels) -> None:
+    """The part's table and comparisons, for the default rows and ``labels``."""
+    from valve_gym.agents.bench.generalisation import generalisation_markdown
 
-    gen._controller, gen.gen_lineup = controller, lineup      # this process only (jobs=1)
-    cfg = BenchConfig()
-    res = gen.run_generalisation(cfg, gen.GenFamily(), jobs=1, learned=("learned_adaptive",))
-    keep = ("| controller", "|---", "| PI (SIMC)", "| knocker |", "| knocker (S known)", "| learned_adaptive")
-    for line in gen.generalisation_markdown(res, cfg).split("Breakdown")[0].splitlines():
-        if line.startswith(keep) or (line.startswith("- ") and "learned_adaptive" in line):
+    keep = ("| controller", "|---", "| PI (SIMC)", "| knocker", "| learned_adaptive", *(f"| {x}" for x in labels))
+    for line in generalisation_markdown(res, cfg).split("Breakdown")[0].splitlines():
+        if line.startswith(keep) or (line.startswith("- ") and any(x in line for x in ("learned_adaptive", *labels))):
             print(line)
+
+
+def main() -> int:
+    from valve_gym.agents.bench.config import BenchConfig
+    from valve_gym.agents.bench.generalisation import GenFamily, run_generalisation
+
+    def true_S(loops, idx):
+        return loops.S[idx]
+
+    rows = {FROZEN: adaptive_row(true_S, frozen=True), ADAPTS: adaptive_row(true_S, frozen=False)}
+    cfg = BenchConfig()
+    res = run_generalisation(cfg, GenFamily(), jobs=1, learned=("learned_adaptive",), policies=rows)
+    print_rows(res, cfg, tuple(rows))
     return 0
 
 

@@ -13,33 +13,25 @@ from __future__ import annotations
 
 import argparse
 import sys
-from multiprocessing import get_context
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
+for _p in (ROOT, ROOT / "benchmarks"):            # this checkout's package, and the sibling scripts' helpers
+    if str(_p) not in sys.path:
+        sys.path.insert(0, str(_p))
 
 KIND = {"tank": "tank", "integrating": "integrating", "fopdt": "first_order"}
-S_EST: dict = {}
 ROWS = ("knocker (S diagnosed)", "learned_adaptive (S diagnosed, frozen)", "learned_adaptive (S diagnosed, adapts)")
 
 
-def _diagnose(args) -> tuple[int, bool, float]:
-    i, t, op, pv, sp, kind = args
-    from valve_gym.diagnosis import diagnose
-    from valve_gym.diagnosis.recording import Recording
-
-    rec = Recording(t=t, op=op, pv=pv, sp=sp, name=f"gen{i}")
-    res = diagnose(rec, plant=kind, candidates=(), effort="fast")
-    v = res.stiction
-    S = float(v["S"]) if v["present"] and v["S"] is not None and np.isfinite(v["S"]) else 0.0
-    return i, bool(v["present"]), S
-
-
 def main(argv=None) -> int:
+    from multiprocessing import get_context
+
+    from adaptive_estimate_check import LoopRows, adaptive_row, print_rows
+    from learned_unseen_check import diagnosed_band
+
     import valve_gym.agents.bench.generalisation as gen
     from valve_gym.agents import load_controller
     from valve_gym.agents.bench.config import BenchConfig
@@ -55,43 +47,30 @@ def main(argv=None) -> int:
         run = gen._run_group(gen.GenSpec("PI (SIMC)", "pi", "pi"), loops, idx, float(scan))
         t = np.arange(run.pv.shape[0]) * float(scan)
         for j, i in enumerate(idx):
-            tasks.append((int(i), t, np.clip(run.op[:, j], 0.0, 1.0), run.pv[:, j], run.sp[:, j],
-                          KIND[str(loops.process[i])]))
+            tasks.append((t, np.clip(run.op[:, j], 0.0, 1.0), run.pv[:, j], run.sp[:, j], KIND[str(loops.process[i])]))
+    order = [int(i) for scan in np.unique(loops.scan_s) for i in np.flatnonzero(loops.scan_s == scan)]
     with get_context("fork").Pool(max(1, a.jobs)) as pool:
-        found = sorted(pool.imap_unordered(_diagnose, tasks))
-    called = np.array([f[1] for f in found])
-    S_hat = np.array([f[2] for f in found])
-    S_EST["S"] = np.maximum(S_hat, ESTIMATE_MIN)
+        found = pool.map(diagnosed_band, tasks)
+    called, S_hat = np.zeros(loops.n, bool), np.zeros(loops.n)
+    for i, (c, S) in zip(order, found):
+        called[i], S_hat[i] = c, S
     sticky = loops.band != "healthy"
     ok = called & sticky & (S_hat > 0)
     err = np.abs(S_hat[ok] / loops.S[ok] - 1.0)
     print(f"diagnosis of the PI's records: stiction called on {int((called & sticky).sum())} of {int(sticky.sum())} "
           f"sticky + severe loops and on {int((called & ~sticky).sum())} of {int((~sticky).sum())} healthy ones; "
           f"median |S_est / S - 1| = {np.median(err):.2f} over the {int(ok.sum())} called sticky loops")
+    S_est = np.maximum(S_hat, ESTIMATE_MIN)
 
-    base_controller, base_lineup = gen._controller, gen.gen_lineup
+    def diagnosed(loops, idx):
+        return S_est[idx]
 
-    def controller(spec, lp, idx, scan_s):
-        S = S_EST["S"][idx]
-        if spec.label == ROWS[0]:
-            return load_controller("knocker", Kc=lp.Kc[idx], Ti=lp.Ti[idx], scan_s=scan_s, S=S)
-        if spec.label in ROWS[1:]:
-            kw = {"S0": np.clip(S, 0.001, 0.06)}
-            if "frozen" in spec.label:
-                kw["eta"] = 0.01
-            return load_controller("learned_adaptive", Kc=lp.Kc[idx], Ti=lp.Ti[idx], scan_s=scan_s, **kw)
-        return base_controller(spec, lp, idx, scan_s)
-
-    def lineup(config, learned=("learned",)):
-        return base_lineup(config, learned) + tuple(gen.GenSpec(r, "knocker", "learned") for r in ROWS)
-
-    gen._controller, gen.gen_lineup = controller, lineup      # this process only (jobs=1 below)
+    rows = {ROWS[0]: LoopRows(lambda lp, idx, scan_s: load_controller("knocker", Kc=lp.Kc[idx], Ti=lp.Ti[idx],
+                                                                      scan_s=scan_s, S=S_est[idx])),
+            ROWS[1]: adaptive_row(diagnosed, frozen=True), ROWS[2]: adaptive_row(diagnosed, frozen=False)}
     cfg = BenchConfig()
-    res = gen.run_generalisation(cfg, gen.GenFamily(), jobs=1, learned=("learned_adaptive",))
-    keep = ("| controller", "|---", "| PI (SIMC)", "| knocker", "| learned_adaptive")
-    for line in gen.generalisation_markdown(res, cfg).split("Breakdown")[0].splitlines():
-        if line.startswith(keep) or (line.startswith("- ") and ("diagnosed" in line or "learned_adaptive:" in line)):
-            print(line)
+    res = gen.run_generalisation(cfg, gen.GenFamily(), jobs=1, learned=("learned_adaptive",), policies=rows)
+    print_rows(res, cfg, ROWS)
     return 0
 
 

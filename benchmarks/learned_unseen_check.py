@@ -203,7 +203,8 @@ def run(name: str, rows: list[dict], scan: float, Kc, Ti, frictionless: bool, du
     return Runs(name, "check", scan, np.broadcast_to(sp, (T, n)), lv + noise, lv, op, st)
 
 
-def _diagnose_one(args) -> tuple[bool, float]:
+def diagnosed_band(args) -> tuple[bool, float]:
+    """``(stiction called, diagnosed S)`` of one PI record ``(t, op, pv, sp, kind)``; ``S`` 0 when not called."""
     t, op, pv, sp, kind = args
     from valve_gym.diagnosis import diagnose
     from valve_gym.diagnosis.recording import Recording
@@ -228,7 +229,7 @@ def diagnose_loops(rows: list[dict], scans: np.ndarray, duration: float, jobs: i
             tasks.append((t, np.clip(r.op[:, j], 0.0, 1.0), r.pv[:, j], r.sp[:, j], DIAG_KIND[rows[i]["kind"]]))
             where.append(int(i))
     with get_context("fork").Pool(jobs) as pool:
-        found = pool.map(_diagnose_one, tasks)
+        found = pool.map(diagnosed_band, tasks)
     for i, (called, S) in zip(where, found):
         rows[i]["S_diag"], rows[i]["called"] = S, called
     sticky = np.array([r["S"] > 0.005 for r in rows])

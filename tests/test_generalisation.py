@@ -89,3 +89,34 @@ def test_quick_part_scores_every_row_with_the_benchmark_scores():
     r = {(x.controller, x.band, x.metric): x.estimate.value for x in res.summary}
     assert r[("PI (SIMC)", "sticky+severe", "R")] == 0.0
     assert r[("PI frictionless", "sticky+severe", "lc_share")] == 0.0
+
+
+def test_a_row_may_build_its_block_per_group_of_loops():
+    """``policies`` rows with ``for_loops(loops, idx, scan_s)`` get the loops' settings: a row that builds the
+    loops' own SIMC PI scores exactly as the PI row, and one that reads the loops' true S as the knocker's
+    estimate scores as the "(S known)" row."""
+    from valve_gym.agents import load_controller
+
+    class Rows:
+        def __init__(self, make):
+            self.make = make
+
+        def for_loops(self, loops, idx, scan_s):
+            return self.make(loops, idx, scan_s)
+
+    cfg = BenchConfig().quick_version()
+    fam = GenFamily(n_healthy=1, n_sticky=1, n_severe=1, duration_s=240.0, scans=(1.0,))
+    seen = []
+
+    def pi(loops, idx, scan_s):
+        seen.append(idx.copy())
+        return load_controller("pi", Kc=loops.Kc[idx], Ti=loops.Ti[idx], scan_s=scan_s)
+
+    def knocker(loops, idx, scan_s):
+        return load_controller("knocker", Kc=loops.Kc[idx], Ti=loops.Ti[idx], scan_s=scan_s,
+                               S=np.maximum(loops.S[idx], 0.001))
+
+    res = run_generalisation(cfg, fam, jobs=1, learned=(), policies={"my PI": Rows(pi), "my knocker": Rows(knocker)})
+    assert any(i.size == 3 for i in seen)                       # one block for the group of all three loops
+    for mine, theirs in (("my PI", "PI (SIMC)"), ("my knocker", "knocker (S known)")):
+        np.testing.assert_array_equal(res.scores[mine].iae_per_h, res.scores[theirs].iae_per_h)

@@ -278,9 +278,13 @@ class _UnseenLoopPlant:
 def _policy_controller(block, loops: GenLoops, idx: np.ndarray, scan_s: float):
     """One's own block on loops ``idx``.
 
-    A policy block runs one copy per loop with the loop's ``Kc``, ``Ti`` and scan
-    (:meth:`~valve_gym.agents.bench.policies.PolicyBlock.for_loop`); any other block as it is.
+    An object with ``for_loops(loops, idx, scan_s)`` builds the block of those loops itself (it may read
+    each loop's settings, e.g. a per-loop stiction estimate); a policy block runs one copy per loop with
+    the loop's ``Kc``, ``Ti`` and scan (:meth:`~valve_gym.agents.bench.policies.PolicyBlock.for_loop`);
+    any other block as it is.
     """
+    if hasattr(block, "for_loops"):
+        return block.for_loops(loops, idx, scan_s)
     if not hasattr(block, "for_loop"):
         return block
     blocks = [block.for_loop(float(loops.Kc[i]), float(loops.Ti[i]), scan_s) for i in idx]
@@ -415,7 +419,8 @@ def run_generalisation(config: BenchConfig, family: GenFamily = GenFamily(), job
     learned : tuple of str, optional
         Learned blocks to run (default: :func:`learned_names` when ``config.controllers.learned``, else none).
     policies : dict of str to block, optional
-        One's own rows (``valve-gym benchmark --policy``; one block per row label), after the learned rows.
+        One's own rows (``valve-gym benchmark --policy``; one block per row label, or an object with
+        ``for_loops(loops, idx, scan_s)`` that builds the block of loops ``idx``), after the learned rows.
 
     Returns
     -------
