@@ -29,6 +29,9 @@ Usage::
 for the thermal loop and the vessel), and the knocker and ``learned_adaptive`` get the diagnosed ``S`` where
 the verdict is stiction (``S0``; frozen or adapting), nothing elsewhere.
 
+The harness (:func:`tune`, :func:`run`, :func:`check_family`, :func:`print_table`) takes the family's simulator
+class (here :class:`Loops`): ``benchmarks/learned_third_check.py`` runs the third held-out family on it.
+
 ``--policy LABEL=FILE`` adds a row of one's own policy export (``valve_gym.agents.bench.policies.export_policy``,
 ``NAME.json`` + ``NAME.safetensors``), given each loop's tuning and scan as every other block
 (:meth:`~valve_gym.agents.bench.policies.PolicyBlock.for_loop`).
