@@ -67,11 +67,11 @@ Besides the second script's table it prints, for each row, the LC share and the 
 Under the PI alone (``--names pi``, the only controller run while the family was written), every force-balance
 and LuGre sticky loop but one stick-slips (median 8 slips of more than ``J / 2`` per hour), the PI's stem
 travels 0.18 of the frictionless PI's (median) and its IAE is 1.6 times the frictionless one's (median over the
-32 sticky loops). Its cycles are slow (10-20 min on the neutralisation and mixing loops), asymmetric on the
+32 sticky loops). Its cycles are slow (5-20 min on the neutralisation and mixing loops), asymmetric on the
 titration curve and jittered by the loads, so the benchmark's limit-cycle rule calls few of them regular (2 of
 32 in one hour, as many as under the frictionless PI, whose calls come from the sine and step loads): on this
-family ``R`` and the travel say more than the LC share. Without dead time (the tank, the flow loop) a sticky
-valve with ``J < S`` and the dead-band valve settle rather than cycle, as for any first-order loop under PI.
+family ``R`` and the travel say more than the LC share. On the loops without dead time (the tank, the flow
+loop) stiction shows more as irregular, noise-driven hunting than as a cycle.
 """
 from __future__ import annotations
 
