@@ -29,6 +29,9 @@ Usage::
 for the thermal loop and the vessel), and the knocker and ``learned_adaptive`` get the diagnosed ``S`` where
 the verdict is stiction (``S0``; frozen or adapting), nothing elsewhere.
 
+The harness (:func:`tune`, :func:`run`, :func:`check_family`, :func:`print_table`) takes the family's simulator
+class (here :class:`Loops`): ``benchmarks/learned_third_check.py`` runs the third held-out family on it.
+
 ``--policy LABEL=FILE`` adds a row of one's own policy export (``valve_gym.agents.bench.policies.export_policy``,
 ``NAME.json`` + ``NAME.safetensors``), given each loop's tuning and scan as every other block
 (:meth:`~valve_gym.agents.bench.policies.PolicyBlock.for_loop`).
@@ -143,12 +146,30 @@ class Loops:
             self.P = np.clip(self.P + h * (qin - self.k_v * self.P) / c["T1"], 0.0, 1.0)
         return self.pv(), self.x.copy()
 
+    @staticmethod
+    def disturbances(rows: list[dict], scan: float, T: int, duration: float) -> tuple[np.ndarray, np.ndarray]:
+        """``(noise (T, n), load (T, n))`` of ``T`` scans: white noise, a load step plus a random walk."""
+        rng = [np.random.default_rng(r["seed"]) for r in rows]
+        noise = np.stack([g.standard_normal(T) * r["noise"] for g, r in zip(rng, rows)], axis=1)
+        walk = np.cumsum(np.stack([g.standard_normal(T) * r["walk"] for g, r in zip(rng, rows)], axis=1), axis=0)
+        step = np.array([r["step"] for r in rows])[None, :] * (np.arange(T)[:, None] * scan
+                                                               >= np.array([r["t_step"] for r in rows]) * duration)
+        return noise, step + walk
 
-def tune(rows: list[dict], scan: float) -> tuple[np.ndarray, np.ndarray]:
-    """SIMC PI from an open-loop step of +0.05 on the frictionless loop (first-order fit, 63 % method)."""
-    sim = Loops(rows, scan, frictionless=True)
+    def measure(self, pv: np.ndarray, noise: np.ndarray) -> np.ndarray:
+        """What the controller reads: ``pv + noise``."""
+        return pv + noise
+
+
+def tune(sim_cls, rows: list[dict], scan: float, test_s: float = 1200.0) -> tuple[np.ndarray, np.ndarray]:
+    """SIMC PI from an open-loop step of +0.05 on the frictionless loop (first-order fit, 63 % method).
+
+    ``sim_cls(rows, scan, frictionless)``: the family's simulator (``reset``, ``step(op, load)``); ``test_s``:
+    length of the step test [s]. Returns ``(Kc, Ti)``, each ``(n,)``.
+    """
+    sim = sim_cls(rows, scan, frictionless=True)
     y0, _, x0 = sim.reset()
-    T = int(round(1200.0 / scan))
+    T = int(round(test_s / scan))
     ys = np.empty((T, sim.n))
     for k in range(T):
         ys[k], _ = sim.step(x0 + 0.05, np.zeros(sim.n))
@@ -164,18 +185,17 @@ def tune(rows: list[dict], scan: float) -> tuple[np.ndarray, np.ndarray]:
     return Tc / (np.abs(K) * (tc + theta)), np.minimum(Tc, 4.0 * (tc + theta))
 
 
-def run(name: str, rows: list[dict], scan: float, Kc, Ti, frictionless: bool, duration: float) -> Runs:
-    """One controller on the loops of one scan time."""
-    sim = Loops(rows, scan, frictionless)
+def run(sim_cls, name: str, rows: list[dict], scan: float, Kc, Ti, frictionless: bool, duration: float) -> Runs:
+    """One controller on the loops of one scan time, on the family's simulator ``sim_cls`` (see :func:`tune`).
+
+    ``sim_cls.disturbances(rows, scan, T, duration)`` gives the noise and load, ``sim.measure(pv, noise)`` what
+    the controller reads.
+    """
+    sim = sim_cls(rows, scan, frictionless)
     y, x, u0 = sim.reset()
     T = int(round(duration / scan))
     n = sim.n
-    rng = [np.random.default_rng(r["seed"]) for r in rows]
-    noise = np.stack([g.standard_normal(T) * r["noise"] for g, r in zip(rng, rows)], axis=1)
-    walk = np.cumsum(np.stack([g.standard_normal(T) * r["walk"] for g, r in zip(rng, rows)], axis=1), axis=0)
-    step = np.array([r["step"] for r in rows])[None, :] * (np.arange(T)[:, None] * scan
-                                                           >= np.array([r["t_step"] for r in rows]) * duration)
-    load = step + walk
+    noise, load = sim_cls.disturbances(rows, scan, T, duration)
     try:
         if name in DIAGNOSED:
             block, adapts = DIAGNOSED[name]
@@ -194,13 +214,14 @@ def run(name: str, rows: list[dict], scan: float, Kc, Ti, frictionless: bool, du
             blocks = [load_controller(name, Kc=float(a), Ti=float(b), scan_s=scan) for a, b in zip(Kc, Ti)]
             ctrl = ControllerBank(blocks, [np.array([i]) for i in range(n)], n)
     sp = y.copy()
-    ctrl.reset(sp, y + noise[0], u0)
-    lv, st, op = np.empty((T, n)), np.empty((T, n)), np.empty((T, n))
+    ctrl.reset(sp, sim.measure(y, noise[0]), u0)
+    lv, pv, st, op = np.empty((T, n)), np.empty((T, n)), np.empty((T, n)), np.empty((T, n))
     for k in range(T):
         lv[k], st[k] = y, x
-        op[k] = np.asarray(ctrl.step(sp, y + noise[k]), float)
+        pv[k] = sim.measure(y, noise[k])
+        op[k] = np.asarray(ctrl.step(sp, pv[k]), float)
         y, x = sim.step(op[k], load[k])
-    return Runs(name, "check", scan, np.broadcast_to(sp, (T, n)), lv + noise, lv, op, st)
+    return Runs(name, "check", scan, np.broadcast_to(sp, (T, n)), pv, lv, op, st)
 
 
 def diagnosed_band(args) -> tuple[bool, float]:
@@ -214,19 +235,23 @@ def diagnosed_band(args) -> tuple[bool, float]:
     return bool(v["present"]), float(v["S"]) if ok else 0.0
 
 
-def diagnose_loops(rows: list[dict], scans: np.ndarray, duration: float, jobs: int = 2) -> None:
-    """Record every loop under its PI, diagnose the record, store the diagnosed ``S`` as ``row['S_diag']``."""
+def diagnose_loops(sim_cls, rows: list[dict], scans: np.ndarray, duration: float, diag_kind: dict,
+                   jobs: int = 2) -> None:
+    """Record every loop under its PI, diagnose the record, store the diagnosed ``S`` as ``row['S_diag']``.
+
+    ``diag_kind``: the process kind given to the diagnosis for each plant kind of the family.
+    """
     from multiprocessing import get_context
 
     tasks, where = [], []
     for scan in np.unique(scans):
         idx = np.flatnonzero(scans == scan)
         sub = [rows[i] for i in idx]
-        Kc, Ti = tune(sub, float(scan))
-        r = run("pi", sub, float(scan), Kc, Ti, False, duration)
+        Kc, Ti = tune(sim_cls, sub, float(scan))
+        r = run(sim_cls, "pi", sub, float(scan), Kc, Ti, False, duration)
         t = np.arange(r.pv.shape[0]) * float(scan)
         for j, i in enumerate(idx):
-            tasks.append((t, np.clip(r.op[:, j], 0.0, 1.0), r.pv[:, j], r.sp[:, j], DIAG_KIND[rows[i]["kind"]]))
+            tasks.append((t, np.clip(r.op[:, j], 0.0, 1.0), r.pv[:, j], r.sp[:, j], diag_kind[rows[i]["kind"]]))
             where.append(int(i))
     with get_context("fork").Pool(jobs) as pool:
         found = pool.map(diagnosed_band, tasks)
@@ -241,6 +266,70 @@ def diagnose_loops(rows: list[dict], scans: np.ndarray, duration: float, jobs: i
           f"|S_est / S - 1| = {np.median(err) if err else float('nan'):.2f} over {int(ok.sum())}", flush=True)
 
 
+def check_family(sim_cls, rows: list[dict], names: list[str], duration: float, cfg: BenchConfig | None = None,
+                 test_s: float = 1200.0) -> dict[str, dict[str, np.ndarray]]:
+    """Every controller of ``names`` and the frictionless PI on every loop of ``rows`` (one group per scan).
+
+    Parameters
+    ----------
+    sim_cls : the family's simulator class (see :func:`tune` and :func:`run`)
+    rows : list of dict, one per loop (``scan`` [s], ``tau_p`` [s] and what ``sim_cls`` reads)
+    names : controller names (``load_controller``), :data:`POLICIES` labels or :data:`DIAGNOSED` labels
+    duration : float, s, record length
+    cfg : BenchConfig, optional, the scores' settings (default ``BenchConfig()``)
+    test_s : float, s, length of the tuning step test
+
+    Returns
+    -------
+    dict
+        Row label (``"PI frictionless"`` first, then ``names``) -> per-loop scores, each ``(n,)``: ``lc``
+        (limit cycle present), ``amp`` (its amplitude, pv units), ``iae`` (per hour), ``travel`` (strokes per
+        hour), ``offset`` (abs. mean error).
+    """
+    cfg = BenchConfig() if cfg is None else cfg
+    n = len(rows)
+    scans = np.array([r["scan"] for r in rows])
+    res = {}
+    for label, name, fr in [("PI frictionless", "pi", True)] + [(nm, nm, False) for nm in names]:
+        per = {f: np.empty(n) for f in ("lc", "amp", "iae", "travel", "offset")}
+        for scan in np.unique(scans):
+            idx = np.flatnonzero(scans == scan)
+            sub = [rows[i] for i in idx]
+            Kc, Ti = tune(sim_cls, sub, float(scan), test_s)
+            sc = score_runs(run(sim_cls, name, sub, float(scan), Kc, Ti, fr, duration), cfg)
+            per["lc"][idx], per["amp"][idx], per["iae"][idx] = sc.lc_present, sc.lc_amplitude, sc.iae_per_h
+            per["travel"][idx], per["offset"][idx] = sc.travel_per_h, np.abs(sc.offset)
+        res[label] = per
+    return res
+
+
+def print_table(res: dict[str, dict[str, np.ndarray]], sticky: np.ndarray) -> None:
+    """The check's table (markdown): one row per controller of ``res`` (:func:`check_family`), ``sticky`` (n,) bool."""
+    pi, fr0 = res["pi"], res["PI frictionless"]
+    print("| controller | LC share | mean LC amp. [pv x1000] | median R | travel / frictionless PI | "
+          "median abs. offset [pv x1000] | healthy IAE / PI |")
+    print("|---|---|---|---|---|---|---|")
+    for label, p in res.items():
+        R = compensation_ratio(pi["iae"], p["iae"], fr0["iae"])
+        print(f"| {label} | {p['lc'][sticky].mean():.2f} | {1000 * p['amp'][sticky].mean():.2f} | "
+              f"{np.median(R[sticky]):.2f} | {np.median(p['travel'][sticky] / fr0['travel'][sticky]):.2f} | "
+              f"{1000 * np.median(p['offset'][sticky]):.2f} | "
+              f"{np.median(p['iae'][~sticky] / pi['iae'][~sticky]):.2f} |")
+
+
+def add_policies(ap: argparse.ArgumentParser, items: list[str], names: list[str]) -> None:
+    """Register each ``--policy LABEL=FILE`` of ``items`` in :data:`POLICIES` and append its label to ``names``."""
+    from valve_gym.agents.bench.policies import as_block
+
+    for item in items:
+        label, sep, path = item.partition("=")
+        if not sep or not label or not path:
+            ap.error(f"--policy takes LABEL=FILE (e.g. ppo_family=valve_gym/agents/policies/rl_family/ppo_seed0.json), "
+                     f"got {item!r}")
+        POLICIES[label] = as_block(path, name=label)
+        names.append(label)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     ap.add_argument("--n", type=int, default=36, help="loops (every third healthy)")
@@ -251,46 +340,19 @@ def main(argv=None) -> int:
     ap.add_argument("--policy", action="append", default=[], metavar="LABEL=FILE",
                     help="a policy export as one more row (repeatable)")
     a = ap.parse_args(argv)
-    from valve_gym.agents.bench.policies import as_block
-
-    for item in a.policy:
-        label, sep, path = item.partition("=")
-        if not sep or not label or not path:
-            ap.error(f"--policy takes LABEL=FILE (e.g. ppo_family=valve_gym/agents/policies/rl_family/ppo_seed0.json), "
-                     f"got {item!r}")
-        POLICIES[label] = as_block(path, name=label)
-        a.names.append(label)
+    add_policies(ap, a.policy, a.names)
     t0 = time.perf_counter()
     rows = draw(a.n, a.seed)
     cfg = BenchConfig()
     scans = np.array([r["scan"] for r in rows])
     sticky = np.array([r["S"] > 0.005 for r in rows])
     if a.diagnosed:
-        diagnose_loops(rows, scans, a.duration)
+        diagnose_loops(Loops, rows, scans, a.duration, DIAG_KIND)
         a.names += list(DIAGNOSED)
-    res = {}
-    for label, name, fr in [("PI frictionless", "pi", True)] + [(nm, nm, False) for nm in a.names]:
-        per = {f: np.empty(a.n) for f in ("lc", "amp", "iae", "travel", "offset")}
-        for scan in np.unique(scans):
-            idx = np.flatnonzero(scans == scan)
-            sub = [rows[i] for i in idx]
-            Kc, Ti = tune(sub, float(scan))
-            sc = score_runs(run(name, sub, float(scan), Kc, Ti, fr, a.duration), cfg)
-            per["lc"][idx], per["amp"][idx], per["iae"][idx] = sc.lc_present, sc.lc_amplitude, sc.iae_per_h
-            per["travel"][idx], per["offset"][idx] = sc.travel_per_h, np.abs(sc.offset)
-        res[label] = per
-    pi, fr0 = res["pi"], res["PI frictionless"]
+    res = check_family(Loops, rows, a.names, a.duration, cfg)
     print(f"{a.n} loops ({int(sticky.sum())} sticky, S 1-9 %), seed {a.seed}, {a.duration:g} s, "
           f"{time.perf_counter() - t0:.0f} s")
-    print("| controller | LC share | mean LC amp. [pv x1000] | median R | travel / frictionless PI | "
-          "median abs. offset [pv x1000] | healthy IAE / PI |")
-    print("|---|---|---|---|---|---|---|")
-    for label, p in res.items():
-        R = compensation_ratio(pi["iae"], p["iae"], fr0["iae"])
-        print(f"| {label} | {p['lc'][sticky].mean():.2f} | {1000 * p['amp'][sticky].mean():.2f} | "
-              f"{np.median(R[sticky]):.2f} | {np.median(p['travel'][sticky] / fr0['travel'][sticky]):.2f} | "
-              f"{1000 * np.median(p['offset'][sticky]):.2f} | "
-              f"{np.median(p['iae'][~sticky] / pi['iae'][~sticky]):.2f} |")
+    print_table(res, sticky)
     return 0
 
 
