@@ -89,12 +89,14 @@ for _p in (_HERE.parent, _HERE):                 # this checkout's package, and 
     if str(_p) not in sys.path:
         sys.path.insert(0, str(_p))
 
-from learned_unseen_check import add_policies, check_family, print_table  # noqa: E402
+from learned_unseen_check import DIAGNOSED, KNOWN, add_policies, check_family, diagnose_loops, print_table  # noqa: E402
 
 from valve_gym.agents.bench.scores import compensation_ratio  # noqa: E402
 
 KINDS = ("cone", "mixing", "neutral", "flow")
 VALVE_KINDS = ("force_balance", "lugre", "dead_band")
+#: The process kind an engineer would give the diagnosis for each plant (``--diagnosed``).
+DIAG_KIND = {"cone": "tank", "mixing": "first_order", "neutral": "first_order", "flow": "first_order"}
 LOAD_KINDS = ("ou", "walk", "sine", "step")
 SCANS = (0.25, 1.5, 4.0)
 #: Plant sub-step [s]; valve sub-steps [s] of the force balance and of LuGre.
@@ -405,6 +407,10 @@ def main(argv=None) -> int:
     ap.add_argument("--names", nargs="+", default=["pi", "knocker", "learned", "learned_adaptive"])
     ap.add_argument("--policy", action="append", default=[], metavar="LABEL=FILE",
                     help="a policy export as one more row (repeatable)")
+    ap.add_argument("--diagnosed", action="store_true",
+                    help="add the rows that get the S diagnosed in each loop's PI record (as the second script)")
+    ap.add_argument("--known", action="store_true",
+                    help="add the knocker and learned_adaptive (frozen) given each loop's true S (a diagnostic)")
     a = ap.parse_args(argv)
     if a.n < 1 or a.duration <= 0:
         ap.error(f"--n must be >= 1 and --duration > 0, got --n {a.n} --duration {a.duration}")
@@ -414,6 +420,11 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     rows = draw(a.n, a.seed)
     sticky = np.array([r["S"] >= HEALTHY_S for r in rows])
+    if a.diagnosed:
+        diagnose_loops(ThirdLoops, rows, np.array([r["scan"] for r in rows]), a.duration, DIAG_KIND)
+        a.names += list(DIAGNOSED)
+    if a.known:
+        a.names += list(KNOWN)
     res = check_family(ThirdLoops, rows, a.names, a.duration, test_s=TEST_S)
     print(f"{a.n} loops ({int(sticky.sum())} sticky, S 0.5-10 %), seed {a.seed}, {a.duration:g} s, "
           f"{time.perf_counter() - t0:.0f} s")

@@ -58,6 +58,9 @@ VALVE_KINDS = ("he2007", "stenman")
 DIAGNOSED = {"knocker (S diagnosed)": ("knocker", None), "learned_adaptive (S diagnosed, adapts)":
              ("learned_adaptive", True), "learned_adaptive (S diagnosed, frozen)": ("learned_adaptive", False)}
 DIAG_KIND = {"cascade": "cascade", "thermal": "first_order", "vessel": "first_order"}
+#: ``--known`` rows (a diagnostic, not a block a plant could run): label -> (block, whether its estimate adapts),
+#: given each loop's true ``S`` as the benchmark's "(S known)" rows are.
+KNOWN = {"knocker (S known)": ("knocker", None), "learned_adaptive (S known, frozen)": ("learned_adaptive", False)}
 
 
 def draw(n: int, seed: int) -> list[dict]:
@@ -197,9 +200,9 @@ def run(sim_cls, name: str, rows: list[dict], scan: float, Kc, Ti, frictionless:
     n = sim.n
     noise, load = sim_cls.disturbances(rows, scan, T, duration)
     try:
-        if name in DIAGNOSED:
-            block, adapts = DIAGNOSED[name]
-            S = np.maximum([r["S_diag"] for r in rows], 0.001)
+        if name in DIAGNOSED or name in KNOWN:
+            block, adapts = DIAGNOSED[name] if name in DIAGNOSED else KNOWN[name]
+            S = np.maximum([r["S_diag" if name in DIAGNOSED else "S"] for r in rows], 0.001)
             kw = {"S": S} if adapts is None else {"S0": np.clip(S, 0.001, 0.06), **({} if adapts else {"eta": 0.01})}
             ctrl = load_controller(block, Kc=Kc, Ti=Ti, scan_s=scan, **kw)
         elif name in POLICIES:

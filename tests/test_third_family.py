@@ -68,3 +68,24 @@ def test_the_second_familys_harness_runs_its_own_simulator(repo_module):
     res = second.check_family(second.Loops, rows, ["pi"], 600.0)
     assert list(res) == ["PI frictionless", "pi"]
     assert all(np.isfinite(v).all() for p in res.values() for v in p.values())
+
+
+def test_known_rows_hand_each_loop_its_true_band(third, monkeypatch):
+    """The ``--known`` rows build their blocks with each loop's own ``S`` (knocker: ``S``; adaptive: ``S0``, frozen)."""
+    harness = third.check_family.__module__
+    mod = __import__(harness)
+    seen = {}
+
+    def spy(name, **kw):
+        seen.setdefault(name, kw)
+        return real(name, **kw)
+
+    real = mod.load_controller
+    monkeypatch.setattr(mod, "load_controller", spy)
+    rows = [r for r in third.draw(12, 5) if r["scan"] == third.draw(12, 5)[0]["scan"]][:3]
+    res = third.check_family(third.ThirdLoops, rows, ["pi", *third.KNOWN], 120.0, test_s=third.TEST_S)
+    S = np.array([r["S"] for r in rows])
+    np.testing.assert_allclose(seen["knocker"]["S"], np.maximum(S, 0.001))
+    np.testing.assert_allclose(seen["learned_adaptive"]["S0"], np.clip(S, 0.001, 0.06))
+    assert seen["learned_adaptive"]["eta"] == 0.01
+    assert all(np.isfinite(v).all() for label in third.KNOWN for v in res[label].values())
