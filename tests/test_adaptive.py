@@ -94,3 +94,34 @@ def test_tiny_training_is_bit_reproducible():
     b, _ = train_adaptive(cfg)
     assert a.tobytes() == b.tobytes()
     assert not np.array_equal(a, np.asarray(cfg.init))     # the update moved the numbers
+
+
+def test_travel_rule_is_checked_and_only_moves_the_travel_term():
+    from valve_gym.agents.adaptive_train import draw_loops, evaluate
+    from valve_gym.config import ConfigError
+
+    with pytest.raises(ConfigError, match="travel_rule"):
+        AdaptiveTrainConfig(travel_rule="mean")
+    with pytest.raises(ConfigError, match="travel_limit"):
+        AdaptiveTrainConfig(travel_limit=0.0)
+    base = AdaptiveTrainConfig(loops=4, episode_s=300.0, w_travel=0.0)
+    loops = draw_loops(base, 0)
+    P = to_params(np.vstack([to_z(base.init), to_z(base.init) + 0.5]))
+    f = {rule: evaluate(loops, P, AdaptiveTrainConfig(loops=4, episode_s=300.0, w_travel=0.0, travel_rule=rule))
+         for rule in ("per_loop", "median")}
+    np.testing.assert_array_equal(f["per_loop"], f["median"])      # without a travel weight the rule is moot
+    charged = evaluate(loops, P, AdaptiveTrainConfig(loops=4, episode_s=300.0, travel_rule="median",
+                                                     travel_limit=1e-6))
+    assert np.all(charged < f["median"])          # a limit no valve meets is charged
+
+
+def test_shipped_file_records_its_objective_and_the_first_file_still_loads(repo_module):
+    meta = json.loads(DEFAULT_ADAPTIVE.read_text())
+    assert meta["config"]["travel_rule"] == "median" and meta["config"]["travel_limit"] == 1.5
+    first = DEFAULT_ADAPTIVE.parents[3] / "benchmarks" / "data" / "adaptive_first_objective.json"
+    blk = load_adaptive(first)
+    assert blk.p["beta"] == pytest.approx(0.536, abs=1e-3)
+    val = repo_module("benchmarks/adaptive_validation.py", "adaptive_validation")
+    with pytest.raises(SystemExit) as exc:
+        val.main([str(first), "--vary", "beta=9"])
+    assert exc.value.code == 2

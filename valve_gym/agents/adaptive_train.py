@@ -25,6 +25,9 @@ Fitness of a parameter vector (higher is better), against the plain PI on the sa
     f = -mean_sticky log(IAE / IAE_PI) - w_h mean_healthy max(0, log(IAE / IAE_PI))
         - w_lc mean_sticky (lc - lc_PI) - w_t mean max(0, log(travel / (1.3 travel_frictionless PI)))
 
+(``travel_rule: median``: the last term is ``w_t [max(0, median_sticky log(travel / (L travel_frictionless PI)))
++ mean_healthy max(0, log(travel / (L travel_frictionless PI)))]`` with ``L = travel_limit``.)
+
 (``lc``: the benchmark's ACF limit-cycle detector on the measured error). Bit-reproducible from the
 configuration and the seed (numpy only, one thread).
 """
@@ -69,6 +72,12 @@ class AdaptiveTrainConfig:
         Perturbation scale and Adam step in ``z`` space.
     w_healthy, w_lc, w_travel : float
         Fitness weights (module docstring).
+    travel_rule : {"per_loop", "median"}
+        How travel is charged: ``"per_loop"``, every loop's excess over ``travel_limit`` times the
+        frictionless PI's travel; ``"median"``, the sticky loops' median ratio over ``travel_limit`` (the
+        benchmark's travel target) plus each healthy loop's excess (wear on a sound valve).
+    travel_limit : float
+        The travel allowed, over the frictionless PI's (> 0).
     init : tuple of float
         Starting values of the ten numbers (in their ranges).
     """
@@ -83,6 +92,8 @@ class AdaptiveTrainConfig:
     w_healthy: float = 2.0
     w_lc: float = 1.0
     w_travel: float = 1.0
+    travel_rule: str = "median"
+    travel_limit: float = 1.5
     init: tuple[float, ...] = (0.5, 0.25, 0.3, 0.9, 0.05, 0.01, 3.0, 1.0, 0.1, 3.0)
 
     def __post_init__(self):
@@ -93,6 +104,11 @@ class AdaptiveTrainConfig:
             raise ConfigError("episode_s must be >= 60 s, sigma and learning_rate > 0")
         if min(self.w_healthy, self.w_lc, self.w_travel) < 0:
             raise ConfigError("w_healthy, w_lc and w_travel must be >= 0")
+        if self.travel_rule not in ("per_loop", "median"):
+            raise ConfigError(f"travel_rule must be 'per_loop' or 'median', got {self.travel_rule!r}")
+        if not (isinstance(self.travel_limit, (int, float)) and math.isfinite(self.travel_limit)
+                and self.travel_limit > 0):
+            raise ConfigError(f"travel_limit must be a number > 0, got {self.travel_limit!r}")
         v = np.asarray(self.init, float)
         if v.shape != (len(PARAMS),) or np.any(v <= _LO) or np.any(v >= _HI):
             raise ConfigError(f"init must be {len(PARAMS)} numbers strictly inside their ranges "
@@ -298,8 +314,14 @@ def evaluate(loops: TrainLoops, P: np.ndarray, cfg: AdaptiveTrainConfig) -> np.n
     f = -np.where(healthy, 0.0, lr).sum(1) / max((~healthy).sum(), 1)
     f -= cfg.w_healthy * np.where(healthy, np.maximum(lr, 0.0), 0.0).sum(1) / max(healthy.sum(), 1)
     f -= cfg.w_lc * np.where(healthy, 0.0, lc[:m] - lc[m]).sum(1) / max((~healthy).sum(), 1)
-    ratio = np.maximum(trav[:m], 1e-12) / (1.3 * np.maximum(trav[m + 1], 1e-9))
-    f -= cfg.w_travel * np.maximum(np.log(ratio), 0.0).mean(1)
+    excess = np.log(np.maximum(trav[:m], 1e-12) / (cfg.travel_limit * np.maximum(trav[m + 1], 1e-9)))
+    if cfg.travel_rule == "per_loop":
+        f -= cfg.w_travel * np.maximum(excess, 0.0).mean(1)
+    else:
+        sticky = ~healthy
+        med = np.median(excess[:, sticky], axis=1) if sticky.any() else np.zeros(m)
+        f -= cfg.w_travel * (np.maximum(med, 0.0)
+                             + np.where(healthy, np.maximum(excess, 0.0), 0.0).sum(1) / max(healthy.sum(), 1))
     return f
 
 
