@@ -32,25 +32,12 @@ FIRST = 5000
 VALIDATION_SEED = 38
 
 
-def scores(P: np.ndarray, loops) -> dict:
-    """Per-loop IAE, travel and limit cycle of the columns ``P`` (m, 10), the PI and the frictionless PI."""
-    from valve_gym.agents.adaptive_train import rollout
-    from valve_gym.oscillation import detect_oscillation
+def _median(x) -> str:
+    return f"{np.median(x):.2f}" if np.size(x) else "n/a (no such loops in these draws)"
 
-    pi = np.array([[0.0, 0.0, 0.3, 0.9, 0.05, 0.01, 3.0, 1.0, 0.1, 3.0]])
-    cols = np.vstack([P, pi, pi])
-    fr = np.zeros(len(cols), bool)
-    fr[-1] = True
-    m, n = len(cols), len(loops.rows)
-    iae, trav, lc = np.zeros((m, n)), np.zeros((m, n)), np.zeros((m, n), bool)
-    for scan in (0.5, 1.0, 2.0):
-        r = rollout(loops, cols, fr, scan)
-        if r["idx"].size == 0:
-            continue
-        iae[:, r["idx"]], trav[:, r["idx"]] = r["iae"], r["travel"]
-        for j, i in enumerate(r["idx"]):
-            lc[:, i] = [detect_oscillation(r["e"][:, c, j], scan, "benchmark").present for c in range(m)]
-    return {"iae": iae, "travel": trav, "lc": lc}
+
+def _mean(x) -> str:
+    return f"{np.mean(x):.2f}" if np.size(x) else "n/a"
 
 
 def main(argv=None) -> int:
@@ -65,8 +52,8 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     if a.generations < 1 or a.loops < 1:
         ap.error("--generations and --loops must be >= 1")
+    from valve_gym.agents import adaptive_train as at
     from valve_gym.agents.adaptive import DEFAULT_ADAPTIVE, load_adaptive
-    from valve_gym.agents.adaptive_train import AdaptiveTrainConfig, draw_loops, evaluate, load_train_config
     from valve_gym.agents.bench.scores import compensation_ratio
     from valve_gym.agents.controllers.adaptive import PARAM_NAMES, PARAMS
 
@@ -97,16 +84,16 @@ def main(argv=None) -> int:
     from valve_gym.config import ConfigError
 
     try:
-        base = load_train_config(a.config) if Path(a.config).is_file() else AdaptiveTrainConfig()
+        base = at.load_train_config(a.config) if Path(a.config).is_file() else at.AdaptiveTrainConfig()
     except ConfigError as exc:
         ap.error(str(exc))
     cfg = replace(base, loops=a.loops, seed=VALIDATION_SEED)
     fit, per = [], []
     for g in range(FIRST, FIRST + a.generations):
-        loops = draw_loops(cfg, g)
-        fit.append(evaluate(loops, P, cfg))
-        s = scores(P, loops)
-        s["sticky"] = np.array([r["band"] != "healthy" for r in loops.rows])
+        loops = at.draw_loops(cfg, g)
+        fit.append(at.evaluate(loops, P, cfg))
+        s = at.score_columns(loops, P)
+        s["sticky"] = ~s["healthy"]
         per.append(s)
         print(f"draw {g}: fitness " + " ".join(f"{x:+.3f}" for x in fit[-1]), file=sys.stderr, flush=True)
     iae = np.concatenate([s["iae"] for s in per], axis=1)
@@ -119,9 +106,9 @@ def main(argv=None) -> int:
     print("|---|---|---|---|---|---|")
     for c, f in enumerate(labels):
         R = compensation_ratio(iae[m, sticky], iae[c, sticky], iae[m + 1, sticky])
-        print(f"| {f} | {np.mean([x[c] for x in fit]):+.3f} | {np.median(R):.2f} | {lc[c, sticky].mean():.2f} "
-              f"({lc[m, sticky].mean():.2f}) | {np.median(trav[c, sticky] / trav[m + 1, sticky]):.2f} | "
-              f"{np.median(iae[c, ~sticky] / iae[m, ~sticky]):.2f} |")
+        print(f"| {f} | {np.mean([x[c] for x in fit]):+.3f} | {_median(R)} | {_mean(lc[c, sticky])} "
+              f"({_mean(lc[m, sticky])}) | {_median(trav[c, sticky] / trav[m + 1, sticky])} | "
+              f"{_median(iae[c, ~sticky] / iae[m, ~sticky])} |")
     return 0
 
 

@@ -50,11 +50,13 @@ from valve_gym.signals import ou_sequence
 from .controllers.adaptive import PARAM_NAMES, PARAMS
 
 __all__ = ["AdaptiveTrainConfig", "TrainLoops", "draw_loops", "draw_loop", "train_adaptive", "to_params", "to_z",
-           "main"]
+           "score_columns", "PI_COLUMN", "main"]
 
 _LO = np.array([p[2] for p in PARAMS])
 _HI = np.array([p[3] for p in PARAMS])
 FRICTION = ("riihilahti", "choudhury", "kano")
+#: The block's numbers that make it the plain PI (no reinforcement, no pulses): the reference column.
+PI_COLUMN = np.array([0.0, 0.0, 0.3, 0.9, 0.05, 0.01, 3.0, 1.0, 0.1, 3.0])
 KINDS = ("tank", "integrating", "first_order")
 
 
@@ -291,25 +293,40 @@ def rollout(loops: TrainLoops, P: np.ndarray, frictionless: np.ndarray, scan: fl
             "e": e.reshape(T, reps, n)}
 
 
-def evaluate(loops: TrainLoops, P: np.ndarray, cfg: AdaptiveTrainConfig) -> np.ndarray:
-    """Fitness of each row of ``P`` (m, 7) on ``loops`` (module docstring), against the PI run beside them."""
+def score_columns(loops: TrainLoops, P: np.ndarray) -> dict:
+    """Per-loop scores of the columns ``P`` (m, 10), then the plain PI and the frictionless PI beside them.
+
+    Returns
+    -------
+    dict with ``iae``, ``travel`` and ``lc`` (m + 2, n): rows ``0..m-1`` the columns, ``m`` the plain PI
+    (:data:`PI_COLUMN`), ``m + 1`` the PI on the frictionless valve; ``lc`` 1.0 where the benchmark's
+    detector finds a limit cycle in the measured error (sticky loops only, 0 on healthy ones); and
+    ``healthy`` (n,) bool.
+    """
     from valve_gym.oscillation import detect_oscillation
 
-    pi = np.array([[0.0, 0.0, 0.3, 0.9, 0.05, 0.01, 3.0, 1.0, 0.1, 3.0]])
-    cols = np.vstack([P, pi, pi])
+    cols = np.vstack([P, PI_COLUMN, PI_COLUMN])
     fr = np.zeros(len(cols), bool)
     fr[-1] = True
-    m, n = P.shape[0], len(loops.rows)
-    iae, trav, lc = np.zeros((m + 2, n)), np.zeros((m + 2, n)), np.zeros((m + 1, n))
+    c, n = len(cols), len(loops.rows)
+    iae, trav, lc = np.zeros((c, n)), np.zeros((c, n)), np.zeros((c, n))
+    healthy = np.array([r["band"] == "healthy" for r in loops.rows])
     for scan in (0.5, 1.0, 2.0):
         r = rollout(loops, cols, fr, scan)
         if r["idx"].size == 0:
             continue
         iae[:, r["idx"]], trav[:, r["idx"]] = r["iae"], r["travel"]
         for j, i in enumerate(r["idx"]):
-            if loops.rows[i]["band"] != "healthy":
-                lc[:, i] = [detect_oscillation(r["e"][:, c, j], scan, "benchmark").present for c in range(m + 1)]
-    healthy = np.array([r["band"] == "healthy" for r in loops.rows])
+            if not healthy[i]:
+                lc[:, i] = [detect_oscillation(r["e"][:, k, j], scan, "benchmark").present for k in range(c)]
+    return {"iae": iae, "travel": trav, "lc": lc, "healthy": healthy}
+
+
+def evaluate(loops: TrainLoops, P: np.ndarray, cfg: AdaptiveTrainConfig) -> np.ndarray:
+    """Fitness of each row of ``P`` (m, 10) on ``loops`` (module docstring), against the PI run beside them."""
+    sc = score_columns(loops, P)
+    iae, trav, lc, healthy = sc["iae"], sc["travel"], sc["lc"], sc["healthy"]
+    m = P.shape[0]
     lr = np.log(iae[:m] / iae[m])
     f = -np.where(healthy, 0.0, lr).sum(1) / max((~healthy).sum(), 1)
     f -= cfg.w_healthy * np.where(healthy, np.maximum(lr, 0.0), 0.0).sum(1) / max(healthy.sum(), 1)
