@@ -50,3 +50,9 @@ def test_slug_is_githubs():
     assert slug(" Effect naming on another simulator") == "effect-naming-on-another-simulator"
     assert slug(" Proof 2 — concealed-effect suites") == "proof-2--concealed-effect-suites"
     assert slug(" Fleet mode (`valve_gym/fleet/`)") == "fleet-mode-valve_gymfleet"
+
+
+def test_changelog_has_no_relative_links():
+    """CHANGELOG.md is read on GitHub from the root and included in the docs site (docs/changelog.md), where a
+    relative link means another folder: it names pages in backticks instead."""
+    assert links(ROOT / "CHANGELOG.md") == []
