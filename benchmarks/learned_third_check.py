@@ -75,7 +75,6 @@ loop) stiction shows more as irregular, noise-driven hunting than as a cycle.
 """
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 import time
@@ -89,7 +88,14 @@ for _p in (_HERE.parent, _HERE):                 # this checkout's package, and 
     if str(_p) not in sys.path:
         sys.path.insert(0, str(_p))
 
-from learned_unseen_check import DIAGNOSED, KNOWN, add_policies, check_family, diagnose_loops, print_table  # noqa: E402
+from learned_unseen_check import (  # noqa: E402
+    DIAGNOSED,
+    KNOWN,
+    check_family,
+    diagnose_loops,
+    family_args,
+    print_table,
+)
 
 from valve_gym.agents.bench.scores import compensation_ratio  # noqa: E402
 
@@ -400,23 +406,7 @@ def print_breakdown(res: dict, rows: list[dict], sticky: np.ndarray) -> None:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    ap.add_argument("--n", type=int, default=48, help="loops (every third healthy)")
-    ap.add_argument("--seed", type=int, default=2718)
-    ap.add_argument("--duration", type=float, default=3600.0, help="record length [s]")
-    ap.add_argument("--names", nargs="+", default=["pi", "knocker", "learned", "learned_adaptive"])
-    ap.add_argument("--policy", action="append", default=[], metavar="LABEL=FILE",
-                    help="a policy export as one more row (repeatable)")
-    ap.add_argument("--diagnosed", action="store_true",
-                    help="add the rows that get the S diagnosed in each loop's PI record (as the second script)")
-    ap.add_argument("--known", action="store_true",
-                    help="add the knocker and learned_adaptive (frozen) given each loop's true S (a diagnostic)")
-    a = ap.parse_args(argv)
-    if a.n < 1 or a.duration <= 0:
-        ap.error(f"--n must be >= 1 and --duration > 0, got --n {a.n} --duration {a.duration}")
-    if "pi" not in a.names:
-        a.names.insert(0, "pi")                      # the reference of R
-    add_policies(ap, a.policy, a.names)
+    a = family_args(__doc__, 48, 2718, argv)
     t0 = time.perf_counter()
     rows = draw(a.n, a.seed)
     sticky = np.array([r["S"] >= HEALTHY_S for r in rows])

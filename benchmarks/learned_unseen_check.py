@@ -292,14 +292,16 @@ def check_family(sim_cls, rows: list[dict], names: list[str], duration: float, c
     cfg = BenchConfig() if cfg is None else cfg
     n = len(rows)
     scans = np.array([r["scan"] for r in rows])
+    groups = []                                     # (scan, loop indices, their rows, Kc, Ti): tuned once
+    for scan in np.unique(scans):
+        idx = np.flatnonzero(scans == scan)
+        sub = [rows[i] for i in idx]
+        groups.append((float(scan), idx, sub, *tune(sim_cls, sub, float(scan), test_s)))
     res = {}
     for label, name, fr in [("PI frictionless", "pi", True)] + [(nm, nm, False) for nm in names]:
         per = {f: np.empty(n) for f in ("lc", "amp", "iae", "travel", "offset")}
-        for scan in np.unique(scans):
-            idx = np.flatnonzero(scans == scan)
-            sub = [rows[i] for i in idx]
-            Kc, Ti = tune(sim_cls, sub, float(scan), test_s)
-            sc = score_runs(run(sim_cls, name, sub, float(scan), Kc, Ti, fr, duration), cfg)
+        for scan, idx, sub, Kc, Ti in groups:
+            sc = score_runs(run(sim_cls, name, sub, scan, Kc, Ti, fr, duration), cfg)
             per["lc"][idx], per["amp"][idx], per["iae"][idx] = sc.lc_present, sc.lc_amplitude, sc.iae_per_h
             per["travel"][idx], per["offset"][idx] = sc.travel_per_h, np.abs(sc.offset)
         res[label] = per
@@ -333,17 +335,32 @@ def add_policies(ap: argparse.ArgumentParser, items: list[str], names: list[str]
         names.append(label)
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    ap.add_argument("--n", type=int, default=36, help="loops (every third healthy)")
-    ap.add_argument("--seed", type=int, default=913)
+def family_args(doc: str | None, n: int, seed: int, argv=None) -> argparse.Namespace:
+    """The command line of a held-out family's script: ``--n``, ``--seed``, ``--duration``, ``--names``,
+    ``--policy`` (registered in :data:`POLICIES`), ``--diagnosed`` and ``--known``; ``pi``, the reference of R,
+    is always among the names."""
+    ap = argparse.ArgumentParser(description=(doc or "").splitlines()[0])
+    ap.add_argument("--n", type=int, default=n, help="loops (every third healthy)")
+    ap.add_argument("--seed", type=int, default=seed)
     ap.add_argument("--duration", type=float, default=3600.0, help="record length [s]")
     ap.add_argument("--names", nargs="+", default=["pi", "knocker", "learned", "learned_adaptive"])
-    ap.add_argument("--diagnosed", action="store_true", help="add the rows with the diagnosed S (see above)")
     ap.add_argument("--policy", action="append", default=[], metavar="LABEL=FILE",
                     help="a policy export as one more row (repeatable)")
+    ap.add_argument("--diagnosed", action="store_true",
+                    help="add the rows that get the S diagnosed in each loop's PI record (see above)")
+    ap.add_argument("--known", action="store_true",
+                    help="add the knocker and learned_adaptive (frozen) given each loop's true S (a diagnostic)")
     a = ap.parse_args(argv)
+    if a.n < 1 or a.duration <= 0:
+        ap.error(f"--n must be >= 1 and --duration > 0, got --n {a.n} --duration {a.duration}")
+    if "pi" not in a.names:
+        a.names.insert(0, "pi")
     add_policies(ap, a.policy, a.names)
+    return a
+
+
+def main(argv=None) -> int:
+    a = family_args(__doc__, 36, 913, argv)
     t0 = time.perf_counter()
     rows = draw(a.n, a.seed)
     cfg = BenchConfig()
@@ -352,6 +369,8 @@ def main(argv=None) -> int:
     if a.diagnosed:
         diagnose_loops(Loops, rows, scans, a.duration, DIAG_KIND)
         a.names += list(DIAGNOSED)
+    if a.known:
+        a.names += list(KNOWN)
     res = check_family(Loops, rows, a.names, a.duration, cfg)
     print(f"{a.n} loops ({int(sticky.sum())} sticky, S 1-9 %), seed {a.seed}, {a.duration:g} s, "
           f"{time.perf_counter() - t0:.0f} s")
