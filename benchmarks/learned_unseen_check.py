@@ -40,15 +40,21 @@ from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 import warnings
+from pathlib import Path
 
 import numpy as np
 
-from valve_gym.agents import load_controller
-from valve_gym.agents.bench.config import BenchConfig
-from valve_gym.agents.bench.runner import ControllerBank, Runs
-from valve_gym.agents.bench.scores import compensation_ratio, score_runs
+_ROOT = Path(__file__).resolve().parents[1]
+if str(_ROOT) not in sys.path:                   # this checkout's package, whatever is installed
+    sys.path.insert(0, str(_ROOT))
+
+from valve_gym.agents import load_controller  # noqa: E402
+from valve_gym.agents.bench.config import BenchConfig  # noqa: E402
+from valve_gym.agents.bench.runner import ControllerBank, Runs  # noqa: E402
+from valve_gym.agents.bench.scores import compensation_ratio, score_runs  # noqa: E402
 
 KINDS = ("cascade", "thermal", "vessel")
 #: Rows of policy exports (``--policy LABEL=FILE``): label -> block.
