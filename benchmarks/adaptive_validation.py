@@ -5,9 +5,8 @@ generations 5000 onwards of seed 38, which no training run reaches (a run draws 
 This is the measure a trained file is chosen by: the training fitness (the weights and travel rule of
 ``--config``, default ``configs/learned_adaptive.yaml``) and, on the sticky + severe loops, the median
 compensation ratio ``R``, the limit-cycle share, the travel over the frictionless PI's, and the healthy loops'
-IAE over the PI's. It is not a held-out check: the family is
-the training family. The held-out checks are the benchmark's generalisation part and
-``benchmarks/learned_unseen_check.py`` / ``learned_third_check.py``.
+IAE over the PI's. It is not a held-out check: the family is the training family. The held-out checks are
+the benchmark's generalisation part and ``benchmarks/learned_unseen_check.py`` / ``learned_third_check.py``.
 
     python benchmarks/adaptive_validation.py [FILE.json ...] [--vary NAME=V1,V2 ...] [--config YAML]
         [--generations 5] [--loops 60]
@@ -19,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -56,6 +56,7 @@ def main(argv=None) -> int:
     from valve_gym.agents.adaptive import DEFAULT_ADAPTIVE, load_adaptive
     from valve_gym.agents.bench.scores import compensation_ratio
     from valve_gym.agents.controllers.adaptive import PARAM_NAMES, PARAMS
+    from valve_gym.config import ConfigError
 
     files = [Path(f) for f in a.files] or [DEFAULT_ADAPTIVE]
     labels: list = [str(f) for f in files]
@@ -79,10 +80,6 @@ def main(argv=None) -> int:
             P[-1][PARAM_NAMES.index(name)] = x
             labels.append(f"{labels[0]} with {name} = {x:g}")
     P = np.array(P)
-    from dataclasses import replace
-
-    from valve_gym.config import ConfigError
-
     try:
         base = at.load_train_config(a.config) if Path(a.config).is_file() else at.AdaptiveTrainConfig()
     except ConfigError as exc:
@@ -91,8 +88,8 @@ def main(argv=None) -> int:
     fit, per = [], []
     for g in range(FIRST, FIRST + a.generations):
         loops = at.draw_loops(cfg, g)
-        fit.append(at.evaluate(loops, P, cfg))
         s = at.score_columns(loops, P)
+        fit.append(at.fitness(s, len(P), cfg))
         s["sticky"] = ~s["healthy"]
         per.append(s)
         print(f"draw {g}: fitness " + " ".join(f"{x:+.3f}" for x in fit[-1]), file=sys.stderr, flush=True)

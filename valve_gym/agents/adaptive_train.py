@@ -23,10 +23,13 @@ physics core (:class:`valve_gym.plant.Plant`):
 Fitness of a parameter vector (higher is better), against the plain PI on the same loops::
 
     f = -mean_sticky log(IAE / IAE_PI) - w_h mean_healthy max(0, log(IAE / IAE_PI))
-        - w_lc mean_sticky (lc - lc_PI) - w_t mean max(0, log(travel / (1.3 travel_frictionless PI)))
+        - w_lc mean_sticky (lc - lc_PI) - w_t mean max(0, log(travel / (L travel_frictionless PI)))
 
-(``travel_rule: median``: the last term is ``w_t [max(0, median_sticky log(travel / (L travel_frictionless PI)))
-+ mean_healthy max(0, log(travel / (L travel_frictionless PI)))]`` with ``L = travel_limit``.)
+with ``L = travel_limit``, for ``travel_rule: per_loop`` (the first objective, ``L`` = 1.3). With
+``travel_rule: median`` (the default, ``L`` = 1.5) the last term is::
+
+    w_t [max(0, median_sticky log(travel / (L travel_frictionless PI)))
+         + mean_healthy max(0, log(travel / (L travel_frictionless PI)))]
 
 (``lc``: the benchmark's ACF limit-cycle detector on the measured error). Bit-reproducible from the
 configuration and the seed (numpy only, one thread).
@@ -50,7 +53,8 @@ from valve_gym.signals import ou_sequence
 from .controllers.adaptive import PARAM_NAMES, PARAMS
 
 __all__ = ["AdaptiveTrainConfig", "TrainLoops", "draw_loops", "draw_loop", "train_adaptive", "to_params", "to_z",
-           "score_columns", "PI_COLUMN", "main"]
+           "score_columns", "fitness", "PI_COLUMN",
+           "main"]
 
 _LO = np.array([p[2] for p in PARAMS])
 _HI = np.array([p[3] for p in PARAMS])
@@ -324,9 +328,12 @@ def score_columns(loops: TrainLoops, P: np.ndarray) -> dict:
 
 def evaluate(loops: TrainLoops, P: np.ndarray, cfg: AdaptiveTrainConfig) -> np.ndarray:
     """Fitness of each row of ``P`` (m, 10) on ``loops`` (module docstring), against the PI run beside them."""
-    sc = score_columns(loops, P)
+    return fitness(score_columns(loops, P), P.shape[0], cfg)
+
+
+def fitness(sc: dict, m: int, cfg: AdaptiveTrainConfig) -> np.ndarray:
+    """Fitness (m,) of the first ``m`` columns of the scores ``sc`` (:func:`score_columns`) under ``cfg``."""
     iae, trav, lc, healthy = sc["iae"], sc["travel"], sc["lc"], sc["healthy"]
-    m = P.shape[0]
     lr = np.log(iae[:m] / iae[m])
     f = -np.where(healthy, 0.0, lr).sum(1) / max((~healthy).sum(), 1)
     f -= cfg.w_healthy * np.where(healthy, np.maximum(lr, 0.0), 0.0).sum(1) / max(healthy.sum(), 1)
