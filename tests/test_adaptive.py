@@ -125,3 +125,56 @@ def test_shipped_file_records_its_objective_and_the_first_file_still_loads(repo_
     with pytest.raises(SystemExit) as exc:
         val.main([str(first), "--vary", "beta=9"])
     assert exc.value.code == 2
+
+
+def test_broad_family_extends_the_core_draw_and_is_checked():
+    from valve_gym.agents.adaptive_train import FAMILIES, draw_loop
+    from valve_gym.config import ConfigError
+
+    with pytest.raises(ConfigError, match="family"):
+        AdaptiveTrainConfig(family="wide")
+    with pytest.raises(ValueError, match="family"):
+        draw_loop(np.random.default_rng(0), family="wide")
+    kinds, thetas = set(), []
+    for i in range(40):
+        core, _, _ = draw_loop(np.random.default_rng([7, i]), episode_s=600.0)
+        broad, load, noise = draw_loop(np.random.default_rng([7, i]), episode_s=600.0, family="broad")
+        assert "theta" not in core and core["scan"] in FAMILIES["core"]
+        assert broad["scan"] in FAMILIES["broad"] and load.size == noise.size == round(600.0 / broad["scan"])
+        for k in ("kind", "band", "model", "S", "J", "area", "q_max", "T", "noise"):   # the core loop, then extras
+            assert broad[k] == core[k]
+        assert np.isfinite(load).all() and np.isfinite(noise).all()
+        kinds.add(broad["load_kind"])
+        thetas.append(broad["theta"] / (broad["T"] if broad["kind"] == "first_order" else 1.0))
+        assert 0.05 <= broad["tau_s"] <= 8.0 and 0.25 <= broad["tc_factor"] <= 2.5
+    assert kinds == {"ou", "walk", "sine", "step"}
+    assert min(thetas) == 0.0 and max(thetas) > 1.0          # loops without delay and dead-time-dominant ones
+
+
+def test_broad_family_loops_run_with_their_dead_time_and_sensor_lag():
+    """A broad draw's plants carry the delay and lag: the frictionless PI still holds the set point, and
+    the measured error (through the sensor lag) is what is scored."""
+    from valve_gym.agents.adaptive_train import PI_COLUMN, draw_loops, score_columns
+
+    loops = draw_loops(AdaptiveTrainConfig(loops=8, episode_s=900.0, family="broad"), 3)
+    assert any(r["theta"] > 0 for r in loops.rows)
+    sc = score_columns(loops, PI_COLUMN[None, :])
+    assert np.isfinite(sc["iae"]).all() and np.isfinite(sc["travel"]).all()
+    sticky = ~sc["healthy"]
+    if sticky.any():                    # the PI on a sticky valve is worse than on the frictionless one
+        assert np.median(sc["iae"][1, sticky] / sc["iae"][2, sticky]) > 1.0
+
+
+def test_a_trained_file_is_a_policy_row_with_each_loops_tuning():
+    """``valve-gym benchmark --policy adaptive.json`` and the held-out scripts' ``--policy``: the file's numbers,
+    rebuilt per loop with that loop's tuning and scan (``for_loop``), under the row's label."""
+    from valve_gym.agents.bench.policies import as_block
+
+    blk = as_block(str(DEFAULT_ADAPTIVE), name="mine")
+    assert isinstance(blk, AdaptiveStiction) and blk.name == "mine"
+    loop = blk.for_loop(2.5, 80.0, 0.5)
+    assert loop.name == "mine" and loop.scan_s == 0.5
+    assert loop.settings["Kc"] == 2.5 and loop.settings["Ti"] == 80.0
+    assert all(loop.settings[k] == blk.settings[k] for k in PARAM_NAMES)
+    with pytest.raises(ValueError, match="^mine: setting Kc"):
+        blk.for_loop(-1.0, 80.0, 0.5)

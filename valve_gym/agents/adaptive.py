@@ -84,7 +84,6 @@ def load_adaptive(path=None, **settings) -> AdaptiveStiction:
     mf = load_model_file(p)
     trained = read_params(mf.tensors, mf.meta, p)
     name = settings.pop("name", None)
-    blk = AdaptiveStiction(**{**trained, **settings})
-    if name is not None:
-        blk.name = str(name)   # pyright: ignore[reportAttributeAccessIssue]
-    return blk
+    # a named block names itself in every message (settings, bad measurements, loop counts)
+    cls = AdaptiveStiction if name is None else type("AdaptiveStiction", (AdaptiveStiction,), {"name": str(name)})
+    return cls(**{**trained, **settings})

@@ -62,6 +62,10 @@ FRICTION = ("riihilahti", "choudhury", "kano")
 #: The block's numbers that make it the plain PI (no reinforcement, no pulses): the reference column.
 PI_COLUMN = np.array([0.0, 0.0, 0.3, 0.9, 0.05, 0.01, 3.0, 1.0, 0.1, 3.0])
 KINDS = ("tank", "integrating", "first_order")
+#: The training families and their scan times [s].
+FAMILIES = {"core": (0.5, 1.0, 2.0), "broad": (0.5, 1.0, 2.0, 4.0)}
+#: Kinds of load of the broad family (each on top of a constant part).
+BROAD_LOADS = ("ou", "walk", "sine", "step")
 
 
 @dataclass(frozen=True)
@@ -86,6 +90,10 @@ class AdaptiveTrainConfig:
         The travel allowed, over the frictionless PI's (> 0).
     init : tuple of float
         Starting values of the ten numbers (in their ranges).
+    family : {"core", "broad"}
+        The training family: ``"core"`` (the module docstring's list; the shipped file's) or ``"broad"``,
+        the same plants and valves with dead time, a sensor lag, coloured noise, more kinds of load, scans
+        of 0.5-4 s and the PI tuned anywhere from tight to sluggish (:func:`draw_loop`).
     """
 
     seed: int = 38
@@ -101,6 +109,7 @@ class AdaptiveTrainConfig:
     travel_rule: str = "median"
     travel_limit: float = 1.5
     init: tuple[float, ...] = (0.5, 0.25, 0.3, 0.9, 0.05, 0.01, 3.0, 1.0, 0.1, 3.0)
+    family: str = "core"
 
     def __post_init__(self):
         for nm in ("generations", "pairs", "loops"):
@@ -115,6 +124,8 @@ class AdaptiveTrainConfig:
         if not (isinstance(self.travel_limit, (int, float)) and math.isfinite(self.travel_limit)
                 and self.travel_limit > 0):
             raise ConfigError(f"travel_limit must be a number > 0, got {self.travel_limit!r}")
+        if self.family not in FAMILIES:
+            raise ConfigError(f"family must be one of {list(FAMILIES)}, got {self.family!r}")
         v = np.asarray(self.init, float)
         if v.shape != (len(PARAMS),) or np.any(v <= _LO) or np.any(v >= _HI):
             raise ConfigError(f"init must be {len(PARAMS)} numbers strictly inside their ranges "
@@ -161,33 +172,61 @@ def _loop(rng: np.random.Generator) -> dict:
     return row
 
 
+def _broaden(rng: np.random.Generator, row: dict) -> dict:
+    """The broad family's extras on a core loop ``row`` (drawn after it, from the same ``rng``).
+
+    A scan of 0.5-4 s; a transport delay on half the loops (first-order: 0.1-3 times ``T``, dead-time
+    dominant at the top; tanks: 1-30 s); a sensor lag of 0.05-8 s (log-uniform); coloured measurement noise
+    on half the loops (AR(1), correlation time 1-10 s); a load that is an OU process (as the core family's),
+    a random walk, a slow sine or a step; and the PI's ``tau_c`` scaled by 0.25-2.5 (log-uniform) around the
+    core rule, from tight to sluggish.
+    """
+    r = dict(row)
+    r["scan"] = FAMILIES["broad"][int(rng.integers(len(FAMILIES["broad"])))]
+    u = rng.random(8)
+    if u[0] < 0.5:
+        r["theta"] = 0.0
+    elif r["kind"] == "first_order":
+        r["theta"] = r["T"] * (0.1 + 2.9 * u[1])
+    else:
+        r["theta"] = 1.0 + 29.0 * u[1]
+    r["tau_s"] = 0.05 * 160.0 ** u[2]
+    r["noise_tau"] = 0.0 if u[3] < 0.5 else 1.0 + 9.0 * u[4]
+    r["load_kind"] = BROAD_LOADS[int(rng.integers(len(BROAD_LOADS)))]
+    r["tc_factor"] = 0.25 * 10.0 ** u[5]
+    r["Kc"], r["Ti"] = _tuning(r)
+    return r
+
+
 def _tuning(r: dict) -> tuple[float, float]:
     from .controllers.tuning import simc_pi
 
-    theta = r["tau"] + r["scan"] / 2.0
+    theta = r["tau"] + r["scan"] / 2.0 + r.get("theta", 0.0) + r.get("tau_s", 0.0)
+    f = r.get("tc_factor", 1.0)
     if r["kind"] == "integrating":
-        tc = 20.0 + 4.0 * theta
+        tc = (20.0 + 4.0 * theta) * f
         return 1.0 / (r["q_max"] / r["area"] * (tc + theta)), 4.0 * (tc + theta)
     if r["kind"] == "tank":
         k_out = r["x0"] * r["q_max"] / math.sqrt(r["level"])
         K, T = 2.0 * r["q_max"] * math.sqrt(r["level"]) / k_out, 2.0 * r["area"] * math.sqrt(r["level"]) / k_out
     else:
         K, T = r["K"], r["T"]
-    return simc_pi(K, T, theta, max(T / 8.0, 4.0 * theta))
+    return simc_pi(K, T, theta, max(T / 8.0, 4.0 * theta) * f)
 
 
 def draw_loops(cfg: AdaptiveTrainConfig, generation: int) -> TrainLoops:
     """The loops of one generation: loop ``i`` from ``default_rng([seed, generation, i])``."""
     rows, loads, noises = [], [], []
     for i in range(cfg.loops):
-        r, load, noise = draw_loop(np.random.default_rng([cfg.seed, generation, i]), episode_s=cfg.episode_s)
+        r, load, noise = draw_loop(np.random.default_rng([cfg.seed, generation, i]), episode_s=cfg.episode_s,
+                                   family=cfg.family)
         loads.append(load)
         noises.append(noise)
         rows.append(r)
     return TrainLoops(tuple(rows), tuple(loads), tuple(noises))
 
 
-def draw_loop(rng: np.random.Generator, episode_s: float = 1800.0, steps: int | None = None):
+def draw_loop(rng: np.random.Generator, episode_s: float = 1800.0, steps: int | None = None, family: str = "core"):
     """One loop of the training family and its signals, from ``rng`` alone.
 
     Parameters
@@ -197,6 +236,8 @@ def draw_loop(rng: np.random.Generator, episode_s: float = 1800.0, steps: int | 
         Record length (``round(episode_s / scan)`` scans) unless ``steps`` is given.
     steps : int, optional
         Record length in scans, whatever the loop's scan.
+    family : {"core", "broad"}
+        ``"broad"`` adds :func:`_broaden`'s extras (its loops are the core draw's, then more draws).
 
     Returns
     -------
@@ -204,14 +245,43 @@ def draw_loop(rng: np.random.Generator, episode_s: float = 1800.0, steps: int | 
     load : (T,) extra inflow per scan [m^3/s; process input units for ``first_order``]
     noise : (T,) measurement noise [m or pv units]
     """
+    if family not in FAMILIES:
+        raise ValueError(f"family must be one of {list(FAMILIES)}, got {family!r}")
     r = _loop(rng)
+    if family == "broad":
+        r = _broaden(rng, r)
     T = int(steps) if steps is not None else int(round(episode_s / r["scan"]))
     a = math.exp(-r["scan"] / r["load_tau"])
     w = rng.standard_normal(T)
     flow = r["q_max"] if r["kind"] != "first_order" else r["K"]
     offset = (1.0 if rng.random() < 0.5 else -1.0) * rng.uniform(0.002, 0.03)
     ou = ou_sequence(np.concatenate([[0.0], w[:-1]]), a, r["load"])   # x_k = a x_(k-1) + g w_(k-1)
-    return r, (offset + ou) * flow, rng.standard_normal(T) * r["noise"]
+    if family == "core":
+        return r, (offset + ou) * flow, rng.standard_normal(T) * r["noise"]
+    load = _broad_load(rng, r, w, T, ou)
+    v = rng.standard_normal(T)
+    noise = v if r["noise_tau"] == 0.0 else ou_sequence(v, math.exp(-r["scan"] / r["noise_tau"]), 1.0)
+    return r, (offset + load) * flow, noise * r["noise"]
+
+
+def _broad_load(rng: np.random.Generator, r: dict, w: np.ndarray, T: int, ou: np.ndarray) -> np.ndarray:
+    """The broad family's varying load (fraction of full flow): OU, random walk, slow sine or step.
+
+    The walk, the sine and the step ride on a small OU load (a fifth of the loop's ``load``).
+    """
+    t = np.arange(T) * r["scan"]
+    u = rng.random(4)
+    kind = r["load_kind"]
+    if kind == "ou":
+        return ou
+    small = 0.2 * ou
+    if kind == "walk":                                  # 2e-5 - 1e-4 per sqrt(s)
+        return small + (2e-5 + 8e-5 * u[0]) * math.sqrt(r["scan"]) * np.cumsum(w)
+    if kind == "sine":                                  # 0.3-1.5 % of full flow, period 5-20 min
+        return small + (0.003 + 0.012 * u[0]) * np.sin(2.0 * math.pi * t / (300.0 + 900.0 * u[1])
+                                                         + 2.0 * math.pi * u[2])
+    size = (0.01 + 0.02 * u[0]) * (1.0 if u[1] < 0.5 else -1.0)   # step of 1-3 % at 20-60 % of the record
+    return small + np.where(t >= (0.2 + 0.4 * u[2]) * T * r["scan"], size, 0.0)
 
 
 def _base(kind: str, rows: list):
@@ -225,7 +295,13 @@ def _base(kind: str, rows: list):
         proc = IntegratingParams(area=col["area"], q_max=col["q_max"], q_out=col["x0"] * col["q_max"])
     else:
         proc = FirstOrderParams(K=col["K"], T=col["T"])
-    return ModelParams(valve=valve, process=proc, process_kind=kind)
+    if "theta" not in rows[0]:                          # the core family
+        return ModelParams(valve=valve, process=proc, process_kind=kind)
+    from valve_gym.params import DeadTime, SensorLag
+
+    return ModelParams(valve=valve, process=proc, process_kind=kind,
+                       dead_time=DeadTime(theta=np.array([r["theta"] for r in rows], float)),
+                       sensor_lag=SensorLag(tau_s=np.array([r["tau_s"] for r in rows], float)))
 
 
 def _plants(loops: TrainLoops, idx: np.ndarray, reps: int, frictionless: np.ndarray, scan: float):
@@ -289,7 +365,8 @@ def rollout(loops: TrainLoops, P: np.ndarray, frictionless: np.ndarray, scan: fl
     blk = _block(P, [loops.rows[i] for i in idx], scan)
     run = run_closed_loop([(cols, p) for cols, p, _ in plants], blk,
                           Scenario(sp=np.broadcast_to(sp, (T, N)), scan_s=scan, load=load, noise=noise), start=start)
-    e = sp - run.level[:T] - noise
+    # the measured error (the core family has no sensor lag: the level plus the noise, as always computed)
+    e = sp - run.level[:T] - noise if "theta" not in loops.rows[idx[0]] else sp - run.pv[:T]
     travel = np.zeros(N)
     for k in range(T):
         travel += np.abs(run.stem[k + 1] - run.stem[k])
@@ -315,7 +392,7 @@ def score_columns(loops: TrainLoops, P: np.ndarray) -> dict:
     c, n = len(cols), len(loops.rows)
     iae, trav, lc = np.zeros((c, n)), np.zeros((c, n)), np.zeros((c, n))
     healthy = np.array([r["band"] == "healthy" for r in loops.rows])
-    for scan in (0.5, 1.0, 2.0):
+    for scan in sorted({float(r["scan"]) for r in loops.rows}):
         r = rollout(loops, cols, fr, scan)
         if r["idx"].size == 0:
             continue

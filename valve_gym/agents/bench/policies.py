@@ -389,6 +389,8 @@ def load_policy_block(path, name: str | None = None) -> PolicyBlock:
 
 
 def _load_file(path, name: str | None):
+    from ..adaptive import FORMAT as ADAPTIVE_FORMAT
+    from ..adaptive import load_adaptive
     from ..learned import FORMAT as LEARNED_FORMAT
     from ..learned import load_learned
     from ..safe_files import load_model_file, refuse_unsafe
@@ -403,6 +405,8 @@ def _load_file(path, name: str | None):
     fmt = load_model_file(p).meta.get("format")
     if fmt == LEARNED_FORMAT:
         return load_learned(p, **({"name": name} if name else {}))
+    if fmt == ADAPTIVE_FORMAT:       # a trained adaptive compensator: each loop gets its own tuning (for_loop)
+        return load_adaptive(p, **({"name": name} if name else {}))
     if fmt == "valve_gym.ppo_policy/1":
         raise PolicyShapeError(f"{p} is a policy of valve_gym/ValveTank-v0 (a direct valve input from 5 "
                                "observations), not of the regulation block; the benchmark runs policies trained on "

@@ -124,6 +124,20 @@ class AdaptiveStiction(Compensator):
         self.alpha = np.minimum(1.0, s["scan_s"] / (s["f_tau"] * s["Ti"]))
         return s
 
+    def for_loop(self, Kc: float, Ti: float, scan_s: float) -> AdaptiveStiction:
+        """The same trained numbers as the block of a loop with PI gain ``Kc``, integral time ``Ti`` [s] and
+        scan ``scan_s`` [s] (the other PI settings kept); how the benchmark runs a trained file given as a policy.
+
+        Examples
+        --------
+        >>> blk = AdaptiveStiction(k_k=0.3, Kc=1.0, Ti=10.0).for_loop(2.0, 30.0, 0.5)
+        >>> blk.settings["k_k"], blk.settings["Kc"], blk.scan_s
+        (0.3, 2.0, 0.5)
+        """
+        own = {k: self.settings[k] for k in PARAM_NAMES}
+        pi = {k.name: self.settings[k.name] for k in PI_SETTINGS if k.name not in ("Kc", "Ti", "scan_s")}
+        return type(self)(**own, **pi, Kc=float(Kc), Ti=float(Ti), scan_s=float(scan_s))
+
     def initial_state(self, sp, pv, op) -> AdaptiveState:
         """Bumpless start; the estimate at ``S0``, no direction yet."""
         pis = self.pi.initial_state(sp, pv, op)
