@@ -1,4 +1,4 @@
-"""Validation of trained `learned_adaptive` numbers on fresh loops of their own training family.
+"""Validation of trained `learned` numbers on fresh loops of their own training family.
 
 The loops are drawn as training draws them (:func:`valve_gym.agents.adaptive_train.draw_loops`), from
 generations 5000 onwards of seed 38, which no training run reaches (a run draws generations 0 .. ``generations - 1``).

@@ -4,7 +4,7 @@ The generalisation part runs every block at its defaults (no stiction estimate) 
 true ``S`` ("S known"). A plant has neither: it records the loop under its PI and diagnoses it. This script
 does that for every loop of the part: one record of the SIMC PI's run (SP, PV, OP; the part's 40 minutes,
 noise and load), :func:`valve_gym.diagnosis.diagnose` with the process kind an engineer knows from the tag
-(``tank``, ``integrating``, ``first_order``), then the knocker and ``learned_adaptive`` given the diagnosed
+(``tank``, ``integrating``, ``first_order``), then the knocker and ``learned`` given the diagnosed
 ``S`` where the verdict is stiction (and nothing, i.e. the smallest estimate, where it is not).
 
     python benchmarks/diagnosed_s_check.py [--jobs 2]       # about 3 min on 2 cores
@@ -23,7 +23,7 @@ for _p in (ROOT, ROOT / "benchmarks"):            # this checkout's package, and
         sys.path.insert(0, str(_p))
 
 KIND = {"tank": "tank", "integrating": "integrating", "fopdt": "first_order"}
-ROWS = ("knocker (S diagnosed)", "learned_adaptive (S diagnosed, frozen)", "learned_adaptive (S diagnosed, adapts)")
+ROWS = ("knocker (S diagnosed)", "learned (S diagnosed, frozen)", "learned (S diagnosed, adapts)")
 
 
 def main(argv=None) -> int:
@@ -69,7 +69,7 @@ def main(argv=None) -> int:
                                                                       scan_s=scan_s, S=S_est[idx])),
             ROWS[1]: adaptive_row(diagnosed, frozen=True), ROWS[2]: adaptive_row(diagnosed, frozen=False)}
     cfg = BenchConfig()
-    res = gen.run_generalisation(cfg, gen.GenFamily(), jobs=1, learned=("learned_adaptive",), policies=rows)
+    res = gen.run_generalisation(cfg, gen.GenFamily(), jobs=1, learned=("learned",), policies=rows)
     print_rows(res, cfg, ROWS)
     return 0
 

@@ -1,4 +1,4 @@
-"""PPO and SAC trained on the randomised family, beside ``learned_adaptive`` on the plants they never saw.
+"""PPO and SAC trained on the randomised family, beside ``learned`` on the plants they never saw.
 
     python benchmarks/family_rl_report.py [--heldout-only | --gen-only] [--jobs 1]
     python benchmarks/family_rl_report.py --ship runs/rl_family     (copy the trained runs into the package)

@@ -58,7 +58,7 @@ Design (fixed before any compensator ran)
 
 Usage::
 
-    python benchmarks/learned_third_check.py [--n 48] [--seed 2718] [--names pi knocker learned learned_adaptive]
+    python benchmarks/learned_third_check.py [--n 48] [--seed 2718] [--names pi knocker learned learned_network]
         [--policy LABEL=FILE ...]
 
 Besides the second script's table it prints, for each row, the LC share and the median compensation ratio

@@ -21,12 +21,12 @@ model found by a step test of the frictionless loop, ``tau_c = max(T/6, 3 theta)
 
 Usage::
 
-    python benchmarks/learned_unseen_check.py [--n 36] [--seed 913] [--names pi knocker learned learned_adaptive]
+    python benchmarks/learned_unseen_check.py [--n 36] [--seed 913] [--names pi knocker learned learned_network]
         [--policy LABEL=FILE ...]
 
 ``--diagnosed`` adds the rows of a plant's workflow: each loop's record under the PI is diagnosed
 (:func:`valve_gym.diagnosis.diagnose`, the process kind an engineer knows: ``cascade``, and ``first_order``
-for the thermal loop and the vessel), and the knocker and ``learned_adaptive`` get the diagnosed ``S`` where
+for the thermal loop and the vessel), and the knocker and ``learned`` get the diagnosed ``S`` where
 the verdict is stiction (``S0``; frozen or adapting), nothing elsewhere.
 
 The harness (:func:`tune`, :func:`run`, :func:`check_family`, :func:`print_table`) takes the family's simulator
@@ -61,12 +61,12 @@ KINDS = ("cascade", "thermal", "vessel")
 POLICIES: dict = {}
 VALVE_KINDS = ("he2007", "stenman")
 #: ``--diagnosed`` rows: label -> (block, whether its estimate adapts); the process kind given to the diagnosis.
-DIAGNOSED = {"knocker (S diagnosed)": ("knocker", None), "learned_adaptive (S diagnosed, adapts)":
-             ("learned_adaptive", True), "learned_adaptive (S diagnosed, frozen)": ("learned_adaptive", False)}
+DIAGNOSED = {"knocker (S diagnosed)": ("knocker", None), "learned (S diagnosed, adapts)":
+             ("learned", True), "learned (S diagnosed, frozen)": ("learned", False)}
 DIAG_KIND = {"cascade": "cascade", "thermal": "first_order", "vessel": "first_order"}
 #: ``--known`` rows (a diagnostic, not a block a plant could run): label -> (block, whether its estimate adapts),
 #: given each loop's true ``S`` as the benchmark's "(S known)" rows are.
-KNOWN = {"knocker (S known)": ("knocker", None), "learned_adaptive (S known, frozen)": ("learned_adaptive", False)}
+KNOWN = {"knocker (S known)": ("knocker", None), "learned (S known, frozen)": ("learned", False)}
 
 
 def draw(n: int, seed: int) -> list[dict]:
@@ -349,13 +349,13 @@ def family_args(doc: str | None, n: int, seed: int, argv=None) -> argparse.Names
     ap.add_argument("--n", type=int, default=n, help="loops (every third healthy)")
     ap.add_argument("--seed", type=int, default=seed)
     ap.add_argument("--duration", type=float, default=3600.0, help="record length [s]")
-    ap.add_argument("--names", nargs="+", default=["pi", "knocker", "learned", "learned_adaptive"])
+    ap.add_argument("--names", nargs="+", default=["pi", "knocker", "learned", "learned_network"])
     ap.add_argument("--policy", action="append", default=[], metavar="LABEL=FILE",
                     help="a policy export as one more row (repeatable)")
     ap.add_argument("--diagnosed", action="store_true",
                     help="add the rows that get the S diagnosed in each loop's PI record (see above)")
     ap.add_argument("--known", action="store_true",
-                    help="add the knocker and learned_adaptive (frozen) given each loop's true S (a diagnostic)")
+                    help="add the knocker and learned (frozen) given each loop's true S (a diagnostic)")
     a = ap.parse_args(argv)
     if a.n < 1 or a.duration <= 0:
         ap.error(f"--n must be >= 1 and --duration > 0, got --n {a.n} --duration {a.duration}")

@@ -79,7 +79,7 @@ def test_shipped_file_loads_through_the_registry():
     from valve_gym.agents import load_controller
 
     assert DEFAULT_ADAPTIVE.is_file()
-    blk = load_controller("learned_adaptive", Kc=1.0, Ti=30.0, scan_s=0.5)
+    blk = load_controller("learned", Kc=1.0, Ti=30.0, scan_s=0.5)
     blk.reset(np.ones(3), np.ones(3), np.full(3, 0.5))
     assert np.asarray(blk.step(np.ones(3), np.full(3, 0.99))).shape == (3,)
 

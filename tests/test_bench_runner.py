@@ -54,7 +54,7 @@ def test_lineup_names_and_sensitivity_rows():
     assert labels[:2] == ["PI frictionless", "PI (SIMC)"] and "PI Kc x0.25" in labels
     for comp in ("knocker", "constant_reinforcement", "two_move", "integral_freeze"):
         assert {comp, f"{comp} S x0.5", f"{comp} S x1.5"} <= set(labels)
-    assert labels[-2:] == ["learned", "learned_adaptive"]
+    assert labels[-2:] == ["learned", "learned_network"]
 
 
 @pytest.mark.parametrize("part", ["regulation", "servo"])

@@ -35,7 +35,7 @@ def test_quick_run_tables(quick_run):
     assert list(res.columns) == ["part", "controller", "band", "metric", "stat", "value", "ci_lo", "ci_hi", "n", "unit"]
     assert set(res["part"]) == {"regulation", "servo", "generalisation"} and set(res["band"]) == set(BAND_GROUPS)
     gen = res[res.part == "generalisation"]
-    assert {"PI (SIMC)", "knocker", "knocker (S known)", "learned_adaptive"} <= set(gen["controller"])
+    assert {"PI (SIMC)", "knocker", "knocker (S known)", "learned", "learned_network"} <= set(gen["controller"])
     ctrls = set(res[res.part != "generalisation"]["controller"])
     assert {"PI frictionless", "PI (SIMC)", "PI Kc x0.5", "knocker", "knocker S x0.5", "two_move S x1.5",
             "constant_reinforcement", "integral_freeze"} <= ctrls

@@ -28,7 +28,7 @@ def _signals(T, n, seed):
 # ----------------------------------------------------------------------------------------- interface
 def test_available_controllers():
     assert available_controllers() == ("pi", "knocker", "constant_reinforcement", "two_move",
-                                       "integral_freeze", "learned", "learned_adaptive")
+                                       "integral_freeze", "learned", "learned_network")
 
 
 @pytest.mark.parametrize("name", BLOCKS)
@@ -156,7 +156,7 @@ def test_bad_signals():
     assert np.shape(c.step(1.0, [1.0, 1.0])) == (2,)      # the block is still usable
 
 
-def test_learned_is_loaded_lazily_and_failures_say_why(monkeypatch):
+def test_learned_network_is_loaded_lazily_and_failures_say_why(monkeypatch):
     seen = {}
 
     def load_learned(path=None, **settings):
@@ -166,14 +166,14 @@ def test_learned_is_loaded_lazily_and_failures_say_why(monkeypatch):
         return PIBlock()
 
     monkeypatch.setitem(sys.modules, "valve_gym.agents.learned", types.SimpleNamespace(load_learned=load_learned))
-    assert isinstance(load_controller("learned", path="run1", S=0.02), PIBlock)
-    assert seen == {"path": "run1", "S": 0.02}
-    with pytest.raises(ControllerLoadError, match="learned compensator could not be loaded: "
+    assert isinstance(load_controller("learned_network", path="run1", S=0.02), PIBlock)
+    assert seen == {"path": "run1", "S": 0.02, "name": "learned_network"}
+    with pytest.raises(ControllerLoadError, match="learned network could not be loaded: "
                                                   "FileNotFoundError: no weights in 'missing'"):
-        load_controller("learned", path="missing")
+        load_controller("learned_network", path="missing")
     monkeypatch.setitem(sys.modules, "valve_gym.agents.learned", None)      # module not importable
-    with pytest.raises(ValueError, match="learned compensator could not be loaded: module valve_gym.agents.learned"):
-        load_controller("learned")
+    with pytest.raises(ValueError, match="learned network could not be loaded: module valve_gym.agents.learned"):
+        load_controller("learned_network")
 
 
 # ----------------------------------------------------------------------------------------------- laws

@@ -50,29 +50,43 @@ def test_knocker_integral_is_the_pi_alone_when_a_pulse_is_cut():
 
 
 # ------------------------------------------------------------------------------------------ learned block
-def test_learned_takes_numpy_numbers_and_says_it_takes_no_per_loop_settings():
-    blk = load_controller("learned", Kc=np.float64(1.89), Ti=np.float32(42.4), scan_s=np.int64(1))
+def test_learned_network_takes_numpy_numbers_and_says_it_takes_no_per_loop_settings():
+    blk = load_controller("learned_network", Kc=np.float64(1.89), Ti=np.float32(42.4), scan_s=np.int64(1))
     assert blk.settings["Kc"] == 1.89 and blk.settings["scan_s"] == 1.0
-    with pytest.raises(ValueError, match=r"^learned: setting Kc must be one number for all loops"):
-        load_controller("learned", Kc=np.array([1.0, 2.0]))
+    with pytest.raises(ValueError, match=r"^learned_network: setting Kc must be one number for all loops"):
+        load_controller("learned_network", Kc=np.array([1.0, 2.0]))
 
 
-def test_learned_start_outside_its_output_limits_is_refused_not_bumped():
-    blk = load_controller("learned", op_hi=0.8)
-    with pytest.raises(ValueError, match=r"^learned: op must be the valve input now applied, within the output "
+def test_learned_network_start_outside_its_output_limits_is_refused_not_bumped():
+    blk = load_controller("learned_network", op_hi=0.8)
+    with pytest.raises(ValueError, match=r"^learned_network: op must be the valve input now applied, within the output "
                                          r"limits \[op_lo, op_hi\] = \[0, 0.8\], got \[0.9\]"):
         blk.reset(1.0, 1.0, 0.9)           # was accepted, and the first scan jumped to 0.8
     blk.reset(1.0, 1.0, 0.8)
     assert blk.step(1.0, 1.0) == pytest.approx(0.8)
 
 
-def test_learned_warns_outside_the_settings_it_was_trained_with():
-    with pytest.warns(UserWarning, match=r"learned: scan_s = 10 \(trained: 1\): the network .* was trained"):
-        load_controller("learned", scan_s=10.0)
+def test_learned_network_warns_outside_the_settings_it_was_trained_with():
+    with pytest.warns(UserWarning, match=r"learned_network: scan_s = 10 \(trained: 1\): the network .* was trained"):
+        load_controller("learned_network", scan_s=10.0)
     with pytest.warns(UserWarning, match=r"Kc = 0.0283 \(trained: 1.89\)"):
-        load_controller("learned", Kc=0.0283)
+        load_controller("learned_network", Kc=0.0283)
     import warnings
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        load_controller("learned")
-        load_controller("learned", scan_s=1.0, Kc=1.89, op_hi=0.9)
+        load_controller("learned_network")
+        load_controller("learned_network", scan_s=1.0, Kc=1.89, op_hi=0.9)
+
+
+def test_learned_is_the_adaptive_compensator_and_takes_per_loop_tuning():
+    """``"learned"`` is the block trained over the randomised family: one block for many loops, each with its
+    own tuning, and the earlier name ``learned_adaptive`` still builds it."""
+    from valve_gym.agents.controllers.adaptive import AdaptiveStiction
+
+    blk = load_controller("learned", Kc=np.array([1.0, 2.0]), Ti=np.array([30.0, 60.0]), scan_s=np.int64(2))
+    assert isinstance(blk, AdaptiveStiction) and blk.name == "learned" and blk.scan_s == 2.0
+    blk.reset(np.ones(2), np.ones(2), np.full(2, 0.5))
+    op = blk.step(np.ones(2), np.array([0.99, 0.99]))
+    assert op.shape == (2,) and op[1] > op[0] > 0.5                # the higher gain moves further
+    old = load_controller("learned_adaptive", Kc=1.0, Ti=30.0)
+    assert isinstance(old, AdaptiveStiction) and old.settings == load_controller("learned", Kc=1.0, Ti=30.0).settings

@@ -1,4 +1,4 @@
-"""``valve_gym/ValveFamilyRegulation-v0``: the regulation task over the training family of ``learned_adaptive``.
+"""``valve_gym/ValveFamilyRegulation-v0``: the regulation task over the training family of ``learned``.
 
 The env must draw exactly that family (one loop per episode, from ``reset(seed=...)`` alone), score the plain
 PI at ``R = 0`` against its own references, rank the frictionless PI above the PI above a dithering relay on
@@ -65,7 +65,7 @@ def test_reset_seed_is_reproducible_and_draws_the_training_family():
         sa, sb = a.step(act), b.step(act)
         np.testing.assert_array_equal(sa[0], sb[0])
         assert sa[1] == sb[1]
-    # the episode is the loop draw_loop gives for the same generator (the family of learned_adaptive)
+    # the episode is the loop draw_loop gives for the same generator (the family of learned)
     row, load, noise = draw_loop(np.random.default_rng(11), steps=STEPS + 1)
     assert (ia["kind"], ia["band"], ia["friction_model"]) == (row["kind"], row["band"], row["model"])
     assert (ia["S"], ia["Kc"], ia["Ti"], ia["scan_s"]) == (row["S"], row["Kc"], row["Ti"], row["scan"])

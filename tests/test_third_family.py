@@ -86,6 +86,6 @@ def test_known_rows_hand_each_loop_its_true_band(third, monkeypatch):
     res = third.check_family(third.ThirdLoops, rows, ["pi", *third.KNOWN], 120.0, test_s=third.TEST_S)
     S = np.array([r["S"] for r in rows])
     np.testing.assert_allclose(seen["knocker"]["S"], np.maximum(S, 0.001))
-    np.testing.assert_allclose(seen["learned_adaptive"]["S0"], np.clip(S, 0.001, 0.06))
-    assert seen["learned_adaptive"]["eta"] == 0.01
+    np.testing.assert_allclose(seen["learned"]["S0"], np.clip(S, 0.001, 0.06))
+    assert seen["learned"]["eta"] == 0.01
     assert all(np.isfinite(v).all() for label in third.KNOWN for v in res[label].values())

@@ -1,7 +1,7 @@
 """SB3 baselines on ``valve_gym/ValveTankRegulation-v0``: PPO, A2C, SAC, TD3 from rl-zoo3-style YAML.
 
 A config may instead name ``env_id: valve_gym/ValveFamilyRegulation-v0`` (the randomised family of
-``learned_adaptive``, :mod:`valve_gym.envs.family_env`; ``configs/rl/ppo_family.yaml``, ``sac_family.yaml``).
+``learned``, :mod:`valve_gym.envs.family_env`; ``configs/rl/ppo_family.yaml``, ``sac_family.yaml``).
 
 ``valve-gym train --config configs/rl/sac.yaml --seed 0 --out runs/sac_0`` (``algorithm: sac``; also
 ``ppo``, ``a2c``, ``td3``; a config with ``algorithm: ppo`` and ``env_id`` trains here, the older PPO
@@ -45,7 +45,7 @@ __all__ = ["ALGORITHMS", "load_baseline_config", "make_model", "train_baseline",
 
 ALGORITHMS = ("ppo", "a2c", "sac", "td3")
 REGULATION_ID = "valve_gym/ValveTankRegulation-v0"
-#: The regulation task on the randomised family of ``learned_adaptive`` (:mod:`valve_gym.envs.family_env`).
+#: The regulation task on the randomised family of ``learned`` (:mod:`valve_gym.envs.family_env`).
 FAMILY_ID = "valve_gym/ValveFamilyRegulation-v0"
 #: The env ids a baseline config may name.
 ENV_IDS = (REGULATION_ID, FAMILY_ID)

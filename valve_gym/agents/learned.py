@@ -220,14 +220,14 @@ def _resolve(path) -> Path:
     return p
 
 
-def _number(name: str, v):
-    """A setting of the learned block as a float (numpy numbers included), or a ValueError saying why not."""
+def _number(name: str, v, block: str = "learned_network"):
+    """A setting of the network block as a float (numpy numbers included), or a ValueError saying why not."""
     if isinstance(v, (np.integer, np.floating)):
         return float(v)
     if isinstance(v, (list, tuple, np.ndarray)):
-        raise ValueError(f"learned: setting {name} must be one number for all loops (the learned compensator "
+        raise ValueError(f"{block}: setting {name} must be one number for all loops (the network block "
                          f"takes no per-loop settings), got {type(v).__name__} of shape {np.shape(v)}; run one "
-                         "block per setting")
+                         "block per setting, or use load_controller('learned'), which does")
     return v
 
 
@@ -235,15 +235,16 @@ def _number(name: str, v):
 TRAINED_SETTINGS = ("Kc", "Ti", "scan_s")
 
 
-def _warn_untrained(bs: BlockSettings, trained: dict, path) -> None:
+def _warn_untrained(bs: BlockSettings, trained: dict, path, block: str = "learned_network") -> None:
     """Warn when ``Kc``, ``Ti`` or ``scan_s`` differ from the values the network was trained with."""
     off = [f"{k} = {getattr(bs, k):g} (trained: {float(trained[k]):g})" for k in TRAINED_SETTINGS
            if k in trained and not np.isclose(float(getattr(bs, k)), float(trained[k]), rtol=1e-6, atol=0.0)]
     if off:
-        warnings.warn(f"learned: {', '.join(off)}: the network of {path} was trained with the stored settings "
+        warnings.warn(f"{block}: {', '.join(off)}: the network of {path} was trained with the stored settings "
                       "only, so its gate and correction now act on inputs it has not seen and may do much worse "
                       "than the PI (e.g. about 8x the PI's error and travel at scan_s = 10 s on the default tank); "
-                      "compare with load_controller('pi') on this loop before use", UserWarning, stacklevel=3)
+                      "compare with load_controller('pi') on this loop before use, or use load_controller('learned'), "
+                      "trained over a family of loops and tunings", UserWarning, stacklevel=3)
 
 
 def load_learned(path=None, **settings) -> LearnedBlock:
@@ -281,18 +282,18 @@ def load_learned(path=None, **settings) -> LearnedBlock:
     meta = mf.meta
     if meta.get("format") != FORMAT:
         raise ValueError(f"{p} is not a learned-block file (format {meta.get('format')!r}, expected {FORMAT!r})")
-    name = settings.pop("name", "learned")
+    name = settings.pop("name", "learned_network")
     pv_range = settings.pop("pv_range", PV_RANGE)
     allowed = ("Kc", "Ti", "scan_s", "op_lo", "op_hi")
     bad = [k for k in settings if k not in allowed]
     if bad:
         raise ValueError(f"unknown setting(s) {bad} for the learned compensator; known: {', '.join(allowed)}, name")
-    settings = {k: _number(k, v) for k, v in settings.items()}
+    settings = {k: _number(k, v, name) for k, v in settings.items()}
     try:
         bs = replace(BlockSettings(**meta["block"]), **settings)
     except (TypeError, ValueError) as exc:
         raise ValueError(f"bad settings for the learned compensator: {exc}") from None
-    _warn_untrained(bs, meta["block"], p)
+    _warn_untrained(bs, meta["block"], p, name)
     n_obs = len(obs_names(bs))
     spec = MLPSpec(meta["hidden"], n_obs)
     w = {nm: _checked_tensor(p, nm, mf.tensors.get(nm), shape) for nm, shape in mlp_shapes(spec)}

@@ -14,7 +14,7 @@ Registered ids (after ``import valve_gym``, or as ``"valve_gym:<id>"`` without i
     the agent is the inside of a PI block (task rules in :mod:`valve_gym.envs.regulation`).
 ``valve_gym/ValveFamilyRegulation-v0``
     The same block on the randomised family of plants, valves, scans, loads and noise that
-    ``learned_adaptive`` is trained on, one loop per episode (:class:`ValveFamilyRegulationEnv`,
+    ``learned`` is trained on, one loop per episode (:class:`ValveFamilyRegulationEnv`,
     :mod:`valve_gym.envs.family_env`).
 
 The first two truncate after 600 steps (``max_episode_steps``) and support

@@ -1,4 +1,4 @@
-"""The regulation task over the randomised training family of ``learned_adaptive`` (``ValveFamilyRegulation-v0``).
+"""The regulation task over the randomised training family of ``learned`` (``ValveFamilyRegulation-v0``).
 
 Each episode is one loop of :func:`valve_gym.agents.adaptive_train.draw_loop` (the family the adaptive
 compensator is trained on: Torricelli, integrating and first-order processes; Riihilahti's, Choudhury's and

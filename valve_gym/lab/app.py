@@ -320,8 +320,9 @@ class CompensatorPage(CompensatorLab, _Cached):
     @param.depends("controller", "exercise")
     def setting_controls(self):
         """The chosen compensator's own settings (empty: its default rule)."""
-        if self.controller == "learned":           # the shipped network: no settings to tune here
-            return pn.pane.Markdown("The learned compensator runs with its stored settings.", width=300)
+        if self.controller == "learned":           # the trained block: it estimates the stick band itself
+            return pn.pane.Markdown("The learned compensator runs with its trained settings and estimates the "
+                                    "stick band online from SP, PV and its own output.", width=300)
         names = ["S_est", *self.own_settings()]
         widgets = _slider_classes(names, "c")
         for n in self.own_settings():

@@ -13,7 +13,8 @@ Every controller answers the same block interface (:class:`FunctionBlock`)::
 ``"constant_reinforcement"``   :class:`ConstantReinforcement` (Ivan & Lakshminarayanan 2009)
 ``"two_move"``                 :class:`TwoMove` (Srinivasan & Rengaswamy 2005, 2008)
 ``"integral_freeze"``          :class:`IntegralFreeze` (dead zone in the integral)
-``"learned"``                  ``valve_gym.agents.learned.load_learned`` (loaded on first use)
+``"learned"``                  :func:`valve_gym.agents.adaptive.load_adaptive` (trained over a family of plants)
+``"learned_network"``          ``valve_gym.agents.learned.load_learned`` (loaded on first use)
 =============================  ================================================
 """
 from .block import FunctionBlock, Setting

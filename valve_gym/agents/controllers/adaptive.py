@@ -24,7 +24,7 @@ healthy valve the trend turns at once and the estimate falls to the noise's leve
 reinforcement (Ivan & Lakshminarayanan 2009) carries the stem through the band at each reversal,
 the pulses (Hägglund 2002) move it in small steps while the output ramps.
 
-The ten numbers of :data:`PARAMS` are the block's settings; ``load_controller("learned_adaptive")``
+The ten numbers of :data:`PARAMS` are the block's settings; ``load_controller("learned")``
 takes them from the trained file ``valve_gym/agents/policies/adaptive.safetensors`` + ``.json``
 (evolution strategies over a randomised family of plants, :mod:`valve_gym.agents.adaptive_train`).
 The block sees SP, PV and its own output only, and keeps the PI's integral action (no steady offset).
@@ -103,7 +103,7 @@ class AdaptiveStiction(Compensator):
     ----------
     **settings
         PI settings (``Kc``, ``Ti``, ``detune``, ``scan_s``, ``op_lo``, ``op_hi``) and the numbers of
-        :data:`PARAMS` (defaults: mid-range; ``load_controller("learned_adaptive")`` gives the trained ones).
+        :data:`PARAMS` (defaults: mid-range; ``load_controller("learned")`` gives the trained ones).
 
     Examples
     --------
