@@ -125,8 +125,10 @@ class AdaptiveStiction(Compensator):
         return s
 
     def for_loop(self, Kc: float, Ti: float, scan_s: float) -> AdaptiveStiction:
-        """The same trained numbers as the block of a loop with PI gain ``Kc``, integral time ``Ti`` [s] and
-        scan ``scan_s`` [s] (the other PI settings kept); how the benchmark runs a trained file given as a policy.
+        """The same trained numbers as the block of a loop with its own tuning and scan.
+
+        PI gain ``Kc``, integral time ``Ti`` [s] and scan ``scan_s`` [s]; the other PI settings are kept. This is
+        how the benchmark runs a trained file given as a policy.
 
         Examples
         --------

@@ -1,0 +1,95 @@
+"""Where the learned compensator's online stick-band estimate lands on the held-out families.
+
+``load_controller("learned")`` sizes its reinforcement and pulses by an estimate ``S_hat`` of the stick band that
+it measures from SP, PV and its own output. Given the true band instead, it removes far more of stiction's cost
+on every held-out family (``--known`` rows of the family scripts), so this script looks at the estimate itself:
+each family's loops are run as its script runs them (the shared harness's SIMC tuning from a step test, the
+family's own noise and load, one hour), and for every sticky loop the median of ``S_hat`` over the second half
+of the record is set against the loop's true ``S``.
+
+    python benchmarks/estimate_on_families.py [--families second third fourth] [--duration 3600]
+
+Prints, per family and per decade of ``S`` (0.5-1.5 %, 1.5-4 %, 4-10 %), the number of sticky loops and the
+median and quartiles of ``S_hat / S``; and, over the healthy loops, the median ``S_hat`` (fraction of stroke).
+A ratio well below 1 means the block under-compensates there; above 1, that it over-compensates.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+_HERE = Path(__file__).resolve().parent
+for _p in (_HERE.parent, _HERE):
+    if str(_p) not in sys.path:
+        sys.path.insert(0, str(_p))
+
+from learned_unseen_check import tune  # noqa: E402
+
+from valve_gym.agents import load_controller  # noqa: E402
+
+#: family -> (module, simulator class, default size, seed, step-test length [s])
+FAMILIES = {"second": ("learned_unseen_check", "Loops", 36, 913, 1200.0),
+            "third": ("learned_third_check", "ThirdLoops", 48, 2718, 1800.0),
+            "fourth": ("learned_fourth_check", "FourthLoops", 48, 4242, 1800.0)}
+BANDS = ((0.005, 0.015), (0.015, 0.04), (0.04, 0.1001))
+HEALTHY_S = 0.005
+
+
+def estimates(family: str, duration: float = 3600.0, n: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(S, S_hat)`` per loop of ``family``: the true band and the median estimate over the record's second half."""
+    mod_name, cls_name, n0, seed, test_s = FAMILIES[family]
+    mod = __import__(mod_name)
+    sim_cls = getattr(mod, cls_name)
+    rows = mod.draw(n0 if n is None else n, seed)
+    scans = np.array([r["scan"] for r in rows])
+    S, S_hat = np.array([r["S"] for r in rows]), np.empty(len(rows))
+    for scan in np.unique(scans):
+        idx = np.flatnonzero(scans == scan)
+        sub = [rows[i] for i in idx]
+        Kc, Ti = tune(sim_cls, sub, float(scan), test_s)
+        sim = sim_cls(sub, float(scan), False)
+        y, _, u0 = sim.reset()
+        T = int(round(duration / scan))
+        noise, load = sim_cls.disturbances(sub, float(scan), T, duration)
+        ctrl = load_controller("learned", Kc=Kc, Ti=Ti, scan_s=float(scan))
+        sp = y.copy()
+        ctrl.reset(sp, sim.measure(y, noise[0]), u0)
+        hist = np.empty((T, len(idx)))
+        for k in range(T):
+            op = ctrl.step(sp, sim.measure(y, noise[k]))
+            y, _ = sim.step(op, load[k])
+            hist[k] = ctrl.state.s_hat
+        S_hat[idx] = np.median(hist[T // 2:], axis=0)
+    return S, S_hat
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    ap.add_argument("--families", nargs="+", default=list(FAMILIES), choices=list(FAMILIES))
+    ap.add_argument("--duration", type=float, default=3600.0, help="record length [s]")
+    a = ap.parse_args(argv)
+    if a.duration <= 0:
+        ap.error(f"--duration must be > 0 s, got {a.duration}")
+    print("| family | S band | sticky loops | median S_hat / S | quartiles | healthy loops: median S_hat [%] |")
+    print("|---|---|---|---|---|---|")
+    for fam in a.families:
+        t0 = time.perf_counter()
+        S, S_hat = estimates(fam, a.duration)
+        healthy = S < HEALTHY_S
+        for lo, hi in BANDS:
+            m = (S >= lo) & (S < hi)
+            r = S_hat[m] / S[m]
+            q = np.percentile(r, [25, 75]) if m.any() else (np.nan, np.nan)
+            print(f"| {fam} | {100 * lo:g}-{100 * min(hi, 0.1):g} % | {int(m.sum())} | "
+                  f"{np.median(r) if m.any() else float('nan'):.2f} | {q[0]:.2f}-{q[1]:.2f} | "
+                  f"{100 * np.median(S_hat[healthy]):.2f} |")
+        print(f"{fam}: {time.perf_counter() - t0:.0f} s", file=sys.stderr, flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
