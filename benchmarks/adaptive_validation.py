@@ -62,6 +62,7 @@ def main(argv=None) -> int:
     labels: list = [str(f) for f in files]
     try:
         P = [[float(np.asarray(load_adaptive(f).p[k]).reshape(-1)[0]) for k in PARAM_NAMES] for f in files]
+        answers = ["reversal" if float(np.ravel(load_adaptive(f).p["answer"])[0]) > 0.5 else "turn" for f in files]
     except (OSError, ValueError) as exc:
         ap.error(str(exc))
     for item in a.vary:
@@ -77,6 +78,7 @@ def main(argv=None) -> int:
             if not (np.isfinite(x) and lo <= x <= hi):
                 ap.error(f"--vary {name}: {v} is outside the number's range [{lo:g}, {hi:g}]")
             P.append(list(P[0]))
+            answers.append(answers[0])
             P[-1][PARAM_NAMES.index(name)] = x
             labels.append(f"{labels[0]} with {name} = {x:g}")
     P = np.array(P)
@@ -88,7 +90,7 @@ def main(argv=None) -> int:
     fit, per = [], []
     for g in range(FIRST, FIRST + a.generations):
         loops = at.draw_loops(cfg, g)
-        s = at.score_columns(loops, P)
+        s = at.score_columns(loops, P, answers)
         fit.append(at.fitness(s, len(P), cfg))
         s["sticky"] = ~s["healthy"]
         per.append(s)

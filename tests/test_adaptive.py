@@ -178,3 +178,35 @@ def test_a_trained_file_is_a_policy_row_with_each_loops_tuning():
     assert all(loop.settings[k] == blk.settings[k] for k in PARAM_NAMES)
     with pytest.raises(ValueError, match="^mine: setting Kc"):
         blk.for_loop(-1.0, 80.0, 0.5)
+
+
+def _relaxing_error(blk, T=400):
+    """A stuck valve on a first-order process: the error rises and settles at a plateau without ever turning."""
+    blk.reset(1.0, 1.0, 0.5)
+    armed = []
+    for k in range(T):
+        blk.step(1.0, 1.0 - 0.02 * (1.0 - np.exp(-k / 40.0)))
+        armed.append(float(blk.state.armed[0]))
+    return np.array(armed)
+
+
+def test_reversal_answer_test_ignores_a_process_settling_while_the_stem_sticks():
+    kw = dict(zip(PARAM_NAMES, MID), k_k=0.0, k_c=0.0, Kc=1.0, Ti=50.0)
+    turn = _relaxing_error(AdaptiveStiction(answer=0.0, **kw))
+    rev = _relaxing_error(AdaptiveStiction(answer=1.0, **kw))
+    assert turn.max() == 1.0 and turn[-1] == 0.0        # armed at the reversal, then "answered" by the settling
+    assert rev.max() == 1.0 and rev[-1] == 1.0          # still waiting: the trend never turned against the output
+
+
+def test_trained_file_names_its_answer_test(tmp_path):
+    from valve_gym.agents.adaptive import ANSWERS
+    from valve_gym.config import ConfigError
+
+    assert load_adaptive().settings["answer"] == 0.0                # the shipped file predates the test: "turn"
+    save_adaptive(tmp_path / "rev", MID, {"answer": "reversal"})
+    assert load_adaptive(tmp_path / "rev").settings["answer"] == ANSWERS["reversal"] == 1.0
+    save_adaptive(tmp_path / "odd", MID, {"answer": "sideways"})
+    with pytest.raises(ValueError, match="answer 'sideways' is not one of"):
+        load_adaptive(tmp_path / "odd")
+    with pytest.raises(ConfigError, match="answer"):
+        AdaptiveTrainConfig(answer="sideways")

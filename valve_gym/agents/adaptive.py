@@ -16,7 +16,7 @@ import numpy as np
 from .controllers.adaptive import PARAM_NAMES, PARAMS, AdaptiveStiction
 from .safe_files import load_model_file, save_model_file
 
-__all__ = ["load_adaptive", "save_adaptive", "read_params", "DEFAULT_ADAPTIVE", "FORMAT"]
+__all__ = ["load_adaptive", "save_adaptive", "read_params", "fixed_settings", "ANSWERS", "DEFAULT_ADAPTIVE", "FORMAT"]
 
 #: The shipped trained file.
 DEFAULT_ADAPTIVE = Path(__file__).resolve().parent / "policies" / "adaptive.json"
@@ -51,6 +51,22 @@ def read_params(tensors: dict, meta: dict, path) -> dict:
     return out
 
 
+#: The answer tests a trained file may name (its JSON's ``"answer"``; files without one: ``"turn"``).
+ANSWERS = {"turn": 0.0, "reversal": 1.0}
+
+
+def fixed_settings(meta: dict, path) -> dict:
+    """The block's untrained switch named by a trained file's JSON ``meta``.
+
+    ``{"answer": 0.0 or 1.0}`` (:data:`ANSWERS`; files without one: ``"turn"``), or a ValueError naming a bad one.
+    """
+    a = meta.get("answer", "turn")
+    if a not in ANSWERS:
+        raise ValueError(f"{path}: answer {a!r} is not one of {sorted(ANSWERS)}; the file was written for another "
+                         "version of the block")
+    return {"answer": ANSWERS[a]}
+
+
 def load_adaptive(path=None, **settings) -> AdaptiveStiction:
     """The trained adaptive compensator as a DCS block.
 
@@ -83,6 +99,7 @@ def load_adaptive(path=None, **settings) -> AdaptiveStiction:
     p = DEFAULT_ADAPTIVE if path is None else Path(path)
     mf = load_model_file(p)
     trained = read_params(mf.tensors, mf.meta, p)
+    trained.update(fixed_settings(mf.meta, p))
     name = settings.pop("name", None)
     # a named block names itself in every message (settings, bad measurements, loop counts)
     cls = AdaptiveStiction if name is None else type("AdaptiveStiction", (AdaptiveStiction,), {"name": str(name)})

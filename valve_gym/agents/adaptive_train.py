@@ -94,6 +94,8 @@ class AdaptiveTrainConfig:
         The training family: ``"core"`` (the module docstring's list; the shipped file's) or ``"broad"``,
         the same plants and valves with dead time, a sensor lag, coloured noise, more kinds of load, scans
         of 0.5-4 s and the PI tuned anywhere from tight to sluggish (:func:`draw_loop`).
+    answer : {"turn", "reversal"}
+        The block's answer test (its ``answer`` setting, 0 or 1), written into the trained file's JSON.
     """
 
     seed: int = 38
@@ -110,6 +112,7 @@ class AdaptiveTrainConfig:
     travel_limit: float = 1.5
     init: tuple[float, ...] = (0.5, 0.25, 0.3, 0.9, 0.05, 0.01, 3.0, 1.0, 0.1, 3.0)
     family: str = "core"
+    answer: str = "turn"
 
     def __post_init__(self):
         for nm in ("generations", "pairs", "loops"):
@@ -126,6 +129,8 @@ class AdaptiveTrainConfig:
             raise ConfigError(f"travel_limit must be a number > 0, got {self.travel_limit!r}")
         if self.family not in FAMILIES:
             raise ConfigError(f"family must be one of {list(FAMILIES)}, got {self.family!r}")
+        if self.answer not in ("turn", "reversal"):
+            raise ConfigError(f"answer must be 'turn' or 'reversal', got {self.answer!r}")
         v = np.asarray(self.init, float)
         if v.shape != (len(PARAMS),) or np.any(v <= _LO) or np.any(v >= _HI):
             raise ConfigError(f"init must be {len(PARAMS)} numbers strictly inside their ranges "
@@ -327,18 +332,22 @@ def _plants(loops: TrainLoops, idx: np.ndarray, reps: int, frictionless: np.ndar
     return out
 
 
-def _block(P: np.ndarray, rows: list, scan: float):
+def _block(P: np.ndarray, rows: list, scan: float, answer: np.ndarray | None = None):
     from .controllers.adaptive import AdaptiveStiction
 
     reps, n = P.shape[0], len(rows)
     kw = {name: np.repeat(P[:, k], n) for k, name in enumerate(PARAM_NAMES)}
     Kc = np.tile(np.array([r["Kc"] for r in rows]), reps)
     Ti = np.tile(np.array([r["Ti"] for r in rows]), reps)
-    return AdaptiveStiction(Kc=Kc, Ti=Ti, scan_s=scan, **kw)
+    ans = np.repeat(np.zeros(reps) if answer is None else np.asarray(answer, float), n)
+    return AdaptiveStiction(Kc=Kc, Ti=Ti, scan_s=scan, answer=ans, **kw)
 
 
-def rollout(loops: TrainLoops, P: np.ndarray, frictionless: np.ndarray, scan: float) -> dict:
+def rollout(loops: TrainLoops, P: np.ndarray, frictionless: np.ndarray, scan: float,
+            answer: np.ndarray | None = None) -> dict:
     """Run columns ``P`` (reps, 10) on the loops of scan ``scan``: per (column, loop) IAE, travel, error.
+
+    ``answer`` (reps,): each column's answer test (the block's ``answer`` setting; default 0, ``"turn"``).
 
     Returns
     -------
@@ -362,7 +371,7 @@ def rollout(loops: TrainLoops, P: np.ndarray, frictionless: np.ndarray, scan: fl
     T = loops.noise[idx[0]].size
     noise = np.tile(np.stack([loops.noise[i] for i in idx], axis=1), (1, reps))
     load = np.tile(np.stack([loops.load[i] for i in idx], axis=1), (1, reps))
-    blk = _block(P, [loops.rows[i] for i in idx], scan)
+    blk = _block(P, [loops.rows[i] for i in idx], scan, answer)
     run = run_closed_loop([(cols, p) for cols, p, _ in plants], blk,
                           Scenario(sp=np.broadcast_to(sp, (T, N)), scan_s=scan, load=load, noise=noise), start=start)
     # the measured error (the core family has no sensor lag: the level plus the noise, as always computed)
@@ -374,8 +383,11 @@ def rollout(loops: TrainLoops, P: np.ndarray, frictionless: np.ndarray, scan: fl
             "e": e.reshape(T, reps, n)}
 
 
-def score_columns(loops: TrainLoops, P: np.ndarray) -> dict:
+def score_columns(loops: TrainLoops, P: np.ndarray, answer=None) -> dict:
     """Per-loop scores of the columns ``P`` (m, 10), then the plain PI and the frictionless PI beside them.
+
+    ``answer``: the columns' answer test, ``"turn"`` or ``"reversal"`` for all or one per column (default
+    ``"turn"``).
 
     Returns
     -------
@@ -386,6 +398,10 @@ def score_columns(loops: TrainLoops, P: np.ndarray) -> dict:
     """
     from valve_gym.oscillation import detect_oscillation
 
+    from .adaptive import ANSWERS
+
+    names = ["turn"] * len(P) if answer is None else [answer] * len(P) if isinstance(answer, str) else list(answer)
+    ans = np.array([ANSWERS[a] for a in names] + [0.0, 0.0])
     cols = np.vstack([P, PI_COLUMN, PI_COLUMN])
     fr = np.zeros(len(cols), bool)
     fr[-1] = True
@@ -393,7 +409,7 @@ def score_columns(loops: TrainLoops, P: np.ndarray) -> dict:
     iae, trav, lc = np.zeros((c, n)), np.zeros((c, n)), np.zeros((c, n))
     healthy = np.array([r["band"] == "healthy" for r in loops.rows])
     for scan in sorted({float(r["scan"]) for r in loops.rows}):
-        r = rollout(loops, cols, fr, scan)
+        r = rollout(loops, cols, fr, scan, ans)
         if r["idx"].size == 0:
             continue
         iae[:, r["idx"]], trav[:, r["idx"]] = r["iae"], r["travel"]
@@ -405,7 +421,7 @@ def score_columns(loops: TrainLoops, P: np.ndarray) -> dict:
 
 def evaluate(loops: TrainLoops, P: np.ndarray, cfg: AdaptiveTrainConfig) -> np.ndarray:
     """Fitness of each row of ``P`` (m, 10) on ``loops`` (module docstring), against the PI run beside them."""
-    return fitness(score_columns(loops, P), P.shape[0], cfg)
+    return fitness(score_columns(loops, P, cfg.answer), P.shape[0], cfg)
 
 
 def fitness(sc: dict, m: int, cfg: AdaptiveTrainConfig) -> np.ndarray:
@@ -467,7 +483,7 @@ def _write(out: Path, cfg: AdaptiveTrainConfig, params: np.ndarray, curve: list,
     from .adaptive import save_adaptive
 
     out.mkdir(parents=True, exist_ok=True)
-    meta = {"config": asdict(cfg), "seed": cfg.seed, "train_wall_s": round(wall, 1),
+    meta = {"config": asdict(cfg), "answer": cfg.answer, "seed": cfg.seed, "train_wall_s": round(wall, 1),
             "command": "python -m valve_gym.agents.adaptive_train " + " ".join(sys.argv[1:]),
             "versions": {"python": platform.python_version(), "numpy": np.__version__}}
     save_adaptive(out / "adaptive", params, meta)

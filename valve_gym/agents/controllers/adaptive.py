@@ -10,7 +10,8 @@ time ``ti_factor * Ti``, ``a = min(1, Ts / (f_tau Ti))``)::
     d      = direction of the PI's integral part, hysteresis c_h Kc sigma sqrt(Ts/Ti) (integral_direction)
     o      = Kc e_f + I + k_c S_hat d                    the sustained output (no pulses, filtered P part)
     o_flip = the extreme of o against d since the flip (where the output turned); s_0 the trend at the flip; armed
-    while armed, once d (s_0 - s) > c_d a^1.5 sigma / (sqrt(2) Ts)   (the error's trend turned: the valve moved)
+    while armed, once d (s_0 - s) > c_d a^1.5 sigma / (sqrt(2) Ts)   (the error's trend turned: the valve moved;
+        with answer = 1, s_0 is taken as 0 where d s_0 > 0: the trend must turn against d, not only slow down)
         S_hat <- clip(S_hat + eta g (beta |o - o_flip| - S_hat), 0.001, 0.2); disarmed
         (g = 1 for a measurement above the estimate, rho below: reversals within the noise, answered
         at once and far more frequent than the stick-slip cycle's, wear it down only slowly)
@@ -114,7 +115,11 @@ class AdaptiveStiction(Compensator):
     """
 
     name = "adaptive_stiction"
-    OWN_SETTINGS = tuple(Setting(n, u, (lo + hi) / 2.0, lo, hi, doc, per_loop=True) for n, u, lo, hi, doc in PARAMS)
+    OWN_SETTINGS = tuple(Setting(n, u, (lo + hi) / 2.0, lo, hi, doc, per_loop=True) for n, u, lo, hi, doc in PARAMS) + (
+        Setting("answer", "-", 0.0, 0.0, 1.0, "what counts as the valve's answer to a reversal: 0, the error's "
+                "trend turns by c_d noise units from its value at the reversal; 1, it turns against the output's "
+                "direction (a process settling while the stem sticks is no answer); a trained file says which",
+                per_loop=True),)
 
     def _resolve(self, settings: dict) -> dict:
         s = super()._resolve(settings)
@@ -157,7 +162,10 @@ class AdaptiveStiction(Compensator):
         p, a = self.p, self.alpha
         thr = p["c_d"] * a ** 1.5 * sigma / (np.sqrt(2.0) * self.scan_s)
         travel = np.abs(o - o_flip)
-        answered = (st.armed > 0) & ~flipped & (d * (st.trend0 - trend) > thr)
+        # answer = 1: where the error still grew in the output's direction at the reversal, its trend must turn
+        # against that direction; a first-order process settling while the stem sticks only slows that growth
+        ref = np.where((p["answer"] > 0.5) & (d * st.trend0 > 0), 0.0, st.trend0)
+        answered = (st.armed > 0) & ~flipped & (d * (ref - trend) > thr)
         meas = p["beta"] * travel - st.s_hat
         step = np.where(answered, p["eta"] * np.where(meas > 0, 1.0, p["rho"]) * meas, 0.0)
         bound = np.abs(st.o_ext - st.o_flip)           # flipped before any answer: at least this far
@@ -189,5 +197,4 @@ class AdaptiveStiction(Compensator):
         alone, _ = self.pi.finish(scan, bias)
         pis = PIBlockState(integral=alone.integral, op=op)
         return AdaptiveState(pis, d, i_ext, s_hat, sigma, scan.e, e_f, trend, o, o_ext, o_flip, trend0,
-                             armed,
-                             (st.phase + 1) % 3, k), op
+                             armed, (st.phase + 1) % 3, k), op
