@@ -77,7 +77,6 @@ from __future__ import annotations
 
 import math
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -88,16 +87,12 @@ for _p in (_HERE.parent, _HERE):                 # this checkout's package, and 
     if str(_p) not in sys.path:
         sys.path.insert(0, str(_p))
 
-from learned_unseen_check import (  # noqa: E402
+from learned_unseen_check import (  # noqa: E402, F401  (KNOWN, DIAGNOSED, check_family: the family's rows and runner)
     DIAGNOSED,
     KNOWN,
     check_family,
-    diagnose_loops,
-    family_args,
-    print_table,
+    family_main,
 )
-
-from valve_gym.agents.bench.scores import compensation_ratio  # noqa: E402
 
 KINDS = ("cone", "mixing", "neutral", "flow")
 VALVE_KINDS = ("force_balance", "lugre", "dead_band")
@@ -391,36 +386,10 @@ class ThirdLoops:
         return np.round((pv + noise) / q) * q
 
 
-def print_breakdown(res: dict, rows: list[dict], sticky: np.ndarray) -> None:
-    """LC share / median R on the sticky loops of each row by plant, valve and load kind (markdown)."""
-    pi, fr0 = res["pi"], res["PI frictionless"]
-    groups = [("kind", k) for k in KINDS] + [("valve", v) for v in VALVE_KINDS] + [("load", lk) for lk in LOAD_KINDS]
-    masks = [np.array([r[f] == v for r in rows]) & sticky for f, v in groups]
-    print("\nLC share / median R on the sticky loops, by plant, valve and load (loops in brackets):\n")
-    print("| controller | " + " | ".join(f"{v} ({int(mk.sum())})" for (_, v), mk in zip(groups, masks)) + " |")
-    print("|---|" + "---|" * len(groups))
-    for label, p in res.items():
-        R = compensation_ratio(pi["iae"], p["iae"], fr0["iae"])
-        cells = [f"{p['lc'][mk].mean():.2f} / {np.median(R[mk]):.2f}" if mk.any() else "-" for mk in masks]
-        print(f"| {label} | " + " | ".join(cells) + " |")
-
-
 def main(argv=None) -> int:
-    a = family_args(__doc__, 48, 2718, argv)
-    t0 = time.perf_counter()
-    rows = draw(a.n, a.seed)
-    sticky = np.array([r["S"] >= HEALTHY_S for r in rows])
-    if a.diagnosed:
-        diagnose_loops(ThirdLoops, rows, np.array([r["scan"] for r in rows]), a.duration, DIAG_KIND)
-        a.names += list(DIAGNOSED)
-    if a.known:
-        a.names += list(KNOWN)
-    res = check_family(ThirdLoops, rows, a.names, a.duration, test_s=TEST_S)
-    print(f"{a.n} loops ({int(sticky.sum())} sticky, S 0.5-10 %), seed {a.seed}, {a.duration:g} s, "
-          f"{time.perf_counter() - t0:.0f} s")
-    print_table(res, sticky)
-    print_breakdown(res, rows, sticky)
-    return 0
+    groups = [("kind", k) for k in KINDS] + [("valve", v) for v in VALVE_KINDS] + [("load", lk) for lk in LOAD_KINDS]
+    return family_main(__doc__, ThirdLoops, draw, 48, 2718, argv, healthy_s=HEALTHY_S, test_s=TEST_S,
+                       diag_kind=DIAG_KIND, groups=groups)
 
 
 if __name__ == "__main__":

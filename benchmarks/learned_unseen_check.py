@@ -365,6 +365,53 @@ def family_args(doc: str | None, n: int, seed: int, argv=None) -> argparse.Names
     return a
 
 
+def print_breakdown(res: dict, rows: list[dict], sticky: np.ndarray, groups: list[tuple[str, str]]) -> None:
+    """LC share / median R on the sticky loops of each row of ``res``, by the loops' ``groups`` (markdown).
+
+    ``groups``: ``(field, value)`` pairs; a loop is in a group where ``row[field] == value``.
+    """
+    pi, fr0 = res["pi"], res["PI frictionless"]
+    masks = [np.array([r[f] == v for r in rows]) & sticky for f, v in groups]
+    print("\nLC share / median R on the sticky loops, by plant, valve and load (loops in brackets):\n")
+    print("| controller | " + " | ".join(f"{v} ({int(mk.sum())})" for (_, v), mk in zip(groups, masks)) + " |")
+    print("|---|" + "---|" * len(groups))
+    for label, p in res.items():
+        R = compensation_ratio(pi["iae"], p["iae"], fr0["iae"])
+        cells = [f"{p['lc'][mk].mean():.2f} / {np.median(R[mk]):.2f}" if mk.any() else "-" for mk in masks]
+        print(f"| {label} | " + " | ".join(cells) + " |")
+
+
+def family_main(doc: str | None, sim_cls, draw_fn, n: int, seed: int, argv, *, healthy_s: float, test_s: float,
+                diag_kind: dict, groups: list[tuple[str, str]]) -> int:
+    """The command line of a held-out family's script (the third and later): draw, run, print.
+
+    Parameters
+    ----------
+    doc : the script's docstring (its first line describes the command)
+    sim_cls : the family's simulator class; ``draw_fn(n, seed)`` its loops
+    n, seed : the family's default size and seed
+    healthy_s : loops with ``S`` below it are healthy
+    test_s : length of the tuning step test [s]
+    diag_kind : plant kind -> the process kind given to the diagnosis (``--diagnosed``)
+    groups : the breakdown's ``(field, value)`` groups (:func:`print_breakdown`)
+    """
+    a = family_args(doc, n, seed, argv)
+    t0 = time.perf_counter()
+    rows = draw_fn(a.n, a.seed)
+    sticky = np.array([r["S"] >= healthy_s for r in rows])
+    if a.diagnosed:
+        diagnose_loops(sim_cls, rows, np.array([r["scan"] for r in rows]), a.duration, diag_kind)
+        a.names += list(DIAGNOSED)
+    if a.known:
+        a.names += list(KNOWN)
+    res = check_family(sim_cls, rows, a.names, a.duration, test_s=test_s)
+    print(f"{a.n} loops ({int(sticky.sum())} sticky, S 0.5-10 %), seed {a.seed}, {a.duration:g} s, "
+          f"{time.perf_counter() - t0:.0f} s")
+    print_table(res, sticky)
+    print_breakdown(res, rows, sticky, groups)
+    return 0
+
+
 def main(argv=None) -> int:
     a = family_args(__doc__, 36, 913, argv)
     t0 = time.perf_counter()
