@@ -12,7 +12,8 @@ the benchmark's generalisation part and ``benchmarks/learned_unseen_check.py`` /
         [--generations 5] [--loops 60]
 
 Each FILE is a trained ``adaptive.json`` (its ``.safetensors`` beside it); with none, the shipped file.
-``--vary beta=0.8,1.0`` adds rows of the first file with one number changed to each value.
+``--vary beta=0.8,1.0`` adds rows of the first file with one number changed to each value (also ``k_i``, the
+integral boost, which is not one of the ten trained numbers).
 """
 from __future__ import annotations
 
@@ -62,14 +63,16 @@ def main(argv=None) -> int:
     labels: list = [str(f) for f in files]
     try:
         P = [[float(np.asarray(load_adaptive(f).p[k]).reshape(-1)[0]) for k in PARAM_NAMES] for f in files]
-        answers = ["reversal" if float(np.ravel(load_adaptive(f).p["answer"])[0]) > 0.5 else "turn" for f in files]
+        blocks = [load_adaptive(f) for f in files]
+        answers = [{"answer": "reversal" if float(np.ravel(b.p["answer"])[0]) > 0.5 else "turn",
+                    "k_i": float(np.ravel(b.p["k_i"])[0])} for b in blocks]
     except (OSError, ValueError) as exc:
         ap.error(str(exc))
     for item in a.vary:
         name, sep, values = item.partition("=")
-        if not sep or name not in PARAM_NAMES:
-            ap.error(f"--vary takes NAME=V1,V2 with NAME one of {', '.join(PARAM_NAMES)}, got {item!r}")
-        lo, hi = next((p[2], p[3]) for p in PARAMS if p[0] == name)
+        if not sep or name not in (*PARAM_NAMES, "k_i"):
+            ap.error(f"--vary takes NAME=V1,V2 with NAME one of {', '.join(PARAM_NAMES)}, k_i; got {item!r}")
+        lo, hi = (0.0, 10.0) if name == "k_i" else next((p[2], p[3]) for p in PARAMS if p[0] == name)
         for v in values.split(","):
             try:
                 x = float(v)
@@ -78,8 +81,11 @@ def main(argv=None) -> int:
             if not (np.isfinite(x) and lo <= x <= hi):
                 ap.error(f"--vary {name}: {v} is outside the number's range [{lo:g}, {hi:g}]")
             P.append(list(P[0]))
-            answers.append(answers[0])
-            P[-1][PARAM_NAMES.index(name)] = x
+            answers.append(dict(answers[0]))
+            if name == "k_i":                      # an untrained setting (the integral boost), not one of the ten
+                answers[-1]["k_i"] = x
+            else:
+                P[-1][PARAM_NAMES.index(name)] = x
             labels.append(f"{labels[0]} with {name} = {x:g}")
     P = np.array(P)
     try:

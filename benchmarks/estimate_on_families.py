@@ -7,7 +7,7 @@ each family's loops are run as its script runs them (the shared harness's SIMC t
 family's own noise and load, one hour), and for every sticky loop the median of ``S_hat`` over the second half
 of the record is set against the loop's true ``S``.
 
-    python benchmarks/estimate_on_families.py [--families second third fourth] [--duration 3600]
+    python benchmarks/estimate_on_families.py [--families second third fourth fifth] [--duration 3600]
 
 Prints, per family and per decade of ``S`` (0.5-1.5 %, 1.5-4 %, 4-10 %), the number of sticky loops and the
 median and quartiles of ``S_hat / S``; and, over the healthy loops, the median ``S_hat`` (fraction of stroke).
@@ -34,7 +34,8 @@ from valve_gym.agents import load_controller  # noqa: E402
 #: family -> (module, simulator class, default size, seed, step-test length [s])
 FAMILIES = {"second": ("learned_unseen_check", "Loops", 36, 913, 1200.0),
             "third": ("learned_third_check", "ThirdLoops", 48, 2718, 1800.0),
-            "fourth": ("learned_fourth_check", "FourthLoops", 48, 4242, 1800.0)}
+            "fourth": ("learned_fourth_check", "FourthLoops", 48, 4242, 1800.0),
+            "fifth": ("learned_fifth_check", "FifthLoops", 48, 5151, 600.0)}
 BANDS = ((0.005, 0.015), (0.015, 0.04), (0.04, 0.1001))
 HEALTHY_S = 0.005
 

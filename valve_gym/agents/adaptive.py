@@ -56,15 +56,18 @@ ANSWERS = {"turn": 0.0, "reversal": 1.0}
 
 
 def fixed_settings(meta: dict, path) -> dict:
-    """The block's untrained switch named by a trained file's JSON ``meta``.
+    """The block's untrained settings named by a trained file's JSON ``meta``.
 
-    ``{"answer": 0.0 or 1.0}`` (:data:`ANSWERS`; files without one: ``"turn"``), or a ValueError naming a bad one.
+    ``{"answer": 0.0 or 1.0, "k_i": float}`` (:data:`ANSWERS`; files without them: ``"turn"`` and no integral
+    boost), or a ValueError naming a bad one.
     """
-    a = meta.get("answer", "turn")
+    a, ki = meta.get("answer", "turn"), meta.get("k_i", 0.0)
     if a not in ANSWERS:
         raise ValueError(f"{path}: answer {a!r} is not one of {sorted(ANSWERS)}; the file was written for another "
                          "version of the block")
-    return {"answer": ANSWERS[a]}
+    if isinstance(ki, bool) or not isinstance(ki, (int, float)) or not (0.0 <= ki <= 10.0):
+        raise ValueError(f"{path}: k_i must be a number in [0, 10], got {ki!r}")
+    return {"answer": ANSWERS[a], "k_i": float(ki)}
 
 
 def load_adaptive(path=None, **settings) -> AdaptiveStiction:

@@ -332,22 +332,23 @@ def _plants(loops: TrainLoops, idx: np.ndarray, reps: int, frictionless: np.ndar
     return out
 
 
-def _block(P: np.ndarray, rows: list, scan: float, answer: np.ndarray | None = None):
+def _block(P: np.ndarray, rows: list, scan: float, fixed: np.ndarray | None = None):
     from .controllers.adaptive import AdaptiveStiction
 
     reps, n = P.shape[0], len(rows)
     kw = {name: np.repeat(P[:, k], n) for k, name in enumerate(PARAM_NAMES)}
     Kc = np.tile(np.array([r["Kc"] for r in rows]), reps)
     Ti = np.tile(np.array([r["Ti"] for r in rows]), reps)
-    ans = np.repeat(np.zeros(reps) if answer is None else np.asarray(answer, float), n)
-    return AdaptiveStiction(Kc=Kc, Ti=Ti, scan_s=scan, answer=ans, **kw)
+    F = np.zeros((reps, 2)) if fixed is None else np.asarray(fixed, float).reshape(reps, 2)
+    return AdaptiveStiction(Kc=Kc, Ti=Ti, scan_s=scan, answer=np.repeat(F[:, 0], n), k_i=np.repeat(F[:, 1], n),
+                            **kw)
 
 
 def rollout(loops: TrainLoops, P: np.ndarray, frictionless: np.ndarray, scan: float,
-            answer: np.ndarray | None = None) -> dict:
+            fixed: np.ndarray | None = None) -> dict:
     """Run columns ``P`` (reps, 10) on the loops of scan ``scan``: per (column, loop) IAE, travel, error.
 
-    ``answer`` (reps,): each column's answer test (the block's ``answer`` setting; default 0, ``"turn"``).
+    ``fixed`` (reps, 2): each column's untrained ``answer`` and ``k_i`` settings (default 0, 0).
 
     Returns
     -------
@@ -371,7 +372,7 @@ def rollout(loops: TrainLoops, P: np.ndarray, frictionless: np.ndarray, scan: fl
     T = loops.noise[idx[0]].size
     noise = np.tile(np.stack([loops.noise[i] for i in idx], axis=1), (1, reps))
     load = np.tile(np.stack([loops.load[i] for i in idx], axis=1), (1, reps))
-    blk = _block(P, [loops.rows[i] for i in idx], scan, answer)
+    blk = _block(P, [loops.rows[i] for i in idx], scan, fixed)
     run = run_closed_loop([(cols, p) for cols, p, _ in plants], blk,
                           Scenario(sp=np.broadcast_to(sp, (T, N)), scan_s=scan, load=load, noise=noise), start=start)
     # the measured error (the core family has no sensor lag: the level plus the noise, as always computed)
@@ -383,11 +384,11 @@ def rollout(loops: TrainLoops, P: np.ndarray, frictionless: np.ndarray, scan: fl
             "e": e.reshape(T, reps, n)}
 
 
-def score_columns(loops: TrainLoops, P: np.ndarray, answer=None) -> dict:
+def score_columns(loops: TrainLoops, P: np.ndarray, fixed=None) -> dict:
     """Per-loop scores of the columns ``P`` (m, 10), then the plain PI and the frictionless PI beside them.
 
-    ``answer``: the columns' answer test, ``"turn"`` or ``"reversal"`` for all or one per column (default
-    ``"turn"``).
+    ``fixed``: the columns' untrained settings, ``{"answer": "turn" | "reversal", "k_i": float}`` for all
+    columns or a list of such dicts, one per column (default ``"turn"``, ``k_i`` 0).
 
     Returns
     -------
@@ -400,8 +401,8 @@ def score_columns(loops: TrainLoops, P: np.ndarray, answer=None) -> dict:
 
     from .adaptive import ANSWERS
 
-    names = ["turn"] * len(P) if answer is None else [answer] * len(P) if isinstance(answer, str) else list(answer)
-    ans = np.array([ANSWERS[a] for a in names] + [0.0, 0.0])
+    per = [{}] * len(P) if fixed is None else [fixed] * len(P) if isinstance(fixed, dict) else list(fixed)
+    F = np.array([[ANSWERS[f.get("answer", "turn")], float(f.get("k_i", 0.0))] for f in per] + [[0.0, 0.0]] * 2)
     cols = np.vstack([P, PI_COLUMN, PI_COLUMN])
     fr = np.zeros(len(cols), bool)
     fr[-1] = True
@@ -409,7 +410,7 @@ def score_columns(loops: TrainLoops, P: np.ndarray, answer=None) -> dict:
     iae, trav, lc = np.zeros((c, n)), np.zeros((c, n)), np.zeros((c, n))
     healthy = np.array([r["band"] == "healthy" for r in loops.rows])
     for scan in sorted({float(r["scan"]) for r in loops.rows}):
-        r = rollout(loops, cols, fr, scan, ans)
+        r = rollout(loops, cols, fr, scan, F)
         if r["idx"].size == 0:
             continue
         iae[:, r["idx"]], trav[:, r["idx"]] = r["iae"], r["travel"]
@@ -421,7 +422,7 @@ def score_columns(loops: TrainLoops, P: np.ndarray, answer=None) -> dict:
 
 def evaluate(loops: TrainLoops, P: np.ndarray, cfg: AdaptiveTrainConfig) -> np.ndarray:
     """Fitness of each row of ``P`` (m, 10) on ``loops`` (module docstring), against the PI run beside them."""
-    return fitness(score_columns(loops, P, cfg.answer), P.shape[0], cfg)
+    return fitness(score_columns(loops, P, {"answer": cfg.answer}), P.shape[0], cfg)
 
 
 def fitness(sc: dict, m: int, cfg: AdaptiveTrainConfig) -> np.ndarray:

@@ -17,6 +17,7 @@ time ``ti_factor * Ti``, ``a = min(1, Ts / (f_tau Ti))``)::
         at once and far more frequent than the stick-slip cycle's, wear it down only slowly)
     at a flip while still armed: the travel so far is a lower bound; S_hat rises to it at the rate eta
     u = sat(o + pulse),  pulse = k_k S_hat d one scan in every three
+    (k_i > 0: while armed, each scan's integral increment is taken 1 + k_i times)
 
 With a sticky valve the output has to travel the stick band after a reversal before the stem moves
 and the error's trend turns, so the travel measures ``S`` (the reinforcement ``2 k_c S_hat`` jumped
@@ -119,7 +120,9 @@ class AdaptiveStiction(Compensator):
         Setting("answer", "-", 0.0, 0.0, 1.0, "what counts as the valve's answer to a reversal: 0, the error's "
                 "trend turns by c_d noise units from its value at the reversal; 1, it turns against the output's "
                 "direction (a process settling while the stem sticks is no answer); a trained file says which",
-                per_loop=True),)
+                per_loop=True),
+        Setting("k_i", "-", 0.0, 0.0, 10.0, "integral boost: while a reversal awaits the valve's answer the integral "
+                "part moves (1 + k_i) times as fast; a trained file says how much", per_loop=True),)
 
     def _resolve(self, settings: dict) -> dict:
         s = super()._resolve(settings)
@@ -141,7 +144,7 @@ class AdaptiveStiction(Compensator):
         >>> blk.settings["k_k"], blk.settings["Kc"], blk.scan_s
         (0.3, 2.0, 0.5)
         """
-        own = {k: self.settings[k] for k in PARAM_NAMES}
+        own = {st.name: self.settings[st.name] for st in self.OWN_SETTINGS}      # trained numbers and switches
         pi = {k.name: self.settings[k.name] for k in PI_SETTINGS if k.name not in ("Kc", "Ti", "scan_s")}
         return type(self)(**own, **pi, Kc=float(Kc), Ti=float(Ti), scan_s=float(scan_s))
 
@@ -178,6 +181,8 @@ class AdaptiveStiction(Compensator):
         """One scan: ``(state, sp, pv) -> (state, op)``."""
         p, ts, st = self.p, self.scan_s, state
         scan = self.pi.propose(st.pi, sp, pv)
+        boost = p["k_i"] * st.armed * (scan.integral - st.pi.integral)     # faster across the band while stuck
+        scan = scan._replace(integral=scan.integral + boost, v=scan.v + boost)
         k = st.k + 1.0
         rate = np.maximum(min(1.0, ts / 200.0), 1.0 / k)
         sigma = st.sigma + rate * (0.63 * np.abs(scan.e - st.e_prev) - st.sigma)
