@@ -176,6 +176,8 @@ def test_a_trained_file_is_a_policy_row_with_each_loops_tuning():
     assert loop.name == "mine" and loop.scan_s == 0.5
     assert loop.settings["Kc"] == 2.5 and loop.settings["Ti"] == 80.0
     assert all(loop.settings[k] == blk.settings[k] for k in PARAM_NAMES)
+    switched = AdaptiveStiction(answer=1.0, k_i=0.5, Kc=1.0, Ti=30.0).for_loop(2.0, 60.0, 1.0)
+    assert switched.settings["answer"] == 1.0 and switched.settings["k_i"] == 0.5     # untrained switches kept
     with pytest.raises(ValueError, match="^mine: setting Kc"):
         blk.for_loop(-1.0, 80.0, 0.5)
 
@@ -202,7 +204,9 @@ def test_trained_file_names_its_answer_test(tmp_path):
     from valve_gym.agents.adaptive import ANSWERS
     from valve_gym.config import ConfigError
 
-    assert load_adaptive().settings["answer"] == 0.0                # the shipped file predates the test: "turn"
+    assert load_adaptive().settings["answer"] == 1.0                # the shipped file: trained with "reversal"
+    turn = DEFAULT_ADAPTIVE.parents[3] / "benchmarks" / "data" / "adaptive_turn_test.json"
+    assert load_adaptive(turn).settings["answer"] == 0.0            # the file before it names no test: "turn"
     save_adaptive(tmp_path / "rev", MID, {"answer": "reversal"})
     assert load_adaptive(tmp_path / "rev").settings["answer"] == ANSWERS["reversal"] == 1.0
     save_adaptive(tmp_path / "odd", MID, {"answer": "sideways"})
@@ -210,3 +214,24 @@ def test_trained_file_names_its_answer_test(tmp_path):
         load_adaptive(tmp_path / "odd")
     with pytest.raises(ConfigError, match="answer"):
         AdaptiveTrainConfig(answer="sideways")
+
+
+def test_integral_boost_acts_only_while_a_reversal_awaits_its_answer():
+    kw = dict(zip(PARAM_NAMES, MID), k_k=0.0, k_c=0.0, Kc=1.0, Ti=10.0)
+    runs = {}
+    for k_i in (0.0, 1.0):
+        blk = AdaptiveStiction(k_i=k_i, **kw)
+        blk.reset(1.0, 1.0, 0.5)
+        integral, armed = [], []
+        for _ in range(6):                              # a steady error: the integral turns up and waits
+            blk.step(1.0, 0.99)
+            integral.append(float(blk.state.pi.integral[0]))
+            armed.append(float(blk.state.armed[0]))
+        runs[k_i] = (np.diff(integral), armed)
+    plain, boosted = runs[0.0][0], runs[1.0][0]
+    armed = np.array(runs[1.0][1])
+    assert armed[0] == 0.0 and armed[-1] == 1.0 and runs[0.0][1] == runs[1.0][1]   # it turns, then no answer
+    waiting = armed[:-1] == 1.0                            # increments of the scans that start armed
+    np.testing.assert_allclose(boosted[waiting], 2.0 * plain[waiting])   # (1 + k_i) times the PI's own
+    np.testing.assert_allclose(boosted[~waiting], plain[~waiting])       # before the turn: the plain PI
+    assert load_adaptive().settings["k_i"] == 0.0         # files without it: no boost
