@@ -1,8 +1,8 @@
 """The learned compensator against the PI on a healthy valve at a constant set point.
 
-The learned block adds a bounded correction (up to 0.08 of stroke) to its PI; it was trained on
-loops with measurement noise and sticky valves. On a healthy valve it keeps correcting: this script
-measures how much, on the default tank (Choudhury valve with S = J = 0, 3000 s at 1 s scans, the
+The learned block adds a reinforcement and pulses, sized by its estimate of the stick band, to its PI; it
+was trained on loops with measurement noise and sticky valves. On a healthy valve it keeps correcting:
+this script measures how much, on the default tank (Choudhury valve with S = J = 0, 3000 s at 1 s scans, the
 set point at the starting level), for three measurement-noise levels: the IAE of the level over
 the last half, the level's peak-to-peak there, the stem travel and the output's first moves.
 
@@ -10,7 +10,7 @@ Usage::
 
     python benchmarks/learned_on_healthy_valves.py [--policy PATH]
 
-``--policy`` measures another learned block (its ``.json``; default the shipped one).
+``--policy`` measures another trained file of the learned block (its ``.json``; default the shipped one).
 """
 from __future__ import annotations
 
