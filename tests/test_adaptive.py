@@ -214,6 +214,12 @@ def test_trained_file_names_its_answer_test(tmp_path):
         load_adaptive(tmp_path / "odd")
     with pytest.raises(ConfigError, match="answer"):
         AdaptiveTrainConfig(answer="sideways")
+    save_adaptive(tmp_path / "boost", MID, {"k_i": 0.5})
+    assert load_adaptive(tmp_path / "boost").settings["k_i"] == 0.5
+    for bad in (-1.0, 11.0, "fast", True):
+        save_adaptive(tmp_path / "bad", MID, {"k_i": bad})
+        with pytest.raises(ValueError, match="k_i must be a number in"):
+            load_adaptive(tmp_path / "bad")
 
 
 def test_integral_boost_acts_only_while_a_reversal_awaits_its_answer():
