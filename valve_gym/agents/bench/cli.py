@@ -1,8 +1,8 @@
 """``valve-gym benchmark --out DIR [--quick] [--config FILE] [--jobs N] [--policy FILE --name NAME ...]``.
 
 The compensator benchmark; ``--policy`` adds one's own policies (a regulation-env policy exported with
-:func:`valve_gym.agents.bench.policies.export_policy` or ``valve-gym convert-policy``, a learned-block file,
-or a folder of them = the seeds of one row) beside the classical rows.
+:func:`valve_gym.agents.bench.policies.export_policy` or ``valve-gym convert-policy``, a learned-block file, a
+trained adaptive-compensator file, or a folder of them = the seeds of one row) beside the classical rows.
 """
 from __future__ import annotations
 
@@ -36,7 +36,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-progress", action="store_true", help="no progress lines on stderr")
     p.add_argument("--policy", action="append", default=[], metavar="FILE",
                    help="a policy of valve_gym/ValveTankRegulation-v0 to add as a row: NAME.json (+ NAME.safetensors) "
-                        "from export_policy / convert-policy, a learned-block file, or a folder of them (the seeds "
+                        "from export_policy / convert-policy, a learned-block or trained adaptive-compensator file "
+                        "(valve_gym.agents.adaptive_train), or a folder of them (the seeds "
                         "of one row); repeat for more rows. SB3 .zip files are refused: convert a trusted one with "
                         "`valve-gym convert-policy --trust-pickle IN.zip OUT`")
     p.add_argument("--name", action="append", default=[], metavar="NAME",
