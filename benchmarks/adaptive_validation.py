@@ -56,16 +56,15 @@ def main(argv=None) -> int:
     from valve_gym.agents import adaptive_train as at
     from valve_gym.agents.adaptive import DEFAULT_ADAPTIVE, load_adaptive
     from valve_gym.agents.bench.scores import compensation_ratio
-    from valve_gym.agents.controllers.adaptive import PARAM_NAMES, PARAMS
+    from valve_gym.agents.controllers.adaptive import PARAM_NAMES, PARAMS, SWITCHES
     from valve_gym.config import ConfigError
 
     files = [Path(f) for f in a.files] or [DEFAULT_ADAPTIVE]
     labels: list = [str(f) for f in files]
     try:
-        P = [[float(np.asarray(load_adaptive(f).p[k]).reshape(-1)[0]) for k in PARAM_NAMES] for f in files]
         blocks = [load_adaptive(f) for f in files]
-        answers = [{"answer": "reversal" if float(np.ravel(b.p["answer"])[0]) > 0.5 else "turn",
-                    "k_i": float(np.ravel(b.p["k_i"])[0])} for b in blocks]
+        P = [[float(np.ravel(b.p[k])[0]) for k in PARAM_NAMES] for b in blocks]
+        answers = [{k: float(np.ravel(b.p[k])[0]) for k in SWITCHES} for b in blocks]   # each file's own switches
     except (OSError, ValueError) as exc:
         ap.error(str(exc))
     for item in a.vary:

@@ -333,22 +333,23 @@ def _plants(loops: TrainLoops, idx: np.ndarray, reps: int, frictionless: np.ndar
 
 
 def _block(P: np.ndarray, rows: list, scan: float, fixed: np.ndarray | None = None):
-    from .controllers.adaptive import AdaptiveStiction
+    from .controllers.adaptive import SWITCHES, AdaptiveStiction
 
     reps, n = P.shape[0], len(rows)
     kw = {name: np.repeat(P[:, k], n) for k, name in enumerate(PARAM_NAMES)}
+    F = np.zeros((reps, len(SWITCHES))) if fixed is None else np.asarray(fixed, float).reshape(reps, len(SWITCHES))
+    kw.update({name: np.repeat(F[:, j], n) for j, name in enumerate(SWITCHES)})
     Kc = np.tile(np.array([r["Kc"] for r in rows]), reps)
     Ti = np.tile(np.array([r["Ti"] for r in rows]), reps)
-    F = np.zeros((reps, 2)) if fixed is None else np.asarray(fixed, float).reshape(reps, 2)
-    return AdaptiveStiction(Kc=Kc, Ti=Ti, scan_s=scan, answer=np.repeat(F[:, 0], n), k_i=np.repeat(F[:, 1], n),
-                            **kw)
+    return AdaptiveStiction(Kc=Kc, Ti=Ti, scan_s=scan, **kw)
 
 
 def rollout(loops: TrainLoops, P: np.ndarray, frictionless: np.ndarray, scan: float,
             fixed: np.ndarray | None = None) -> dict:
     """Run columns ``P`` (reps, 10) on the loops of scan ``scan``: per (column, loop) IAE, travel, error.
 
-    ``fixed`` (reps, 2): each column's untrained ``answer`` and ``k_i`` settings (default 0, 0).
+    ``fixed`` (reps, len(SWITCHES)): each column's untrained settings (:data:`~.controllers.adaptive.SWITCHES`;
+    default all 0).
 
     Returns
     -------
@@ -387,8 +388,9 @@ def rollout(loops: TrainLoops, P: np.ndarray, frictionless: np.ndarray, scan: fl
 def score_columns(loops: TrainLoops, P: np.ndarray, fixed=None) -> dict:
     """Per-loop scores of the columns ``P`` (m, 10), then the plain PI and the frictionless PI beside them.
 
-    ``fixed``: the columns' untrained settings, ``{"answer": "turn" | "reversal", "k_i": float}`` for all
-    columns or a list of such dicts, one per column (default ``"turn"``, ``k_i`` 0).
+    ``fixed``: the columns' untrained settings as the block takes them (``{"answer": 0.0 or 1.0, "k_i": ...}``,
+    :data:`~.controllers.adaptive.SWITCHES`; one dict for all columns or a list, one per column; a switch left
+    out is 0).
 
     Returns
     -------
@@ -399,10 +401,10 @@ def score_columns(loops: TrainLoops, P: np.ndarray, fixed=None) -> dict:
     """
     from valve_gym.oscillation import detect_oscillation
 
-    from .adaptive import ANSWERS
+    from .controllers.adaptive import SWITCHES
 
     per = [{}] * len(P) if fixed is None else [fixed] * len(P) if isinstance(fixed, dict) else list(fixed)
-    F = np.array([[ANSWERS[f.get("answer", "turn")], float(f.get("k_i", 0.0))] for f in per] + [[0.0, 0.0]] * 2)
+    F = np.array([[float(f.get(k, 0.0)) for k in SWITCHES] for f in [*per, {}, {}]])     # the two PIs: all off
     cols = np.vstack([P, PI_COLUMN, PI_COLUMN])
     fr = np.zeros(len(cols), bool)
     fr[-1] = True
@@ -422,7 +424,9 @@ def score_columns(loops: TrainLoops, P: np.ndarray, fixed=None) -> dict:
 
 def evaluate(loops: TrainLoops, P: np.ndarray, cfg: AdaptiveTrainConfig) -> np.ndarray:
     """Fitness of each row of ``P`` (m, 10) on ``loops`` (module docstring), against the PI run beside them."""
-    return fitness(score_columns(loops, P, {"answer": cfg.answer}), P.shape[0], cfg)
+    from .adaptive import ANSWERS
+
+    return fitness(score_columns(loops, P, {"answer": ANSWERS[cfg.answer]}), P.shape[0], cfg)
 
 
 def fitness(sc: dict, m: int, cfg: AdaptiveTrainConfig) -> np.ndarray:

@@ -41,7 +41,7 @@ from .block import Setting
 from .compensator import Compensator, integral_direction
 from .pi import PI_SETTINGS, PIBlock, PIBlockState
 
-__all__ = ["AdaptiveStiction", "AdaptiveState", "PARAMS", "PARAM_NAMES"]
+__all__ = ["AdaptiveStiction", "AdaptiveState", "PARAMS", "PARAM_NAMES", "SWITCHES"]
 
 #: The trained settings: name, unit, low, high, one line.
 PARAMS = (
@@ -57,6 +57,8 @@ PARAMS = (
     ("c_d", "-", 1.0, 10.0, "turn of the error's trend that counts as an answer, in noise units"),
 )
 PARAM_NAMES = tuple(p[0] for p in PARAMS)
+#: The block's untrained settings that a trained file names beside its ten numbers (off at 0).
+SWITCHES = ("answer", "k_i")
 _S_MIN, _S_MAX = 0.001, 0.2
 
 
