@@ -26,6 +26,36 @@ def load_repo_module(relpath: str, name: str, keep: bool = False):
     return mod
 
 
+def check_family_starts_at_rest(sim_cls, rows: list[dict], output_above: bool = False, read: bool = False) -> None:
+    """A held-out family's loops, sticky and frictionless, stay at rest at their set point for 120 s.
+
+    ``output_above``: the sticky valves' output sits above the stem (stuck after an upward move);
+    ``read``: the transmitter reads the set point within its resolution (``sim.res``).
+    """
+    import numpy as np
+
+    for fr in (False, True):
+        for scan in sorted({r["scan"] for r in rows}):
+            sub = [r for r in rows if r["scan"] == scan]
+            sim = sim_cls(sub, scan, fr)
+            y0, x0, u0 = sim.reset()
+            np.testing.assert_allclose(x0, [r["x0"] for r in sub])
+            if output_above:
+                assert fr or (u0 > x0).all()                # stuck after an upward move: the output above the stem
+            for _ in range(int(120 / scan)):
+                y, x = sim.step(u0, np.zeros(len(sub)))
+            np.testing.assert_allclose(y, y0, atol=1e-9)
+            np.testing.assert_allclose(x, x0, atol=1e-9)
+            if read:
+                np.testing.assert_allclose(sim.measure(y, np.zeros(len(sub))), y0, atol=sim.res.max())
+
+
+@pytest.fixture(scope="session")
+def starts_at_rest():
+    """:func:`check_family_starts_at_rest`, for the tests of the held-out family scripts."""
+    return check_family_starts_at_rest
+
+
 @pytest.fixture(scope="session")
 def repo_module():
     """:func:`load_repo_module`, for the tests of the benchmark scripts and the docs' examples."""

@@ -30,18 +30,8 @@ def test_the_design_is_a_balanced_factorial_with_every_third_valve_healthy(fourt
         assert r["scan"] in fourth.SCANS[r["kind"]]
 
 
-def test_every_loop_starts_at_rest_at_its_set_point(fourth):
-    rows = fourth.draw(12, 7)
-    for fr in (False, True):
-        for scan in sorted({r["scan"] for r in rows}):
-            sub = [r for r in rows if r["scan"] == scan]
-            sim = fourth.FourthLoops(sub, scan, fr)
-            y0, x0, u0 = sim.reset()
-            np.testing.assert_allclose(x0, [r["x0"] for r in sub])
-            for _ in range(int(120 / scan)):
-                y, x = sim.step(u0, np.zeros(len(sub)))
-            np.testing.assert_allclose(y, y0, atol=1e-9)
-            np.testing.assert_allclose(x, x0, atol=1e-9)
+def test_every_loop_starts_at_rest_at_its_set_point(fourth, starts_at_rest):
+    starts_at_rest(fourth.FourthLoops, fourth.draw(12, 7))
 
 
 def test_loops_are_finite_and_the_frictionless_pi_holds_the_set_point(fourth):

@@ -32,20 +32,8 @@ def test_the_design_is_a_balanced_factorial_with_every_third_valve_healthy(sixth
         assert 0.35 <= r["x0"] <= 0.65
 
 
-def test_every_loop_starts_at_rest_at_its_set_point(sixth):
-    rows = sixth.draw(12, 7)
-    for fr in (False, True):
-        for scan in sorted({r["scan"] for r in rows}):
-            sub = [r for r in rows if r["scan"] == scan]
-            sim = sixth.SixthLoops(sub, scan, fr)
-            y0, x0, u0 = sim.reset()
-            np.testing.assert_allclose(x0, [r["x0"] for r in sub])
-            assert fr or (u0 > x0).all()                    # stuck after an upward move: the output above the stem
-            for _ in range(int(120 / scan)):
-                y, x = sim.step(u0, np.zeros(len(sub)))
-            np.testing.assert_allclose(y, y0, atol=1e-9)
-            np.testing.assert_allclose(x, x0, atol=1e-9)
-            np.testing.assert_allclose(sim.measure(y, np.zeros(len(sub))), y0, atol=sim.res.max())
+def test_every_loop_starts_at_rest_at_its_set_point(sixth, starts_at_rest):
+    starts_at_rest(sixth.SixthLoops, sixth.draw(12, 7), output_above=True, read=True)
 
 
 def test_loops_are_finite_and_the_frictionless_pi_holds_the_set_point(sixth):
