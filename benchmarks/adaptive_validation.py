@@ -12,8 +12,8 @@ the benchmark's generalisation part and ``benchmarks/learned_unseen_check.py`` /
         [--generations 5] [--loops 60]
 
 Each FILE is a trained ``adaptive.json`` (its ``.safetensors`` beside it); with none, the shipped file.
-``--vary beta=0.8,1.0`` adds rows of the first file with one number changed to each value (also ``k_i``, the
-integral boost, which is not one of the ten trained numbers).
+``--vary beta=0.8,1.0`` adds rows of the first file with one number changed to each value (also the untrained
+switches ``k_i``, the integral boost, and ``k_z``, the integral dead zone).
 """
 from __future__ import annotations
 
@@ -29,6 +29,8 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 FIRST = 5000
+#: Untrained settings ``--vary`` takes beside the ten trained numbers, with their ranges.
+UNTRAINED = {"k_i": (0.0, 10.0), "k_z": (0.0, 4.0)}
 #: The validation draws are generations FIRST, FIRST + 1, ... of this seed, whatever the configuration's.
 VALIDATION_SEED = 38
 
@@ -69,9 +71,9 @@ def main(argv=None) -> int:
         ap.error(str(exc))
     for item in a.vary:
         name, sep, values = item.partition("=")
-        if not sep or name not in (*PARAM_NAMES, "k_i"):
-            ap.error(f"--vary takes NAME=V1,V2 with NAME one of {', '.join(PARAM_NAMES)}, k_i; got {item!r}")
-        lo, hi = (0.0, 10.0) if name == "k_i" else next((p[2], p[3]) for p in PARAMS if p[0] == name)
+        if not sep or name not in (*PARAM_NAMES, *UNTRAINED):
+            ap.error(f"--vary takes NAME=V1,V2 with NAME one of {', '.join((*PARAM_NAMES, *UNTRAINED))}; got {item!r}")
+        lo, hi = UNTRAINED[name] if name in UNTRAINED else next((p[2], p[3]) for p in PARAMS if p[0] == name)
         for v in values.split(","):
             try:
                 x = float(v)
@@ -81,8 +83,8 @@ def main(argv=None) -> int:
                 ap.error(f"--vary {name}: {v} is outside the number's range [{lo:g}, {hi:g}]")
             P.append(list(P[0]))
             answers.append(dict(answers[0]))
-            if name == "k_i":                      # an untrained setting (the integral boost), not one of the ten
-                answers[-1]["k_i"] = x
+            if name in UNTRAINED:                  # an untrained setting, not one of the ten
+                answers[-1][name] = x
             else:
                 P[-1][PARAM_NAMES.index(name)] = x
             labels.append(f"{labels[0]} with {name} = {x:g}")
@@ -103,15 +105,19 @@ def main(argv=None) -> int:
     iae = np.concatenate([s["iae"] for s in per], axis=1)
     trav = np.concatenate([s["travel"] for s in per], axis=1)
     lc = np.concatenate([s["lc"] for s in per], axis=1)
+    amp = np.concatenate([s["amplitude"] for s in per], axis=1)
+    off = np.abs(np.concatenate([s["offset"] for s in per], axis=1))
     sticky = np.concatenate([s["sticky"] for s in per])
     m = len(labels)
     print(f"{a.generations} draws x {a.loops} loops of the training family ({int(sticky.sum())} sticky + severe)")
-    print("| file | fitness | median R (sticky) | LC share (PI) | travel / frictionless PI | healthy IAE / PI |")
-    print("|---|---|---|---|---|---|")
+    print("| file | fitness | median R (sticky) | LC share (PI) | mean LC amp. x1000 (PI) | median abs. offset x1000 "
+          "| travel / frictionless PI | healthy IAE / PI |")
+    print("|---|---|---|---|---|---|---|---|")
     for c, f in enumerate(labels):
         R = compensation_ratio(iae[m, sticky], iae[c, sticky], iae[m + 1, sticky])
         print(f"| {f} | {np.mean([x[c] for x in fit]):+.3f} | {_median(R)} | {_mean(lc[c, sticky])} "
-              f"({_mean(lc[m, sticky])}) | {_median(trav[c, sticky] / trav[m + 1, sticky])} | "
+              f"({_mean(lc[m, sticky])}) | {_mean(1000 * amp[c, sticky])} ({_mean(1000 * amp[m, sticky])}) | "
+              f"{_median(1000 * off[c, sticky])} | {_median(trav[c, sticky] / trav[m + 1, sticky])} | "
               f"{_median(iae[c, ~sticky] / iae[m, ~sticky])} |")
     return 0
 

@@ -241,3 +241,49 @@ def test_integral_boost_acts_only_while_a_reversal_awaits_its_answer():
     np.testing.assert_allclose(boosted[waiting], 2.0 * plain[waiting])   # (1 + k_i) times the PI's own
     np.testing.assert_allclose(boosted[~waiting], plain[~waiting])       # before the turn: the plain PI
     assert load_adaptive().settings["k_i"] == 0.0         # files without it: no boost
+
+
+def test_integral_dead_zone_holds_the_integral_inside_its_band_and_is_off_by_default():
+    kw = dict(zip(PARAM_NAMES, MID), k_k=0.0, k_c=0.0, S0=0.02, f_tau=0.02, Kc=2.0, Ti=10.0)
+    band = 1.0 * 0.02 / (2.0 * 2.0)                        # k_z S_hat / (2 Kc) = 5 mm at the start
+    runs = {}
+    for k_z in (0.0, 1.0):
+        blk = AdaptiveStiction(k_z=k_z, **kw)
+        blk.reset(1.0, 1.0, 0.5)
+        steps = []
+        for pv in (0.998, 0.998, 0.97, 0.97):             # 2 mm error: inside the band; 30 mm: outside
+            i0 = float(blk.state.pi.integral[0])
+            blk.step(1.0, pv)
+            steps.append(float(blk.state.pi.integral[0]) - i0)
+            assert abs(float(blk.state.e_f[0])) < band or pv == 0.97
+        runs[k_z] = np.array(steps)
+    assert (runs[0.0] > 0).all()                          # the PI integrates every scan
+    np.testing.assert_array_equal(runs[1.0][:2], 0.0)     # inside the band: held
+    assert (runs[1.0][2:] > 0).all()                      # outside it: integrates again (the filtered error left it)
+    assert load_adaptive().settings["k_z"] == 0.0          # the shipped file: no dead zone
+
+
+def test_integral_dead_zone_in_a_file_is_checked(tmp_path):
+    save_adaptive(tmp_path / "quiet", MID, {"k_z": 1.0})
+    assert load_adaptive(tmp_path / "quiet").settings["k_z"] == 1.0
+    for bad in (-0.5, 5.0, "wide", False):
+        save_adaptive(tmp_path / "bad", MID, {"k_z": bad})
+        with pytest.raises(ValueError, match="k_z must be a number in"):
+            load_adaptive(tmp_path / "bad")
+    with pytest.raises(ValueError, match="k_z"):
+        AdaptiveStiction(k_z=-1.0, Kc=1.0, Ti=10.0)
+
+
+def test_integral_dead_zone_breaks_a_stick_slip_cycle_at_the_price_of_an_offset():
+    """On an integrating level with a slip-jump valve the PI's cycle goes with a dead zone sized to it; what is
+    left is a steady error inside the band (the trade-off docs/learned.md measures on whole families)."""
+    from valve_gym.oscillation import detect_oscillation
+
+    kw = dict(zip(PARAM_NAMES, MID), Kc=2.0, Ti=60.0)
+    found = {}
+    for k_z in (0.0, 1.0):
+        ys, _ = _stick_slip_loop(AdaptiveStiction(k_z=k_z, **kw), S=0.04, J=0.03, T=3000)
+        e = 1.0 - ys[1500:]
+        found[k_z] = (detect_oscillation(e, 1.0).present, abs(e.mean()))
+    assert found[0.0][0] and not found[1.0][0]             # the regular cycle is gone
+    assert found[1.0][1] > 5.0 * max(found[0.0][1], 1e-4)  # and a steady offset took its place

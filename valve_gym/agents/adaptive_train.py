@@ -394,10 +394,11 @@ def score_columns(loops: TrainLoops, P: np.ndarray, fixed=None) -> dict:
 
     Returns
     -------
-    dict with ``iae``, ``travel`` and ``lc`` (m + 2, n): rows ``0..m-1`` the columns, ``m`` the plain PI
-    (:data:`PI_COLUMN`), ``m + 1`` the PI on the frictionless valve; ``lc`` 1.0 where the benchmark's
-    detector finds a limit cycle in the measured error (sticky loops only, 0 on healthy ones); and
-    ``healthy`` (n,) bool.
+    dict with ``iae``, ``travel``, ``lc``, ``amplitude`` and ``offset`` (m + 2, n): rows ``0..m-1`` the columns,
+    ``m`` the plain PI (:data:`PI_COLUMN`), ``m + 1`` the PI on the frictionless valve; ``lc`` 1.0 where the
+    benchmark's detector finds a limit cycle in the measured error (sticky loops only, 0 on healthy ones),
+    ``amplitude`` its amplitude (0 where none), ``offset`` the mean measured error [pv]; and ``healthy`` (n,)
+    bool.
     """
     from valve_gym.oscillation import detect_oscillation
 
@@ -410,16 +411,20 @@ def score_columns(loops: TrainLoops, P: np.ndarray, fixed=None) -> dict:
     fr[-1] = True
     c, n = len(cols), len(loops.rows)
     iae, trav, lc = np.zeros((c, n)), np.zeros((c, n)), np.zeros((c, n))
+    offset, amp = np.zeros((c, n)), np.zeros((c, n))
     healthy = np.array([r["band"] == "healthy" for r in loops.rows])
     for scan in sorted({float(r["scan"]) for r in loops.rows}):
         r = rollout(loops, cols, fr, scan, F)
         if r["idx"].size == 0:
             continue
         iae[:, r["idx"]], trav[:, r["idx"]] = r["iae"], r["travel"]
+        offset[:, r["idx"]] = r["e"].mean(axis=0)
         for j, i in enumerate(r["idx"]):
             if not healthy[i]:
-                lc[:, i] = [detect_oscillation(r["e"][:, k, j], scan, "benchmark").present for k in range(c)]
-    return {"iae": iae, "travel": trav, "lc": lc, "healthy": healthy}
+                osc = [detect_oscillation(r["e"][:, k, j], scan, "benchmark") for k in range(c)]
+                lc[:, i] = [o.present for o in osc]
+                amp[:, i] = [o.amplitude for o in osc]
+    return {"iae": iae, "travel": trav, "lc": lc, "offset": offset, "amplitude": amp, "healthy": healthy}
 
 
 def evaluate(loops: TrainLoops, P: np.ndarray, cfg: AdaptiveTrainConfig) -> np.ndarray:

@@ -18,6 +18,8 @@ time ``ti_factor * Ti``, ``a = min(1, Ts / (f_tau Ti))``)::
     at a flip while still armed: the travel so far is a lower bound; S_hat rises to it at the rate eta
     u = sat(o + pulse),  pulse = k_k S_hat d one scan in every three
     (k_i > 0: while armed, each scan's integral increment is taken 1 + k_i times)
+    (k_z > 0: the integral holds while |e_f| < k_z S_hat / (2 Kc), an integral dead zone sized to the
+    stick-slip cycle's error amplitude S/(2 Kc) on a valve of band S_hat)
 
 With a sticky valve the output has to travel the stick band after a reversal before the stem moves
 and the error's trend turns, so the travel measures ``S`` (the reinforcement ``2 k_c S_hat`` jumped
@@ -58,7 +60,7 @@ PARAMS = (
 )
 PARAM_NAMES = tuple(p[0] for p in PARAMS)
 #: The block's untrained settings that a trained file names beside its ten numbers (off at 0).
-SWITCHES = ("answer", "k_i")
+SWITCHES = ("answer", "k_i", "k_z")
 _S_MIN, _S_MAX = 0.001, 0.2
 
 
@@ -124,7 +126,10 @@ class AdaptiveStiction(Compensator):
                 "direction (a process settling while the stem sticks is no answer); a trained file says which",
                 per_loop=True),
         Setting("k_i", "-", 0.0, 0.0, 10.0, "integral boost: while a reversal awaits the valve's answer the integral "
-                "part moves (1 + k_i) times as fast; a trained file says how much", per_loop=True),)
+                "part moves (1 + k_i) times as fast; a trained file says how much", per_loop=True),
+        Setting("k_z", "-", 0.0, 0.0, 4.0, "integral dead zone: the integral part holds while the filtered error is "
+                "within k_z S_hat / (2 Kc), k_z times the error amplitude of the stick-slip cycle a PI sustains on a "
+                "valve of band S_hat (0: off; a trained file says how much)", per_loop=True),)
 
     def _resolve(self, settings: dict) -> dict:
         s = super()._resolve(settings)
@@ -182,13 +187,15 @@ class AdaptiveStiction(Compensator):
     def advance(self, state: AdaptiveState, sp, pv):
         """One scan: ``(state, sp, pv) -> (state, op)``."""
         p, ts, st = self.p, self.scan_s, state
-        scan = self.pi.propose(st.pi, sp, pv)
+        e_now = np.asarray(sp, float) - np.asarray(pv, float)
+        e_f = st.e_f + self.alpha * (e_now - st.e_f)
+        hold = np.abs(e_f) < p["k_z"] * st.s_hat / (2.0 * self.pi.Kc)      # k_z = 0: never
+        scan = self.pi.propose(st.pi, sp, pv, integrate=~hold if np.any(p["k_z"] > 0) else True)
         boost = p["k_i"] * st.armed * (scan.integral - st.pi.integral)     # faster across the band while stuck
         scan = scan._replace(integral=scan.integral + boost, v=scan.v + boost)
         k = st.k + 1.0
         rate = np.maximum(min(1.0, ts / 200.0), 1.0 / k)
         sigma = st.sigma + rate * (0.63 * np.abs(scan.e - st.e_prev) - st.sigma)
-        e_f = st.e_f + self.alpha * (scan.e - st.e_f)
         trend = st.trend + self.alpha * ((e_f - st.e_f) / ts - st.trend)
         hyst = p["c_h"] * self.pi.Kc * sigma * np.sqrt(ts / self.pi.Ti)
         d, i_ext, flipped = integral_direction(st.d, st.i_ext, scan.integral, hyst)
