@@ -120,3 +120,17 @@ def test_a_row_may_build_its_block_per_group_of_loops():
     assert any(i.size == 3 for i in seen)                       # one block for the group of all three loops
     for mine, theirs in (("my PI", "PI (SIMC)"), ("my knocker", "knocker (S known)")):
         np.testing.assert_array_equal(res.scores[mine].iae_per_h, res.scores[theirs].iae_per_h)
+
+
+def test_breakdown_splits_the_loops_by_slip():
+    from valve_gym.agents.bench.generalisation import breakdown
+
+    cfg = BenchConfig().quick_version()
+    fam = GenFamily(n_healthy=1, n_sticky=3, n_severe=3, duration_s=240.0, scans=(1.0,))
+    res = run_generalisation(cfg, fam, jobs=1, learned=())
+    rows = {r.split(" | ")[0].lstrip("| "): int(r.split(" | ")[1]) for r in breakdown(res, ()) if r.startswith("| ")
+            and not r.startswith("| group")}
+    slip = np.array([s.J / s.S for s, b in zip(res.loops.specs, res.loops.band) if b != "healthy"])
+    assert rows["slip J/S < 1/3"] == int((slip < 1 / 3).sum())
+    assert rows["slip J/S >= 2/3"] == int((slip >= 2 / 3).sum())
+    assert sum(v for k, v in rows.items() if k.startswith("slip")) == 6     # each sticky loop in one slip group

@@ -493,7 +493,11 @@ def _comparison_lines(res: GenResult) -> list[str]:
 
 
 def breakdown(res: GenResult, labels: tuple[str, ...]) -> list[str]:
-    """Sticky + severe loops by process, valve and load level: LC share and median R of ``labels``."""
+    """Sticky + severe loops by process, valve, load level and slip: LC share and median R of ``labels``.
+
+    The slip groups split the loops by ``J / S``: a valve that jumps by ``J`` each time it breaks away cannot be
+    placed closer than that, so a loop with integral action keeps a cycle of about the slip's size there.
+    """
     lp = res.loops
     ss = (lp.band == "sticky") | (lp.band == "severe")
     pi, fr = res.scores[REFERENCE_PI], res.scores[REFERENCE_FRICTIONLESS]
@@ -501,6 +505,9 @@ def breakdown(res: GenResult, labels: tuple[str, ...]) -> list[str]:
 
     groups = [("process", v, lp.process == v) for v in PROCESSES] + [("valve", v, lp.model == v) for v in VALVES]
     groups += [("load", v, lp.load_level == v) for v in LOAD_LEVELS]
+    slip = np.array([sp.J / sp.S if sp.S > 0 else 0.0 for sp in lp.specs])
+    groups += [("slip J/S", "< 1/3", slip < 1 / 3), ("slip J/S", "1/3 to 2/3", (slip >= 1 / 3) & (slip < 2 / 3)),
+               ("slip J/S", ">= 2/3", slip >= 2 / 3)]
     labels = tuple(x for x in labels if x in res.scores)
     out = ["| group | loops | " + " | ".join(f"{x}: LC share / median R" for x in (REFERENCE_PI,) + labels) + " |",
            "|" + "---|" * (3 + len(labels))]
