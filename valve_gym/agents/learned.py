@@ -123,6 +123,8 @@ class LearnedBlock(GuardedBlock):
         Normaliser of the observation: the network sees ``(obs - mean) / std``.
     settings : BlockSettings
     name : str
+    action : float, +1 reverse acting (opening the valve raises pv: the loops the network was trained on) or
+        -1 direct acting; the network sees ``action * sp``, ``action * pv``
 
     Examples
     --------
@@ -134,8 +136,9 @@ class LearnedBlock(GuardedBlock):
 
     def __init__(self, weights: dict, obs_mean: np.ndarray, obs_std: np.ndarray,
                  settings: BlockSettings = BlockSettings(), name: str = "learned", meta: dict | None = None,
-                 pv_range=PV_RANGE):
+                 pv_range=PV_RANGE, action: float = 1.0):
         self.guard = PVGuard(name, pv_range)
+        self.action = float(action)
         self.weights = weights
         self.obs_mean = np.asarray(obs_mean, float)
         self.obs_std = np.asarray(obs_std, float)
@@ -149,7 +152,7 @@ class LearnedBlock(GuardedBlock):
     @property
     def settings(self) -> dict:
         """The resolved settings (JSON-able)."""
-        return {**asdict(self.block_settings), "policy": self.meta.get("policy_path")}
+        return {**asdict(self.block_settings), "action": self.action, "policy": self.meta.get("policy_path")}
 
     def reset(self, sp, pv, op) -> None:
         """Bumpless start from the current output ``op`` (fraction of stroke); ``sp``, ``pv`` in m.
@@ -162,7 +165,7 @@ class LearnedBlock(GuardedBlock):
         check_op_limits(self.name, op_a, self.block_settings.op_lo, self.block_settings.op_hi)
         self._scalar = scalar
         self._law = BlockLaw(self.block_settings, n)
-        self._law.reset(sp_a, pv_a, op_a)
+        self._law.reset(self.action * sp_a, self.action * pv_a, op_a)
         self.guard.start(op_a)
 
     def step(self, sp, pv):
@@ -181,7 +184,7 @@ class LearnedBlock(GuardedBlock):
         kept = {k: v.copy() for k, v in vars(law).items()
                 if isinstance(v, np.ndarray) and v.shape[:1] == (law.n,)} if bad.any() else {}
         first = law._first
-        obs = law.observe(sp_a, pv_a)
+        obs = law.observe(self.action * sp_a, self.action * pv_a)
         a = mlp_forward(self.weights, normalise(obs, self.obs_mean, self.obs_std))
         u = law.act(a)
         for k, v in kept.items():          # the held loops' memory stays as it was (see PVGuard)
@@ -284,10 +287,15 @@ def load_learned(path=None, **settings) -> LearnedBlock:
         raise ValueError(f"{p} is not a learned-block file (format {meta.get('format')!r}, expected {FORMAT!r})")
     name = settings.pop("name", "learned_network")
     pv_range = settings.pop("pv_range", PV_RANGE)
+    action = _number("action", settings.pop("action", 1.0), name)
+    if isinstance(action, bool) or action not in (1, -1, 1.0, -1.0):
+        raise ValueError(f"{name}: setting action must be +1 (reverse acting: opening the valve raises pv) or -1 "
+                         f"(direct acting: opening it lowers pv), got {action!r}")
     allowed = ("Kc", "Ti", "scan_s", "op_lo", "op_hi")
     bad = [k for k in settings if k not in allowed]
     if bad:
-        raise ValueError(f"unknown setting(s) {bad} for the learned compensator; known: {', '.join(allowed)}, name")
+        raise ValueError(f"unknown setting(s) {bad} for the learned compensator; known: {', '.join(allowed)}, "
+                         "action, name")
     settings = {k: _number(k, v, name) for k, v in settings.items()}
     try:
         bs = replace(BlockSettings(**meta["block"]), **settings)
@@ -302,7 +310,8 @@ def load_learned(path=None, **settings) -> LearnedBlock:
     if np.any(std <= 0):
         raise ValueError(f"{p}: obs_std must be > 0 in every entry (it divides the observation), got min "
                          f"{float(std.min()):g}; the file is corrupt: retrain or restore it")
-    return LearnedBlock(w, mean, std, bs, name=name, meta={**meta, "policy_path": str(p)}, pv_range=pv_range)
+    return LearnedBlock(w, mean, std, bs, name=name, meta={**meta, "policy_path": str(p)}, pv_range=pv_range,
+                        action=float(action))
 
 
 def _checked_tensor(p, name: str, a, shape: tuple) -> np.ndarray:

@@ -133,7 +133,7 @@ class AdaptiveStiction(Compensator):
 
     def _resolve(self, settings: dict) -> dict:
         s = super()._resolve(settings)
-        pi_kw = {k.name: s[k.name] for k in PI_SETTINGS}
+        pi_kw = {k.name: s[k.name] for k in PI_SETTINGS if k.name != "action"}   # the action: FunctionBlock
         pi_kw["Ti"] = s["Ti"] * s["ti_factor"]
         self.pi = PIBlock(**pi_kw)
         self.alpha = np.minimum(1.0, s["scan_s"] / (s["f_tau"] * s["Ti"]))

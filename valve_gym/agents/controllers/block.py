@@ -24,6 +24,7 @@ would. ``ctrl.settings`` gives them back as lists (JSON-able).
 """
 from __future__ import annotations
 
+import functools
 import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
@@ -351,12 +352,38 @@ class GuardedBlock:
         return self.guard.bad_pv_scans
 
 
+def _acting(method, name: str):
+    """``method`` (a block's ``initial_state`` or ``advance``) on ``action * sp``, ``action * pv``.
+
+    A direct-acting loop (``action`` -1: opening the valve lowers pv) is the reverse-acting loop of the mirrored
+    measurement, so every block's law, written for the reverse-acting case, serves both.
+    """
+    if name == "initial_state":
+        @functools.wraps(method)
+        def start(self, sp, pv, op):
+            a = self.p.get("action", 1.0)
+            if np.all(a == 1.0):
+                return method(self, sp, pv, op)
+            return method(self, a * np.asarray(sp, float), a * np.asarray(pv, float), op)
+        return start
+
+    @functools.wraps(method)
+    def scan(self, state, sp, pv):
+        a = self.p.get("action", 1.0)
+        if np.all(a == 1.0):
+            return method(self, state, sp, pv)
+        return method(self, state, a * np.asarray(sp, float), a * np.asarray(pv, float))
+    return scan
+
+
 class FunctionBlock(GuardedBlock, ABC):
     """Base of the controller blocks: settings, validation, reset/step.
 
     Subclasses declare ``name`` and ``SETTINGS`` and implement
     :meth:`initial_state` and :meth:`advance` (pure functions of explicit
-    ``(n,)`` state arrays).
+    ``(n,)`` state arrays). Where the settings have an ``action`` (the PI's: +1
+    reverse, -1 direct acting), both see ``action * sp`` and ``action * pv``:
+    the subclass writes its law for the reverse-acting loop only.
 
     Attributes
     ----------
@@ -368,6 +395,12 @@ class FunctionBlock(GuardedBlock, ABC):
 
     name: ClassVar[str] = "block"
     SETTINGS: ClassVar[tuple[Setting, ...]] = ()
+
+    def __init_subclass__(cls, **kw):
+        super().__init_subclass__(**kw)
+        for name in ("initial_state", "advance"):
+            if name in cls.__dict__ and not getattr(cls.__dict__[name], "__isabstractmethod__", False):
+                setattr(cls, name, _acting(cls.__dict__[name], name))
 
     def __init__(self, pv_range=PV_RANGE, **settings):
         #: the bad-measurement hold (see :class:`PVGuard`); ``pv_range`` [PV units] its plausible range

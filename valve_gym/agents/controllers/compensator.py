@@ -143,7 +143,8 @@ class Compensator(FunctionBlock):
 
     def _resolve(self, settings: dict) -> dict:
         s = resolve_pi(self.name, settings)
-        self.pi = PIBlock(**{k.name: s[k.name] for k in PI_SETTINGS})
+        self.pi = PIBlock(**{k.name: s[k.name] for k in PI_SETTINGS if k.name != "action"})   # acts on what the
+        # block hands it: FunctionBlock applies the action once, before initial_state and advance
         return self._rules(s)
 
     def _rules(self, s: dict) -> dict:

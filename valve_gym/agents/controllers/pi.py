@@ -12,7 +12,7 @@ output tracking (external reset), one scan per :meth:`PIBlock.step`::
 
 ``reset(sp, pv, op)`` sets ``I = op - Kc (sp - pv)``, so the first output is
 ``op + Kc Ts/Ti e`` (exactly ``op`` when ``e = 0``): bumpless. ``Kc`` is
-positive (reverse acting: opening the inflow valve raises the level). The law
+positive; the ``action`` setting says which way the loop acts (below). The law
 is :func:`valve_gym.control.pi_scan` / :func:`valve_gym.control.pi_track`,
 the same as the environment's built-in PI.
 
@@ -32,7 +32,13 @@ detune    -       factor on Kc (detuned PI, Pareto over Kc)    1.0
 scan_s    s       scan time                                    1.0
 op_lo     -       lower output limit                           0.0
 op_hi     -       upper output limit                           1.0
+action    -       +1 reverse, -1 direct acting (see below)     +1
 ========  ======  ==========================================  ============
+
+``action``: the block works on ``action * (sp - pv)``. The default (+1, reverse acting) is for a loop where
+opening the valve raises the measurement (the inflow valve of a level); a loop where it lowers it (a valve on
+the outlet, a cooling valve, a vent) takes -1 with the same positive ``Kc``. Every block built on the PI takes
+it, and behaves on a direct-acting loop as it does on the mirrored reverse-acting one.
 
 The SIMC defaults are :func:`valve_gym.agents.controllers.tuning.default_tuning` for the
 default tank at ``scan_s``.
@@ -59,13 +65,16 @@ __all__ = ["PIBlock", "PIBlockState", "PIScan", "PI_SETTINGS"]
 
 #: Settings shared by the PI block and every compensator that wraps it.
 PI_SETTINGS = (
-    Setting("Kc", "1/m", None, 0.0, 1e4, "PI gain; default SIMC for the default tank", lo_open=True, per_loop=True),
+    Setting("Kc", "1/m", None, 0.0, 1e4, "PI gain, positive whichever way the loop acts (see action); default SIMC "
+            "for the default tank", lo_open=True, per_loop=True),
     Setting("Ti", "s", None, 0.0, 1e6, "integral time; default SIMC for the default tank", lo_open=True,
             per_loop=True),
     Setting("detune", "-", 1.0, 0.0, 100.0, "factor on Kc (detuned PI)", lo_open=True, per_loop=True),
     Setting("scan_s", "s", 1.0, 0.0, 3600.0, "scan time", lo_open=True),
     Setting("op_lo", "-", 0.0, 0.0, 1.0, "lower output limit, fraction of stroke"),
     Setting("op_hi", "-", 1.0, 0.0, 1.0, "upper output limit, fraction of stroke"),
+    Setting("action", "-", 1.0, -1.0, 1.0, "controller action: +1 reverse (opening the valve raises pv, the default), "
+            "-1 direct (opening it lowers pv: a valve on a tank's outlet, a cooling valve)", per_loop=True),
 )
 
 
@@ -105,6 +114,10 @@ def resolve_pi(block: str, s: dict) -> dict:
         tun = default_tuning(Ts=s["scan_s"])
         s["Kc"] = tun.Kc if s["Kc"] is None else s["Kc"]
         s["Ti"] = tun.Ti if s["Ti"] is None else s["Ti"]
+    if not np.all(np.abs(s["action"]) == 1.0):
+        raise ValueError(f"{block}: setting action must be +1 (reverse acting: opening the valve raises pv) or -1 "
+                         f"(direct acting: opening it lowers pv), one value per loop if need be; got "
+                         f"{np.ravel(s['action']).tolist()}")
     if not s["op_lo"] < s["op_hi"]:
         raise ValueError(f"{block}: settings need op_lo < op_hi, got op_lo = {s['op_lo']:g}, "
                          f"op_hi = {s['op_hi']:g}")
