@@ -74,3 +74,17 @@ def test_an_action_other_than_plus_or_minus_one_is_refused(bad):
 def test_a_negative_gain_is_refused_with_the_way_to_a_direct_acting_loop():
     with pytest.raises(ValueError, match="Kc .*positive whichever way the loop acts \\(see action\\)"):
         load_controller("pi", Kc=-1.0, Ti=10.0)
+
+
+def test_a_subclass_that_calls_super_is_mirrored_once():
+    from valve_gym.agents.controllers.knocker import Knocker
+
+    class Logged(Knocker):
+        name = "logged_knocker"
+
+        def advance(self, state, sp, pv):
+            return super().advance(state, sp, pv)
+
+    sp, pv = np.full(40, 1.0), 1.0 + 0.01 * np.sin(np.arange(40) / 5.0)
+    kw = dict(Kc=1.0, Ti=10.0, S=0.02, action=-1.0)
+    np.testing.assert_array_equal(_ops(Logged(**kw), sp, pv), _ops(Knocker(**kw), sp, pv))

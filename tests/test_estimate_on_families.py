@@ -21,3 +21,13 @@ def test_bad_duration_is_one_clear_error(est, capsys):
     with pytest.raises(SystemExit) as exc:
         est.main(["--duration", "0"])
     assert exc.value.code == 2 and "--duration must be > 0" in capsys.readouterr().err
+
+
+def test_answers_row_reads_the_blocks_own_reversals_and_answers(est):
+    r = est._run("seventh", duration=600.0, n=6)
+    sticky = r["S"] >= est.HEALTHY_S
+    assert sticky.sum() == 4 and (r["flips"] >= r["answers"]).all()   # an answer needs a reversal before it
+    ok = np.isfinite(r["travel"])
+    assert ok.any() and (r["travel"][ok] > 0).all()
+    row = est.answers_table("seventh", duration=600.0, n=6)
+    assert row.startswith("| seventh | 4 | ") and row.count("|") == 8

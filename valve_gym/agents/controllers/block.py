@@ -356,23 +356,28 @@ def _acting(method, name: str):
     """``method`` (a block's ``initial_state`` or ``advance``) on ``action * sp``, ``action * pv``.
 
     A direct-acting loop (``action`` -1: opening the valve lowers pv) is the reverse-acting loop of the mirrored
-    measurement, so every block's law, written for the reverse-acting case, serves both.
+    measurement, so every block's law, written for the reverse-acting case, serves both. The sign is applied
+    once per call from outside: a subclass's override that calls ``super()`` is not mirrored twice.
     """
+    def mirrored(self, sp, pv, call):
+        a = self.p.get("action", 1.0)
+        if self.__dict__.get("_acting", False) or np.all(a == 1.0):
+            return call(sp, pv)
+        self._acting = True
+        try:
+            return call(a * np.asarray(sp, float), a * np.asarray(pv, float))
+        finally:
+            self._acting = False
+
     if name == "initial_state":
         @functools.wraps(method)
         def start(self, sp, pv, op):
-            a = self.p.get("action", 1.0)
-            if np.all(a == 1.0):
-                return method(self, sp, pv, op)
-            return method(self, a * np.asarray(sp, float), a * np.asarray(pv, float), op)
+            return mirrored(self, sp, pv, lambda s, p: method(self, s, p, op))
         return start
 
     @functools.wraps(method)
     def scan(self, state, sp, pv):
-        a = self.p.get("action", 1.0)
-        if np.all(a == 1.0):
-            return method(self, state, sp, pv)
-        return method(self, state, a * np.asarray(sp, float), a * np.asarray(pv, float))
+        return mirrored(self, sp, pv, lambda s, p: method(self, state, s, p))
     return scan
 
 
