@@ -7,7 +7,7 @@ each family's loops are run as its script runs them (the shared harness's SIMC t
 family's own noise and load, one hour), and for every sticky loop the median of ``S_hat`` over the second half
 of the record is set against the loop's true ``S``.
 
-    python benchmarks/estimate_on_families.py [--families second ... seventh] [--duration 3600] [--answers]
+    python benchmarks/estimate_on_families.py [--families second ... eighth] [--duration 3600] [--answers]
 
 Prints, per family and per decade of ``S`` (0.5-1.5 %, 1.5-4 %, 4-10 %), the number of sticky loops and the
 median and quartiles of ``S_hat / S``; and, over the healthy loops, the median ``S_hat`` (fraction of stroke).
@@ -41,7 +41,8 @@ FAMILIES = {"second": ("learned_unseen_check", "Loops", 36, 913, 1200.0),
             "fourth": ("learned_fourth_check", "FourthLoops", 48, 4242, 1800.0),
             "fifth": ("learned_fifth_check", "FifthLoops", 48, 5151, 600.0),
             "sixth": ("learned_sixth_check", "SixthLoops", 48, 6161, 1200.0),
-            "seventh": ("learned_seventh_check", "SeventhLoops", 48, 7171, 1200.0)}
+            "seventh": ("learned_seventh_check", "SeventhLoops", 48, 7171, 1200.0),
+            "eighth": ("learned_eighth_check", "EighthLoops", 48, 8181, 1800.0)}
 BANDS = ((0.005, 0.015), (0.015, 0.04), (0.04, 0.1001))
 HEALTHY_S = 0.005
 
