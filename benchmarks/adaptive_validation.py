@@ -13,7 +13,7 @@ the benchmark's generalisation part and ``benchmarks/learned_unseen_check.py`` /
 
 Each FILE is a trained ``adaptive.json`` (its ``.safetensors`` beside it); with none, the shipped file.
 ``--vary beta=0.8,1.0`` adds rows of the first file with one number changed to each value (also the untrained
-switches ``k_i``, the integral boost, and ``k_z``, the integral dead zone).
+switches ``k_i``, the integral boost, ``k_z``, the integral dead zone, and ``confirm``, answers that must hold).
 """
 from __future__ import annotations
 
@@ -30,7 +30,7 @@ if str(ROOT) not in sys.path:
 
 FIRST = 5000
 #: Untrained settings ``--vary`` takes beside the ten trained numbers, with their ranges.
-UNTRAINED = {"k_i": (0.0, 10.0), "k_z": (0.0, 4.0)}
+UNTRAINED = {"k_i": (0.0, 10.0), "k_z": (0.0, 4.0), "confirm": (0.0, 5.0)}
 #: The validation draws are generations FIRST, FIRST + 1, ... of this seed, whatever the configuration's.
 VALIDATION_SEED = 38
 

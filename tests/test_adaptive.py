@@ -287,3 +287,51 @@ def test_integral_dead_zone_breaks_a_stick_slip_cycle_at_the_price_of_an_offset(
         found[k_z] = (detect_oscillation(e, 1.0).present, abs(e.mean()))
     assert found[0.0][0] and not found[1.0][0]             # the regular cycle is gone
     assert found[1.0][1] > 5.0 * max(found[0.0][1], 1e-4)  # and a steady offset took its place
+
+
+def _pending(blk, state, trend, o, flipped=False):
+    """One call of the block's estimate with the output at ``o`` and the error's trend ``trend`` (d = +1)."""
+    one = np.ones(1)
+    return blk._estimate(state, np.array([flipped]), one, o * one, state.o_flip, trend * one, 0.001 * one)
+
+
+@pytest.mark.parametrize("confirm", [0.0, 1.0])
+def test_an_answer_must_hold_for_confirm_filter_time_constants(confirm):
+    kw = dict(zip(PARAM_NAMES, MID), Kc=1.0, Ti=100.0, f_tau=0.05, scan_s=1.0, answer=1.0, confirm=confirm)
+    blk = AdaptiveStiction(**kw)
+    st = blk.initial_state(np.ones(1), np.ones(1), np.full(1, 0.5))
+    st = st._replace(d=np.ones(1), armed=np.ones(1), o_flip=np.full(1, 0.5), trend0=np.zeros(1), s_hat=np.full(1, 0.02))
+    # the error's trend turns against the output (d = +1) after a travel of 0.01: an answer, or one to confirm
+    s_hat, armed, p_travel, p_age = _pending(blk, st, -1.0, 0.51)
+    if confirm == 0.0:
+        assert armed[0] == 0.0 and s_hat[0] != 0.02           # taken at once
+        return
+    assert armed[0] == 1.0 and s_hat[0] == 0.02 and p_age[0] == 0.0 and p_travel[0] == pytest.approx(0.01)
+    # the turn goes back before the window (confirm f_tau Ti = 5 s = 5 scans): no answer, still waiting
+    st1 = st._replace(armed=armed, p_travel=p_travel, p_age=p_age)
+    s_hat, armed, p_travel, p_age = _pending(blk, st1, +1.0, 0.52)
+    assert armed[0] == 1.0 and s_hat[0] == 0.02 and p_age[0] == -1.0
+    # a turn that holds for the window counts, with the travel at the turn (not the output's later travel)
+    st2 = st1._replace(armed=armed, p_travel=p_travel, p_age=p_age)
+    for k in range(6):                                        # the turn, then five scans that hold it
+        s_hat, armed, p_travel, p_age = _pending(blk, st2, -1.0, 0.53 + 0.01 * k)
+        st2 = st2._replace(s_hat=s_hat, armed=armed, p_travel=p_travel, p_age=p_age)
+        assert (armed[0] == 1.0) == (k < 5) and (s_hat[0] == 0.02) == (k < 5)
+    beta, eta, rho = MID[PARAM_NAMES.index("beta")], MID[PARAM_NAMES.index("eta")], MID[PARAM_NAMES.index("rho")]
+    meas = beta * 0.03 - 0.02                                 # the turn came at 0.53 - 0.50
+    assert s_hat[0] == pytest.approx(0.02 + eta * (1.0 if meas > 0 else rho) * meas)
+    assert load_adaptive().settings["confirm"] == 0.0        # the shipped file: answers taken at once
+
+
+def test_a_training_config_names_the_confirm_window_and_its_file_keeps_it(tmp_path):
+    from valve_gym.agents.adaptive_train import load_train_config
+    from valve_gym.config import ConfigError
+
+    cfg = AdaptiveTrainConfig(generations=1, pairs=1, loops=2, episode_s=120.0, confirm=0.5)
+    train_adaptive(cfg, tmp_path)
+    assert json.loads((tmp_path / "adaptive.json").read_text())["confirm"] == 0.5
+    assert load_adaptive(tmp_path / "adaptive.json").settings["confirm"] == 0.5
+    assert load_train_config(DEFAULT_ADAPTIVE.parents[3] / "configs" / "learned_adaptive_confirm.yaml").confirm == 0.5
+    for bad in (-1.0, 6.0, True):
+        with pytest.raises(ConfigError, match="confirm must be a number in"):
+            AdaptiveTrainConfig(confirm=bad)

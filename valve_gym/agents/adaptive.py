@@ -58,15 +58,16 @@ ANSWERS = {"turn": 0.0, "reversal": 1.0}
 def fixed_settings(meta: dict, path) -> dict:
     """The block's untrained settings named by a trained file's JSON ``meta``.
 
-    ``{"answer": 0.0 or 1.0, "k_i": float, "k_z": float}`` (:data:`ANSWERS`; files without them: ``"turn"``, no
-    integral boost and no integral dead zone), or a ValueError naming a bad one.
+    ``{"answer": 0.0 or 1.0, "k_i": float, "k_z": float, "confirm": float}`` (:data:`ANSWERS`; files without
+    them: ``"turn"``, no integral boost, no integral dead zone, answers taken unconfirmed), or a ValueError
+    naming a bad one.
     """
     a = meta.get("answer", "turn")
     if a not in ANSWERS:
         raise ValueError(f"{path}: answer {a!r} is not one of {sorted(ANSWERS)}; the file was written for another "
                          "version of the block")
     out = {"answer": ANSWERS[a]}
-    for name, hi in (("k_i", 10.0), ("k_z", 4.0)):
+    for name, hi in (("k_i", 10.0), ("k_z", 4.0), ("confirm", 5.0)):
         v = meta.get(name, 0.0)
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0.0 <= v <= hi):
             raise ValueError(f"{path}: {name} must be a number in [0, {hi:g}], got {v!r}")

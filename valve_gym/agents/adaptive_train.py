@@ -96,6 +96,8 @@ class AdaptiveTrainConfig:
         of 0.5-4 s and the PI tuned anywhere from tight to sluggish (:func:`draw_loop`).
     answer : {"turn", "reversal"}
         The block's answer test (its ``answer`` setting, 0 or 1), written into the trained file's JSON.
+    confirm : float
+        How long an answer must hold (the block's ``confirm`` setting, 0-5; 0: off), written into the JSON.
     """
 
     seed: int = 38
@@ -113,6 +115,7 @@ class AdaptiveTrainConfig:
     init: tuple[float, ...] = (0.5, 0.25, 0.3, 0.9, 0.05, 0.01, 3.0, 1.0, 0.1, 3.0)
     family: str = "core"
     answer: str = "turn"
+    confirm: float = 0.0
 
     def __post_init__(self):
         for nm in ("generations", "pairs", "loops"):
@@ -131,6 +134,9 @@ class AdaptiveTrainConfig:
             raise ConfigError(f"family must be one of {list(FAMILIES)}, got {self.family!r}")
         if self.answer not in ("turn", "reversal"):
             raise ConfigError(f"answer must be 'turn' or 'reversal', got {self.answer!r}")
+        if isinstance(self.confirm, bool) or not isinstance(self.confirm, (int, float)) \
+                or not 0.0 <= self.confirm <= 5.0:
+            raise ConfigError(f"confirm must be a number in [0, 5], got {self.confirm!r}")
         v = np.asarray(self.init, float)
         if v.shape != (len(PARAMS),) or np.any(v <= _LO) or np.any(v >= _HI):
             raise ConfigError(f"init must be {len(PARAMS)} numbers strictly inside their ranges "
@@ -431,7 +437,8 @@ def evaluate(loops: TrainLoops, P: np.ndarray, cfg: AdaptiveTrainConfig) -> np.n
     """Fitness of each row of ``P`` (m, 10) on ``loops`` (module docstring), against the PI run beside them."""
     from .adaptive import ANSWERS
 
-    return fitness(score_columns(loops, P, {"answer": ANSWERS[cfg.answer]}), P.shape[0], cfg)
+    return fitness(score_columns(loops, P, {"answer": ANSWERS[cfg.answer], "confirm": float(cfg.confirm)}),
+                   P.shape[0], cfg)
 
 
 def fitness(sc: dict, m: int, cfg: AdaptiveTrainConfig) -> np.ndarray:
@@ -493,7 +500,8 @@ def _write(out: Path, cfg: AdaptiveTrainConfig, params: np.ndarray, curve: list,
     from .adaptive import save_adaptive
 
     out.mkdir(parents=True, exist_ok=True)
-    meta = {"config": asdict(cfg), "answer": cfg.answer, "seed": cfg.seed, "train_wall_s": round(wall, 1),
+    meta = {"config": asdict(cfg), "answer": cfg.answer, "confirm": float(cfg.confirm), "seed": cfg.seed,
+            "train_wall_s": round(wall, 1),
             "command": "python -m valve_gym.agents.adaptive_train " + " ".join(sys.argv[1:]),
             "versions": {"python": platform.python_version(), "numpy": np.__version__}}
     save_adaptive(out / "adaptive", params, meta)

@@ -20,6 +20,8 @@ time ``ti_factor * Ti``, ``a = min(1, Ts / (f_tau Ti))``)::
     (k_i > 0: while armed, each scan's integral increment is taken 1 + k_i times)
     (k_z > 0: the integral holds while |e_f| < k_z S_hat / (2 Kc), an integral dead zone sized to the
     stick-slip cycle's error amplitude S/(2 Kc) on a valve of band S_hat)
+    (confirm > 0: an answer counts only once the trend has stayed turned for confirm f_tau Ti seconds, its
+    travel the one at the turn; a turn that goes back first was the load's or the noise's, and the block waits on)
 
 With a sticky valve the output has to travel the stick band after a reversal before the stem moves
 and the error's trend turns, so the travel measures ``S`` (the reinforcement ``2 k_c S_hat`` jumped
@@ -60,7 +62,7 @@ PARAMS = (
 )
 PARAM_NAMES = tuple(p[0] for p in PARAMS)
 #: The block's untrained settings that a trained file names beside its ten numbers (off at 0).
-SWITCHES = ("answer", "k_i", "k_z")
+SWITCHES = ("answer", "k_i", "k_z", "confirm")
 _S_MIN, _S_MAX = 0.001, 0.2
 
 
@@ -81,6 +83,8 @@ class AdaptiveState(NamedTuple):
     o_flip, trend0 : extreme of the sustained output against ``d`` around the last flip (where the output
         turned), and the trend at the flip
     armed : 1 while the answer to the last flip is awaited
+    p_travel, p_age : with ``confirm`` > 0, the output travel at an answer that awaits confirmation and the
+        scans since it (``p_age`` -1: none pending)
     phase : scans since the last pulse start (0, 1, 2)
     k : scans since the start
     """
@@ -98,6 +102,8 @@ class AdaptiveState(NamedTuple):
     o_flip: np.ndarray
     trend0: np.ndarray
     armed: np.ndarray
+    p_travel: np.ndarray
+    p_age: np.ndarray
     phase: np.ndarray
     k: np.ndarray
 
@@ -129,7 +135,10 @@ class AdaptiveStiction(Compensator):
                 "part moves (1 + k_i) times as fast; a trained file says how much", per_loop=True),
         Setting("k_z", "-", 0.0, 0.0, 4.0, "integral dead zone: the integral part holds while the filtered error is "
                 "within k_z S_hat / (2 Kc), k_z times the error amplitude of the stick-slip cycle a PI sustains on a "
-                "valve of band S_hat (0: off; a trained file says how much)", per_loop=True),)
+                "valve of band S_hat (0: off; a trained file says how much)", per_loop=True),
+        Setting("confirm", "-", 0.0, 0.0, 5.0, "answers must hold: the error's trend must stay turned for confirm "
+                "time constants of its filter (f_tau Ti) before the travel counts; a turn that goes back is no "
+                "answer and the block keeps waiting (0: off; a trained file says how much)", per_loop=True),)
 
     def _resolve(self, settings: dict) -> dict:
         s = super()._resolve(settings)
@@ -165,24 +174,37 @@ class AdaptiveStiction(Compensator):
                              s_hat=np.broadcast_to(self.p["S0"], (n,)).astype(float), sigma=z.copy(),
                              e_prev=e.copy(), e_f=e.copy(), trend=z.copy(), o_prev=pis.op.copy(),
                              o_ext=pis.op.copy(), o_flip=pis.op.copy(), trend0=z.copy(), armed=z.copy(),
-                             phase=z.copy(), k=z.copy())
+                             p_travel=z.copy(), p_age=np.full(n, -1.0), phase=z.copy(), k=z.copy())
 
     def _estimate(self, st: AdaptiveState, flipped, d, o, o_flip, trend, sigma):
-        """The stick-band estimate after this scan: ``(s_hat, armed)``."""
+        """The stick-band estimate after this scan: ``(s_hat, armed, p_travel, p_age)``."""
         p, a = self.p, self.alpha
         thr = p["c_d"] * a ** 1.5 * sigma / (np.sqrt(2.0) * self.scan_s)
         travel = np.abs(o - o_flip)
         # answer = 1: where the error still grew in the output's direction at the reversal, its trend must turn
         # against that direction; a first-order process settling while the stem sticks only slows that growth
         ref = np.where((p["answer"] > 0.5) & (d * st.trend0 > 0), 0.0, st.trend0)
-        answered = (st.armed > 0) & ~flipped & (d * (ref - trend) > thr)
+        turned = d * (ref - trend)
+        answered = (st.armed > 0) & ~flipped & (turned > thr)
+        p_travel, p_age = st.p_travel, st.p_age
+        if np.any(p["confirm"] > 0):
+            # a turn counts once it has held for confirm filter time constants; one that goes back is no answer
+            held = ~flipped & (st.p_age >= 0) & (turned > 0.0)
+            window = p["confirm"] / a                  # confirm time constants of the trend's filter, in scans
+            confirmed = held & (st.p_age + 1.0 >= window)
+            start = answered & (st.p_age < 0)
+            wait = p["confirm"] > 0
+            p_age = np.where(wait & start, 0.0, np.where(wait & held & ~confirmed, st.p_age + 1.0, -1.0))
+            p_travel = np.where(wait & start, travel, st.p_travel)
+            travel = np.where(wait, st.p_travel, travel)
+            answered = np.where(wait, confirmed, answered)
         meas = p["beta"] * travel - st.s_hat
         step = np.where(answered, p["eta"] * np.where(meas > 0, 1.0, p["rho"]) * meas, 0.0)
         bound = np.abs(st.o_ext - st.o_flip)           # flipped before any answer: at least this far
         step = np.where(flipped & (st.armed > 0) & (bound > st.s_hat), p["eta"] * (bound - st.s_hat), step)
         s_hat = np.clip(st.s_hat + step, _S_MIN, _S_MAX)
         armed = np.where(flipped, 1.0, np.where(answered, 0.0, st.armed))
-        return s_hat, armed
+        return s_hat, armed, p_travel, p_age
 
     def advance(self, state: AdaptiveState, sp, pv):
         """One scan: ``(state, sp, pv) -> (state, op)``."""
@@ -203,7 +225,7 @@ class AdaptiveStiction(Compensator):
         turned = np.where(d > 0, np.minimum(st.o_flip, o), np.maximum(st.o_flip, o))
         o_flip = np.where(flipped, st.o_ext, turned)
         o_ext = np.where(flipped | (d == 0), o, np.where(d > 0, np.maximum(st.o_ext, o), np.minimum(st.o_ext, o)))
-        s_hat, armed = self._estimate(st, flipped, d, o, o_flip, trend, sigma)
+        s_hat, armed, p_travel, p_age = self._estimate(st, flipped, d, o, o_flip, trend, sigma)
         trend0 = np.where(flipped, trend, st.trend0)
         bias = p["k_c"] * s_hat * d
         pulse = np.where(st.phase == 0, p["k_k"] * s_hat * d, 0.0)
@@ -211,4 +233,4 @@ class AdaptiveStiction(Compensator):
         alone, _ = self.pi.finish(scan, bias)
         pis = PIBlockState(integral=alone.integral, op=op)
         return AdaptiveState(pis, d, i_ext, s_hat, sigma, scan.e, e_f, trend, o, o_ext, o_flip, trend0,
-                             armed, (st.phase + 1) % 3, k), op
+                             armed, p_travel, p_age, (st.phase + 1) % 3, k), op
