@@ -146,6 +146,7 @@ class AdaptiveStiction(Compensator):
         pi_kw["Ti"] = s["Ti"] * s["ti_factor"]
         self.pi = PIBlock(**pi_kw)
         self.alpha = np.minimum(1.0, s["scan_s"] / (s["f_tau"] * s["Ti"]))
+        self._dead_zone, self._confirm = bool(np.any(s["k_z"] > 0)), bool(np.any(s["confirm"] > 0))   # switches on
         return s
 
     def for_loop(self, Kc: float, Ti: float, scan_s: float) -> AdaptiveStiction:
@@ -187,7 +188,7 @@ class AdaptiveStiction(Compensator):
         turned = d * (ref - trend)
         answered = (st.armed > 0) & ~flipped & (turned > thr)
         p_travel, p_age = st.p_travel, st.p_age
-        if np.any(p["confirm"] > 0):
+        if self._confirm:
             # a turn counts once it has held for confirm filter time constants; one that goes back is no answer
             held = ~flipped & (st.p_age >= 0) & (turned > 0.0)
             window = p["confirm"] / a                  # confirm time constants of the trend's filter, in scans
@@ -209,10 +210,11 @@ class AdaptiveStiction(Compensator):
     def advance(self, state: AdaptiveState, sp, pv):
         """One scan: ``(state, sp, pv) -> (state, op)``."""
         p, ts, st = self.p, self.scan_s, state
-        e_now = np.asarray(sp, float) - np.asarray(pv, float)
-        e_f = st.e_f + self.alpha * (e_now - st.e_f)
-        hold = np.abs(e_f) < p["k_z"] * st.s_hat / (2.0 * self.pi.Kc)      # k_z = 0: never
-        scan = self.pi.propose(st.pi, sp, pv, integrate=~hold if np.any(p["k_z"] > 0) else True)
+        e_f = st.e_f + self.alpha * ((np.asarray(sp, float) - np.asarray(pv, float)) - st.e_f)
+        integrate = True
+        if self._dead_zone:                                                  # the integral dead zone
+            integrate = np.abs(e_f) >= p["k_z"] * st.s_hat / (2.0 * self.pi.Kc)
+        scan = self.pi.propose(st.pi, sp, pv, integrate=integrate)
         boost = p["k_i"] * st.armed * (scan.integral - st.pi.integral)     # faster across the band while stuck
         scan = scan._replace(integral=scan.integral + boost, v=scan.v + boost)
         k = st.k + 1.0

@@ -357,12 +357,13 @@ def _acting(method, name: str):
 
     A direct-acting loop (``action`` -1: opening the valve lowers pv) is the reverse-acting loop of the mirrored
     measurement, so every block's law, written for the reverse-acting case, serves both. The sign is applied
-    once per call from outside: a subclass's override that calls ``super()`` is not mirrored twice.
+    once per call from outside: a subclass's override that calls ``super()`` is not mirrored twice. A block
+    whose loops are all reverse acting (``_mirror`` None, set at construction) pays one attribute lookup.
     """
     def mirrored(self, sp, pv, call):
-        a = self.p.get("action", 1.0)
-        if self.__dict__.get("_acting", False) or np.all(a == 1.0):
+        if self._acting:
             return call(sp, pv)
+        a = self._mirror
         self._acting = True
         try:
             return call(a * np.asarray(sp, float), a * np.asarray(pv, float))
@@ -372,11 +373,15 @@ def _acting(method, name: str):
     if name == "initial_state":
         @functools.wraps(method)
         def start(self, sp, pv, op):
+            if self._mirror is None:
+                return method(self, sp, pv, op)
             return mirrored(self, sp, pv, lambda s, p: method(self, s, p, op))
         return start
 
     @functools.wraps(method)
     def scan(self, state, sp, pv):
+        if self._mirror is None:
+            return method(self, state, sp, pv)
         return mirrored(self, sp, pv, lambda s, p: method(self, state, s, p))
     return scan
 
@@ -400,6 +405,9 @@ class FunctionBlock(GuardedBlock, ABC):
 
     name: ClassVar[str] = "block"
     SETTINGS: ClassVar[tuple[Setting, ...]] = ()
+    #: the ``action`` of each loop where some loop is direct acting, None where all are reverse acting
+    _mirror: Any = None
+    _acting: bool = False
 
     def __init_subclass__(cls, **kw):
         super().__init_subclass__(**kw)
@@ -414,6 +422,8 @@ class FunctionBlock(GuardedBlock, ABC):
         given = resolve_settings(self.name, self.SETTINGS, settings)
         ruled = [k for k, v in given.items() if v is None]
         self.p: dict[str, Any] = self._resolve(given)
+        action = self.p.get("action", 1.0)
+        self._mirror = None if np.all(np.asarray(action) == 1.0) else action
         for s in self.SETTINGS:
             if s.name in ruled:
                 try:
