@@ -136,8 +136,11 @@ for _p in (_HERE.parent, _HERE):                 # this checkout's package, and 
 from learned_unseen_check import (  # noqa: E402, F401  (KNOWN, DIAGNOSED, check_family, run, tune: the harness)
     DIAGNOSED,
     KNOWN,
+    ar1,
     check_family,
+    factorial_loop,
     family_main,
+    log_uniform,
     run,
     tune,
 )
@@ -176,20 +179,16 @@ T_SPAN, DO_SPAN = 20.0, 10.0
 (S_P, S_PA, S_X, S_V, S_Z, S_SLIDE, S_DWELL, S_Y1, S_Y2, S_Y3, S_Y4, S_K, S_CLK, S_HOLD, S_SAMP, N_STATE) = range(16)
 
 
-def _log_uniform(r, lo: float, hi: float) -> float:
-    return math.exp(r.uniform(math.log(lo), math.log(hi)))
-
-
 def _plant_row(r, kind: str) -> dict:
     """The plant's settings (module docstring), drawn in a fixed order whatever the kind."""
     return dict(
-        pipeline=dict(tau_r=_log_uniform(r, 30.0, 150.0), loss=r.uniform(0.05, 0.25), dT=r.uniform(50.0, 90.0),
+        pipeline=dict(tau_r=log_uniform(r, 30.0, 150.0), loss=r.uniform(0.05, 0.25), dT=r.uniform(50.0, 90.0),
                       T_wall=r.uniform(10.0, 40.0), T_well=r.uniform(5.0, 20.0), pv0=r.uniform(0.4, 0.6)),
-        analyser=dict(theta=_log_uniform(r, 150.0, 600.0), X0=r.uniform(0.6, 0.9), excess=r.uniform(0.1, 0.5),
+        analyser=dict(theta=log_uniform(r, 150.0, 600.0), X0=r.uniform(0.6, 0.9), excess=r.uniform(0.1, 0.5),
                       line=r.uniform(10.0, 40.0), cycle=float(r.integers(30, 121))),
         aeration=dict(n_kla=r.uniform(0.7, 0.95), C_s=r.uniform(8.0, 10.0), C0=r.uniform(1.5, 3.0),
-                      tau=_log_uniform(r, 120.0, 480.0), T_probe=r.uniform(20.0, 60.0)),
-        turbine=dict(tau_s=r.uniform(0.3, 1.5), droop=r.uniform(0.5, 1.0), tau=_log_uniform(r, 3.0, 12.0),
+                      tau=log_uniform(r, 120.0, 480.0), T_probe=r.uniform(20.0, 60.0)),
+        turbine=dict(tau_s=r.uniform(0.3, 1.5), droop=r.uniform(0.5, 1.0), tau=log_uniform(r, 3.0, 12.0),
                      w_span=r.uniform(1.2, 1.6)),
     )[kind]
 
@@ -199,9 +198,7 @@ def draw(n: int, seed: int) -> list[dict]:
     out = []
     for i in range(n):
         r = np.random.default_rng([seed, i])
-        kind, valve, load = KINDS[i % 4], VALVE_KINDS[(i // 4 + i // 12) % 3], LOAD_KINDS[(i // 12) % 4]
-        S = r.uniform(0.0005, HEALTHY_S * 0.95) if i % 3 == 0 else _log_uniform(r, 0.005, 0.10)
-        J = r.uniform(0.0, 1.0) * S
+        kind, valve, load, S, J = factorial_loop(r, i, KINDS, VALVE_KINDS, LOAD_KINDS, HEALTHY_S)
         usual, other = SCANS[kind]
         row = dict(kind=kind, valve=valve, load=load, S=S, J=J, scan=usual if r.uniform() < 0.75 else other,
                    tau_p=r.uniform(0.2, 2.0), tau_a=r.uniform(0.1, 0.4), x0=r.uniform(0.35, 0.65),
@@ -471,19 +468,10 @@ class EighthLoops:
     @staticmethod
     def disturbances(rows: list[dict], scan: float, T: int, duration: float) -> tuple[np.ndarray, np.ndarray]:
         """``(noise (T, n), load (T, n))``: the measurement noise and the loop's load (module docstring)."""
-        from scipy.signal import lfilter
 
         noise, load = np.empty((T, len(rows))), np.empty((T, len(rows)))
         t = np.arange(T) * scan
 
-        def ar1(w, tau, stationary=True):
-            a = math.exp(-scan / tau)
-            w = w.copy()
-            if stationary:
-                w[1:] *= math.sqrt(1.0 - a * a)
-            else:
-                w *= math.sqrt(1.0 - a * a)
-            return lfilter([1.0], [1.0, -a], w)
 
         for i, r in enumerate(rows):
             g = np.random.default_rng(r["seed"])
@@ -491,9 +479,9 @@ class EighthLoops:
             if r["kind"] == "analyser":                   # one draw per analysis, held with its reading
                 w = w[(t // r["cycle"]).astype(int)]
             elif r["t_noise"] > 0.0:
-                w = ar1(w, r["t_noise"])
+                w = ar1(w, r["t_noise"], scan)
             noise[:, i] = r["noise"] * w
-            d = r["ou"] * ar1(g.standard_normal(T), r["t_ou"], stationary=False)
+            d = r["ou"] * ar1(g.standard_normal(T), r["t_ou"], scan, stationary=False)
             for when, size in r["steps"]:
                 d = d + size * (t >= when * duration)
             d = d + r["sine"] * (np.sin(2 * math.pi * t / r["period"] + r["phase"]) - math.sin(r["phase"]))

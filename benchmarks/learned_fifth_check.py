@@ -141,7 +141,9 @@ for _p in (_HERE.parent, _HERE):                 # this checkout's package, and 
 from learned_unseen_check import (  # noqa: E402, F401  (KNOWN, DIAGNOSED, check_family: the family's rows and runner)
     DIAGNOSED,
     KNOWN,
+    ar1,
     check_family,
+    factorial_loop,
     family_main,
 )
 
@@ -221,10 +223,7 @@ def draw(n: int, seed: int) -> list[dict]:
     out = []
     for i in range(n):
         r = np.random.default_rng([seed, i])
-        kind, valve, load = KINDS[i % 4], VALVE_KINDS[(i // 4 + i // 12) % 3], LOAD_KINDS[(i // 12) % 4]
-        S = r.uniform(0.0005, HEALTHY_S * 0.95) if i % 3 == 0 else math.exp(r.uniform(math.log(0.005),
-                                                                                      math.log(0.10)))
-        J = r.uniform(0.0, 1.0) * S
+        kind, valve, load, S, J = factorial_loop(r, i, KINDS, VALVE_KINDS, LOAD_KINDS, HEALTHY_S)
         scans = SCANS[kind]
         row = dict(kind=kind, valve=valve, load=load, S=S, J=J, scan=scans[int(r.integers(2))],
                    tau_p=r.uniform(0.2, 1.5), tau_a=r.uniform(0.1, 0.6), x0=r.uniform(0.35, 0.65),
@@ -539,34 +538,29 @@ class FifthLoops:
     @staticmethod
     def disturbances(rows: list[dict], scan: float, T: int, duration: float) -> tuple[np.ndarray, np.ndarray]:
         """``(noise (T, n), load (T, n))``: the measurement noise and the loop's load (see the module docstring)."""
-        from scipy.signal import lfilter
 
         noise, load = np.empty((T, len(rows))), np.empty((T, len(rows)))
         t = np.arange(T) * scan
         k = np.arange(T)
 
-        def ar1(w, tau):
-            a = math.exp(-scan / tau)
-            w[1:] *= math.sqrt(1.0 - a ** 2)
-            return lfilter([1.0], [1.0, -a], w)
 
         for i, r in enumerate(rows):
             g = np.random.default_rng(r["seed"])
             w = g.standard_normal(T)
             if r["t_noise"] > 0.0:
-                w = ar1(w, r["t_noise"])
+                w = ar1(w, r["t_noise"], scan)
             if r["kind"] == "basis":                 # one reading per traverse, held
                 nsc = int(round(r["traverse"] / scan))
                 w = w[(k // nsc) * nsc]
             noise[:, i] = r["noise"] * w
-            ou = r["ou"] * ar1(g.standard_normal(T), r["t_ou"])
+            ou = r["ou"] * ar1(g.standard_normal(T), r["t_ou"], scan)
             walk = np.cumsum(g.standard_normal(T)) * r["walk"] * math.sqrt(scan)
             half = 0.5 * r["sq_period"]
             square = r["sq"] * (np.floor((t + r["sq_off"] * half) / half) % 2 == 1)
             gate = np.zeros(T, bool)
             for t0, ln in zip(r["b_start"], r["b_len"]):
                 gate |= (t >= t0 * duration) & (t < t0 * duration + ln)
-            burst = r["b_std"] * ar1(g.standard_normal(T), r["b_tau"]) * gate
+            burst = r["b_std"] * ar1(g.standard_normal(T), r["b_tau"], scan) * gate
             load[:, i] = ou + walk + (r["drift"] + r["b_ramp"]) * t / duration + square + burst
         return noise, load
 

@@ -125,6 +125,7 @@ from learned_unseen_check import (  # noqa: E402, F401  (KNOWN, DIAGNOSED, check
     DIAGNOSED,
     KNOWN,
     check_family,
+    factorial_loop,
     family_main,
 )
 
@@ -184,10 +185,7 @@ def draw(n: int, seed: int) -> list[dict]:
     out = []
     for i in range(n):
         r = np.random.default_rng([seed, i])
-        kind, valve, load = KINDS[i % 4], VALVE_KINDS[(i // 4 + i // 12) % 3], LOAD_KINDS[(i // 12) % 4]
-        S = r.uniform(0.0005, HEALTHY_S * 0.95) if i % 3 == 0 else math.exp(r.uniform(math.log(0.005),
-                                                                                      math.log(0.10)))
-        J = r.uniform(0.0, 1.0) * S
+        kind, valve, load, S, J = factorial_loop(r, i, KINDS, VALVE_KINDS, LOAD_KINDS, HEALTHY_S)
         scans = SCANS[kind]
         row = dict(kind=kind, valve=valve, load=load, S=S, J=J, scan=scans[int(r.integers(2))],
                    tau_p=r.uniform(0.2, 1.5), tau_a=r.uniform(0.1, 0.6) if valve != "rotary" else 0.0,

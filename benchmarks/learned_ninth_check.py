@@ -146,8 +146,11 @@ for _p in (_HERE.parent, _HERE):                 # this checkout's package, and 
 from learned_unseen_check import (  # noqa: E402, F401  (KNOWN, DIAGNOSED, check_family, run, tune: the harness)
     DIAGNOSED,
     KNOWN,
+    ar1,
     check_family,
+    factorial_loop,
     family_main,
+    log_uniform,
     run,
     tune,
 )
@@ -184,14 +187,10 @@ DS_SPAN, TW_SPAN = 150.0, 8.0
 (S_P, S_PA, S_X, S_V, S_MODE, S_Y1, S_Y2, S_Y3, S_Y4, N_STATE) = range(10)
 
 
-def _log_uniform(r, lo: float, hi: float) -> float:
-    return math.exp(r.uniform(math.log(lo), math.log(hi)))
-
-
 def _plant_row(r, kind: str) -> dict:
     """The plant's settings (module docstring), drawn in a fixed order whatever the kind."""
     return dict(
-        boiler=dict(P0=r.uniform(0.5, 0.75), Pb=r.uniform(0.3, 0.6), tau=_log_uniform(r, 100.0, 400.0),
+        boiler=dict(P0=r.uniform(0.5, 0.75), Pb=r.uniform(0.3, 0.6), tau=log_uniform(r, 100.0, 400.0),
                     T_f=r.uniform(10.0, 30.0), dead=r.uniform(2.0, 6.0), T_tx=r.uniform(1.0, 3.0)),
         desuper=dict(E=r.uniform(1000.0, 1400.0), s0=r.uniform(0.04, 0.08), T_e=r.uniform(1.0, 4.0),
                      dead=r.uniform(1.0, 4.0), T_well=r.uniform(4.0, 15.0), pv0=r.uniform(0.4, 0.6)),
@@ -200,7 +199,7 @@ def _plant_row(r, kind: str) -> dict:
                         dead=r.uniform(0.3, 1.5), T_tx=r.uniform(0.2, 1.0), w=r.uniform(0.2, 0.4),
                         pv0=r.uniform(0.4, 0.6)),
         tower=dict(dT=r.uniform(5.0, 10.0), eff=r.uniform(0.6, 0.8), bmax=r.uniform(0.3, 0.5),
-                   tau=_log_uniform(r, 100.0, 360.0), dead=r.uniform(20.0, 60.0), T_s=r.uniform(10.0, 30.0),
+                   tau=log_uniform(r, 100.0, 360.0), dead=r.uniform(20.0, 60.0), T_s=r.uniform(10.0, 30.0),
                    pv0=r.uniform(0.4, 0.6)),
     )[kind]
 
@@ -210,9 +209,7 @@ def draw(n: int, seed: int) -> list[dict]:
     out = []
     for i in range(n):
         r = np.random.default_rng([seed, i])
-        kind, valve, load = KINDS[i % 4], VALVE_KINDS[(i // 4 + i // 12) % 3], LOAD_KINDS[(i // 12) % 4]
-        S = r.uniform(0.0005, HEALTHY_S * 0.95) if i % 3 == 0 else _log_uniform(r, 0.005, 0.10)
-        J = r.uniform(0.0, 1.0) * S
+        kind, valve, load, S, J = factorial_loop(r, i, KINDS, VALVE_KINDS, LOAD_KINDS, HEALTHY_S)
         usual, other = SCANS[kind]
         row = dict(kind=kind, valve=valve, load=load, S=S, J=J, scan=usual if r.uniform() < 0.75 else other,
                    tau_p=r.uniform(0.2, 2.0), tau_a=r.uniform(0.1, 0.4), x0=r.uniform(0.35, 0.65),
@@ -489,27 +486,18 @@ class NinthLoops:
     @staticmethod
     def disturbances(rows: list[dict], scan: float, T: int, duration: float) -> tuple[np.ndarray, np.ndarray]:
         """``(noise (T, n), load (T, n))``: the measurement noise and the loop's load (module docstring)."""
-        from scipy.signal import lfilter
 
         noise, load = np.empty((T, len(rows))), np.empty((T, len(rows)))
         t = np.arange(T) * scan
 
-        def ar1(w, tau, stationary=True):
-            a = math.exp(-scan / tau)
-            w = w.copy()
-            if stationary:
-                w[1:] *= math.sqrt(1.0 - a * a)
-            else:
-                w *= math.sqrt(1.0 - a * a)
-            return lfilter([1.0], [1.0, -a], w)
 
         for i, r in enumerate(rows):
             g = np.random.default_rng(r["seed"])
             w = g.standard_normal(T)
             if r["t_noise"] > 0.0:
-                w = ar1(w, r["t_noise"])
+                w = ar1(w, r["t_noise"], scan)
             noise[:, i] = r["noise"] * w
-            d = r["ou"] * ar1(g.standard_normal(T), r["t_ou"], stationary=False)
+            d = r["ou"] * ar1(g.standard_normal(T), r["t_ou"], scan, stationary=False)
             for when, size in r["steps"]:
                 d = d + size * (t >= when * duration)
             load[:, i] = d + r["ramp"] * t / duration

@@ -101,7 +101,9 @@ from learned_unseen_check import (  # noqa: E402, F401  (KNOWN, DIAGNOSED, check
     DIAGNOSED,
     KNOWN,
     check_family,
+    factorial_loop,
     family_main,
+    log_uniform,
     run,
     tune,
 )
@@ -140,11 +142,11 @@ P_ATM = 1.01325
 def _plant_row(r, kind: str) -> dict:
     """The plant's settings (see the module docstring), drawn in a fixed order whatever the kind."""
     k = dict(
-        torricelli=dict(area=r.uniform(0.2, 3.0), tau=_log_uniform(r, 30.0, 400.0), L0=r.uniform(0.3, 0.7)),
+        torricelli=dict(area=r.uniform(0.2, 3.0), tau=log_uniform(r, 30.0, 400.0), L0=r.uniform(0.3, 0.7)),
         pumped=dict(area=r.uniform(0.2, 3.0), T_fill=r.uniform(100.0, 400.0), L0=r.uniform(0.3, 0.6)),
-        sphere=dict(radius=r.uniform(0.5, 1.2), tau=_log_uniform(r, 30.0, 400.0), fill=r.uniform(0.25, 0.6)),
+        sphere=dict(radius=r.uniform(0.5, 1.2), tau=log_uniform(r, 30.0, 400.0), fill=r.uniform(0.25, 0.6)),
         pressure=dict(P_s=r.uniform(6.0, 10.0), ratio=r.uniform(0.35, 0.6), x_T=r.uniform(0.6, 0.8),
-                      x_To=r.uniform(0.5, 0.7), tau=_log_uniform(r, 5.0, 30.0), pv0=r.uniform(0.5, 0.7)),
+                      x_To=r.uniform(0.5, 0.7), tau=log_uniform(r, 5.0, 30.0), pv0=r.uniform(0.5, 0.7)),
     )[kind]
     if kind == "pressure":           # the transmitter ranged 0 to P0 / pv0 bar g
         k["span"] = (k["ratio"] * k["P_s"] - P_ATM) / k["pv0"]
@@ -153,19 +155,12 @@ def _plant_row(r, kind: str) -> dict:
     return k
 
 
-def _log_uniform(r, lo: float, hi: float) -> float:
-    return math.exp(r.uniform(math.log(lo), math.log(hi)))
-
-
 def draw(n: int, seed: int) -> list[dict]:
     """``n`` loops of the family (see the module docstring); one dict per loop."""
     out = []
     for i in range(n):
         r = np.random.default_rng([seed, i])
-        kind, valve, load = KINDS[i % 4], VALVE_KINDS[(i // 4 + i // 12) % 3], LOAD_SLOTS[(i // 12) % 4]
-        S = r.uniform(0.0005, HEALTHY_S * 0.95) if i % 3 == 0 else math.exp(r.uniform(math.log(0.005),
-                                                                                      math.log(0.10)))
-        J = r.uniform(0.0, 1.0) * S
+        kind, valve, load, S, J = factorial_loop(r, i, KINDS, VALVE_KINDS, LOAD_SLOTS, HEALTHY_S)
         usual, other = SCANS[kind]
         row = dict(kind=kind, valve=valve, load=load, S=S, J=J, scan=usual if r.uniform() < 0.75 else other,
                    tau_p=r.uniform(0.3, 2.0), x0=r.uniform(0.35, 0.65), wn=r.uniform(8.0, 25.0),

@@ -141,7 +141,9 @@ for _p in (_HERE.parent, _HERE):                 # this checkout's package, and 
 from learned_unseen_check import (  # noqa: E402, F401  (KNOWN, DIAGNOSED, check_family: the family's rows and runner)
     DIAGNOSED,
     KNOWN,
+    ar1,
     check_family,
+    factorial_loop,
     family_main,
 )
 
@@ -219,10 +221,7 @@ def draw(n: int, seed: int) -> list[dict]:
     out = []
     for i in range(n):
         r = np.random.default_rng([seed, i])
-        kind, valve, load = KINDS[i % 4], VALVE_KINDS[(i // 4 + i // 12) % 3], LOAD_KINDS[(i // 12) % 4]
-        S = r.uniform(0.0005, HEALTHY_S * 0.95) if i % 3 == 0 else math.exp(r.uniform(math.log(0.005),
-                                                                                      math.log(0.10)))
-        J = r.uniform(0.0, 1.0) * S
+        kind, valve, load, S, J = factorial_loop(r, i, KINDS, VALVE_KINDS, LOAD_KINDS, HEALTHY_S)
         scans = SCANS[kind]
         row = dict(kind=kind, valve=valve, load=load, S=S, J=J, scan=scans[int(r.integers(2))],
                    tau_p=r.uniform(0.2, 1.2), tau_a=r.uniform(0.1, 0.5), x0=r.uniform(0.35, 0.65),
@@ -501,19 +500,10 @@ class SixthLoops:
     @staticmethod
     def disturbances(rows: list[dict], scan: float, T: int, duration: float) -> tuple[np.ndarray, np.ndarray]:
         """``(noise (T, n), load (T, n))``: the measurement noise and the loop's load (see the module docstring)."""
-        from scipy.signal import lfilter
 
         noise, load = np.empty((T, len(rows))), np.empty((T, len(rows)))
         t = np.arange(T) * scan
 
-        def ar1(w, tau, stationary=True):
-            a = math.exp(-scan / tau)
-            w = w.copy()
-            if stationary:
-                w[1:] *= math.sqrt(1.0 - a ** 2)
-            else:
-                w *= math.sqrt(1.0 - a ** 2)
-            return lfilter([1.0], [1.0, -a], w)
 
         for i, r in enumerate(rows):
             g = np.random.default_rng(r["seed"])
@@ -521,11 +511,11 @@ class SixthLoops:
             # drawn for every loop (a fixed order of draws), used on the tray's thermocouple only
             spikes = (g.uniform(size=T) < r["p_spike"]) * g.uniform(4.0, 10.0, T) * np.sign(g.standard_normal(T))
             if r["t_noise"] > 0.0:
-                w = ar1(w, r["t_noise"])
+                w = ar1(w, r["t_noise"], scan)
             if r["kind"] == "tray":                  # the thermocouple's occasional outliers
                 w = w + spikes
             noise[:, i] = r["noise"] * w
-            ou = r["ou"] * ar1(g.standard_normal(T), r["t_ou"], stationary=False)
+            ou = r["ou"] * ar1(g.standard_normal(T), r["t_ou"], scan, stationary=False)
             walk = np.cumsum(g.standard_normal(T)) * r["walk"] * math.sqrt(scan)
             ph = t / r["tri_period"]
             tri = r["tri"] * (1.0 - 4.0 * np.abs(ph + 0.25 - np.floor(ph + 0.75)))

@@ -91,6 +91,7 @@ from learned_unseen_check import (  # noqa: E402, F401  (KNOWN, DIAGNOSED, check
     DIAGNOSED,
     KNOWN,
     check_family,
+    factorial_loop,
     family_main,
 )
 
@@ -119,10 +120,8 @@ def draw(n: int, seed: int) -> list[dict]:
     out = []
     for i in range(n):
         r = np.random.default_rng([seed, i])
-        kind, valve, load = KINDS[i % 4], VALVE_KINDS[(i // 4 + i // 12) % 3], LOAD_KINDS[(i // 12) % 4]
-        S = r.uniform(0.0005, HEALTHY_S * 0.95) if i % 3 == 0 else math.exp(r.uniform(math.log(0.005),
-                                                                                      math.log(0.10)))
-        J = 0.0 if valve == "dead_band" else r.uniform(0.0, 1.0) * S
+        kind, valve, load, S, J = factorial_loop(r, i, KINDS, VALVE_KINDS, LOAD_KINDS, HEALTHY_S,
+                                                  slip_free=("dead_band",))
         scan = SCANS[int(r.integers(2))] if kind == "flow" else SCANS[1 + int(r.integers(2))]
         row = dict(kind=kind, valve=valve, load=load, S=S, J=J, scan=scan, tau_p=r.uniform(0.3, 2.0),
                    x0=r.uniform(0.35, 0.65), wn=r.uniform(20.0, 40.0) if valve == "lugre" else r.uniform(30.0, 120.0),

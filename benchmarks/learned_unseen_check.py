@@ -69,6 +69,40 @@ DIAG_KIND = {"cascade": "cascade", "thermal": "first_order", "vessel": "first_or
 KNOWN = {"knocker (S known)": ("knocker", None), "learned (S known, frozen)": ("learned", False)}
 
 
+def log_uniform(r: np.random.Generator, lo: float, hi: float) -> float:
+    """A number log-uniform in ``[lo, hi]`` from ``r`` (one draw)."""
+    return math.exp(r.uniform(math.log(lo), math.log(hi)))
+
+
+def factorial_loop(r: np.random.Generator, i: int, kinds, valves, loads, healthy_s: float,
+                   slip_free: tuple[str, ...] = ()) -> tuple[str, str, str, float, float]:
+    """Loop ``i`` of the later families' design: ``(kind, valve, load, S, J)``.
+
+    4 plants x 3 valves x 4 loads, a full factorial over 48 loops (plant ``i % 4``, valve ``(i // 4 + i // 12)
+    % 3``, load ``(i // 12) % 4``); every third loop healthy (``S`` uniform below 0.95 ``healthy_s``), the
+    others ``S`` log-uniform in 0.5-10 % of stroke; ``J`` uniform in ``[0, S]`` (0, and no draw, for a valve
+    in ``slip_free``). The draws come from ``r`` in this order, first for the loop.
+    """
+    kind, valve, load = kinds[i % 4], valves[(i // 4 + i // 12) % 3], loads[(i // 12) % 4]
+    S = r.uniform(0.0005, healthy_s * 0.95) if i % 3 == 0 else log_uniform(r, 0.005, 0.10)
+    J = 0.0 if valve in slip_free else r.uniform(0.0, 1.0) * S
+    return kind, valve, load, S, J
+
+
+def ar1(w: np.ndarray, tau: float, scan: float, stationary: bool = True) -> np.ndarray:
+    """White noise ``w`` (one sample per scan) through a first-order filter of time constant ``tau`` [s], unit
+    variance: stationary from the first sample, or (``stationary`` False) starting from 0."""
+    from scipy.signal import lfilter
+
+    a = math.exp(-scan / tau)
+    w = w.copy()
+    if stationary:
+        w[1:] *= math.sqrt(1.0 - a ** 2)
+    else:
+        w *= math.sqrt(1.0 - a ** 2)
+    return lfilter([1.0], [1.0, -a], w)
+
+
 def draw(n: int, seed: int) -> list[dict]:
     """``n`` loops: every third healthy (S <= 0.4 %), the others S 1-9 % of stroke."""
     out = []
