@@ -29,8 +29,6 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 FIRST = 5000
-#: Untrained settings ``--vary`` takes beside the ten trained numbers, with their ranges.
-UNTRAINED = {"k_i": (0.0, 10.0), "k_z": (0.0, 4.0), "confirm": (0.0, 5.0)}
 #: The validation draws are generations FIRST, FIRST + 1, ... of this seed, whatever the configuration's.
 VALIDATION_SEED = 38
 
@@ -58,7 +56,7 @@ def main(argv=None) -> int:
     from valve_gym.agents import adaptive_train as at
     from valve_gym.agents.adaptive import DEFAULT_ADAPTIVE, load_adaptive
     from valve_gym.agents.bench.scores import compensation_ratio
-    from valve_gym.agents.controllers.adaptive import PARAM_NAMES, PARAMS, SWITCHES
+    from valve_gym.agents.controllers.adaptive import PARAM_NAMES, PARAMS, SWITCH_RANGES, SWITCHES
     from valve_gym.config import ConfigError
 
     files = [Path(f) for f in a.files] or [DEFAULT_ADAPTIVE]
@@ -71,9 +69,10 @@ def main(argv=None) -> int:
         ap.error(str(exc))
     for item in a.vary:
         name, sep, values = item.partition("=")
-        if not sep or name not in (*PARAM_NAMES, *UNTRAINED):
-            ap.error(f"--vary takes NAME=V1,V2 with NAME one of {', '.join((*PARAM_NAMES, *UNTRAINED))}; got {item!r}")
-        lo, hi = UNTRAINED[name] if name in UNTRAINED else next((p[2], p[3]) for p in PARAMS if p[0] == name)
+        names = (*PARAM_NAMES, *SWITCH_RANGES)
+        if not sep or name not in names:
+            ap.error(f"--vary takes NAME=V1,V2 with NAME one of {', '.join(names)}; got {item!r}")
+        lo, hi = SWITCH_RANGES[name] if name in SWITCH_RANGES else next((p[2], p[3]) for p in PARAMS if p[0] == name)
         for v in values.split(","):
             try:
                 x = float(v)
@@ -83,7 +82,7 @@ def main(argv=None) -> int:
                 ap.error(f"--vary {name}: {v} is outside the number's range [{lo:g}, {hi:g}]")
             P.append(list(P[0]))
             answers.append(dict(answers[0]))
-            if name in UNTRAINED:                  # an untrained setting, not one of the ten
+            if name in SWITCH_RANGES:                  # an untrained setting, not one of the ten
                 answers[-1][name] = x
             else:
                 P[-1][PARAM_NAMES.index(name)] = x

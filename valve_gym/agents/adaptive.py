@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .controllers.adaptive import PARAM_NAMES, PARAMS, AdaptiveStiction
+from .controllers.adaptive import PARAM_NAMES, PARAMS, SWITCH_RANGES, AdaptiveStiction
 from .safe_files import load_model_file, save_model_file
 
 __all__ = ["load_adaptive", "save_adaptive", "read_params", "fixed_settings", "ANSWERS", "DEFAULT_ADAPTIVE", "FORMAT"]
@@ -67,10 +67,10 @@ def fixed_settings(meta: dict, path) -> dict:
         raise ValueError(f"{path}: answer {a!r} is not one of {sorted(ANSWERS)}; the file was written for another "
                          "version of the block")
     out = {"answer": ANSWERS[a]}
-    for name, hi in (("k_i", 10.0), ("k_z", 4.0), ("confirm", 5.0)):
+    for name, (lo, hi) in SWITCH_RANGES.items():
         v = meta.get(name, 0.0)
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (0.0 <= v <= hi):
-            raise ValueError(f"{path}: {name} must be a number in [0, {hi:g}], got {v!r}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not (lo <= v <= hi):
+            raise ValueError(f"{path}: {name} must be a number in [{lo:g}, {hi:g}], got {v!r}")
         out[name] = float(v)
     return out
 

@@ -50,7 +50,7 @@ import numpy as np
 from valve_gym.config import ConfigError, load_config
 from valve_gym.signals import ou_sequence
 
-from .controllers.adaptive import PARAM_NAMES, PARAMS
+from .controllers.adaptive import PARAM_NAMES, PARAMS, SWITCH_RANGES
 
 __all__ = ["AdaptiveTrainConfig", "TrainLoops", "draw_loops", "draw_loop", "train_adaptive", "to_params", "to_z",
            "score_columns", "fitness", "PI_COLUMN",
@@ -134,9 +134,10 @@ class AdaptiveTrainConfig:
             raise ConfigError(f"family must be one of {list(FAMILIES)}, got {self.family!r}")
         if self.answer not in ("turn", "reversal"):
             raise ConfigError(f"answer must be 'turn' or 'reversal', got {self.answer!r}")
+        lo, hi = SWITCH_RANGES["confirm"]
         if isinstance(self.confirm, bool) or not isinstance(self.confirm, (int, float)) \
-                or not 0.0 <= self.confirm <= 5.0:
-            raise ConfigError(f"confirm must be a number in [0, 5], got {self.confirm!r}")
+                or not lo <= self.confirm <= hi:
+            raise ConfigError(f"confirm must be a number in [{lo:g}, {hi:g}], got {self.confirm!r}")
         v = np.asarray(self.init, float)
         if v.shape != (len(PARAMS),) or np.any(v <= _LO) or np.any(v >= _HI):
             raise ConfigError(f"init must be {len(PARAMS)} numbers strictly inside their ranges "

@@ -31,6 +31,7 @@ from .controllers.block import (
     check_step_inputs,
     not_reset_error,
 )
+from .controllers.pi import check_action
 from .safe_files import load_model_file, save_model_file
 
 __all__ = ["MLPSpec", "LearnedBlock", "load_learned", "save_learned", "mlp_forward", "mlp_shapes", "normalise",
@@ -288,9 +289,7 @@ def load_learned(path=None, **settings) -> LearnedBlock:
     name = settings.pop("name", "learned_network")
     pv_range = settings.pop("pv_range", PV_RANGE)
     action = _number("action", settings.pop("action", 1.0), name)
-    if isinstance(action, bool) or action not in (1, -1, 1.0, -1.0):
-        raise ValueError(f"{name}: setting action must be +1 (reverse acting: opening the valve raises pv) or -1 "
-                         f"(direct acting: opening it lowers pv), got {action!r}")
+    check_action(name, action)
     allowed = ("Kc", "Ti", "scan_s", "op_lo", "op_hi")
     bad = [k for k in settings if k not in allowed]
     if bad:

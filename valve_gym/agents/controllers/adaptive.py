@@ -45,7 +45,7 @@ from .block import Setting
 from .compensator import Compensator, integral_direction
 from .pi import PI_SETTINGS, PIBlock, PIBlockState
 
-__all__ = ["AdaptiveStiction", "AdaptiveState", "PARAMS", "PARAM_NAMES", "SWITCHES"]
+__all__ = ["AdaptiveStiction", "AdaptiveState", "PARAMS", "PARAM_NAMES", "SWITCHES", "SWITCH_RANGES"]
 
 #: The trained settings: name, unit, low, high, one line.
 PARAMS = (
@@ -236,3 +236,8 @@ class AdaptiveStiction(Compensator):
         pis = PIBlockState(integral=alone.integral, op=op)
         return AdaptiveState(pis, d, i_ext, s_hat, sigma, scan.e, e_f, trend, o, o_ext, o_flip, trend0,
                              armed, p_travel, p_age, (st.phase + 1) % 3, k), op
+
+
+#: The numeric untrained switches (all but ``answer``) and their ranges ``(lo, hi)``, from the block's settings.
+SWITCH_RANGES = {st.name: (st.lo, st.hi) for st in AdaptiveStiction.OWN_SETTINGS
+                 if st.name in SWITCHES and st.name != "answer"}

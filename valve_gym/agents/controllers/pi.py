@@ -61,7 +61,7 @@ from valve_gym.control import pi_scan, pi_track
 from .block import FunctionBlock, Setting
 from .tuning import default_tuning
 
-__all__ = ["PIBlock", "PIBlockState", "PIScan", "PI_SETTINGS"]
+__all__ = ["PIBlock", "PIBlockState", "PIScan", "PI_SETTINGS", "check_action"]
 
 #: Settings shared by the PI block and every compensator that wraps it.
 PI_SETTINGS = (
@@ -108,16 +108,21 @@ class PIScan(NamedTuple):
     v: np.ndarray
 
 
+def check_action(block: str, action) -> None:
+    """A ValueError unless ``action`` is +1 or -1 (one value, or one per loop)."""
+    if isinstance(action, bool) or not np.all(np.abs(np.asarray(action, float)) == 1.0):
+        raise ValueError(f"{block}: setting action must be +1 (reverse acting: opening the valve raises pv) or -1 "
+                         f"(direct acting: opening it lowers pv), one value per loop if need be; got "
+                         f"{np.ravel(action).tolist()}")
+
+
 def resolve_pi(block: str, s: dict) -> dict:
     """Fill the SIMC defaults of ``Kc``, ``Ti`` and check the output limits."""
     if s["Kc"] is None or s["Ti"] is None:
         tun = default_tuning(Ts=s["scan_s"])
         s["Kc"] = tun.Kc if s["Kc"] is None else s["Kc"]
         s["Ti"] = tun.Ti if s["Ti"] is None else s["Ti"]
-    if not np.all(np.abs(s["action"]) == 1.0):
-        raise ValueError(f"{block}: setting action must be +1 (reverse acting: opening the valve raises pv) or -1 "
-                         f"(direct acting: opening it lowers pv), one value per loop if need be; got "
-                         f"{np.ravel(s['action']).tolist()}")
+    check_action(block, s["action"])
     if not s["op_lo"] < s["op_hi"]:
         raise ValueError(f"{block}: settings need op_lo < op_hi, got op_lo = {s['op_lo']:g}, "
                          f"op_hi = {s['op_hi']:g}")
