@@ -5,6 +5,7 @@ import importlib.util
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -24,6 +25,34 @@ def load_repo_module(relpath: str, name: str, keep: bool = False):
         sys.modules[name] = mod
     spec.loader.exec_module(mod)
     return mod
+
+
+def stick_slip_level(blk, S: float, J: float, T: int = 3000, seed: int = 0, outlet: bool = False):
+    """A level held by a two-parameter stick-slip valve (a loop written here, no core code): ``(levels, S_hat)``.
+
+    The valve fills the tank against a pumped outlet slightly above its flow at half opening, or (``outlet``)
+    drains a tank fed slightly above the valve's flow at half opening; the level starts at the set point 1 and
+    an outlet tank cannot drain below empty. ``S_hat`` is the block's estimate of the band, where it has one.
+    """
+    rng = np.random.default_rng(seed)
+    x, ref, last = 0.5, 0.5, 1.0
+    y, sp = 1.0, 1.0
+    blk.reset(sp, y, 0.5)
+    ys, shat = [], []
+    for _ in range(T):
+        u = blk.step(sp, y + 0.001 * rng.standard_normal())
+        d = u - ref
+        if abs(d) > (J if d * last > 0 else S):
+            last = np.sign(d)
+            x, ref = u - last * (S - J) / 2.0, u
+        if outlet:
+            y = max(y + (0.0052 - 0.01 * x) / 0.5, 0.0)
+        else:
+            y += (0.01 * x - 0.0052) / 0.5
+        ys.append(y)
+        state = getattr(blk, "state", None)
+        shat.append(float(state.s_hat[0]) if hasattr(state, "s_hat") else np.nan)
+    return np.array(ys), np.array(shat)
 
 
 def check_family_starts_at_rest(sim_cls, rows: list[dict], output_above: bool = False, read: bool = False) -> None:
@@ -48,6 +77,12 @@ def check_family_starts_at_rest(sim_cls, rows: list[dict], output_above: bool = 
             np.testing.assert_allclose(x, x0, atol=1e-9)
             if read:
                 np.testing.assert_allclose(sim.measure(y, np.zeros(len(sub))), y0, atol=sim.res.max())
+
+
+@pytest.fixture(scope="session")
+def stick_slip():
+    """:func:`stick_slip_level`, for the tests of the controller blocks."""
+    return stick_slip_level
 
 
 @pytest.fixture(scope="session")

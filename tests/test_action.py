@@ -27,29 +27,12 @@ def test_a_direct_acting_block_is_the_reverse_acting_block_on_the_mirrored_measu
     assert np.corrcoef(np.diff(direct), np.diff(plain))[0, 1] < 0.0
 
 
-def _outlet_valve_loop(blk, S=0.03, J=0.02, T=3000, seed=0):
-    """A level drained through a sticky outlet valve (opening it lowers the level), a constant inflow."""
-    rng = np.random.default_rng(seed)
-    x, ref, last, y, sp = 0.5, 0.5, 1.0, 1.0, 1.0
-    blk.reset(sp, y, 0.5)
-    ys = []
-    for _ in range(T):
-        u = blk.step(sp, y + 0.001 * rng.standard_normal())
-        d = u - ref
-        if abs(d) > (J if d * last > 0 else S):
-            last = np.sign(d)
-            x, ref = u - last * (S - J) / 2.0, u
-        y = max(y + (0.0052 - 0.01 * x) / 0.5, 0.0)           # inflow slightly above the outlet's at x = 0.5
-        ys.append(y)
-    return np.array(ys)
-
-
 @pytest.mark.parametrize("name", ["pi", "knocker", "learned"])
-def test_direct_acting_blocks_hold_a_level_on_an_outlet_valve(name):
+def test_direct_acting_blocks_hold_a_level_on_an_outlet_valve(name, stick_slip):
     kw = dict(Kc=2.0, Ti=60.0, **({"S": 0.03} if name == "knocker" else {}))
-    held = _outlet_valve_loop(load_controller(name, action=-1.0, **kw))
+    held, _ = stick_slip(load_controller(name, action=-1.0, **kw), S=0.03, J=0.02, outlet=True)
     assert abs(np.mean(held[1500:]) - 1.0) < 0.01                 # around the set point
-    lost = _outlet_valve_loop(load_controller(name, **kw))        # the reverse action closes the outlet
+    lost, _ = stick_slip(load_controller(name, **kw), S=0.03, J=0.02, outlet=True)   # the reverse action: closed
     assert abs(np.mean(lost[1500:]) - 1.0) > 0.2
 
 

@@ -13,37 +13,18 @@ from valve_gym.agents.controllers.adaptive import PARAM_NAMES, PARAMS, AdaptiveS
 MID = np.array([(p[2] + p[3]) / 2.0 for p in PARAMS])
 
 
-def _stick_slip_loop(blk, S, J, T=3000, seed=0):
-    """An integrating level with a two-parameter stick-slip valve (a loop written here, no core code)."""
-    rng = np.random.default_rng(seed)
-    x, ref, last = 0.5, 0.5, 1.0
-    y, sp = 1.0, 1.0
-    blk.reset(sp, y, 0.5)
-    ys, shat = [], []
-    for _ in range(T):
-        u = blk.step(sp, y + 0.001 * rng.standard_normal())
-        d = u - ref
-        if abs(d) > (J if d * last > 0 else S):
-            last = np.sign(d)
-            x, ref = u - last * (S - J) / 2.0, u
-        y += (0.01 * x - 0.0052) / 0.5                      # pumped outlet slightly above the valve's flow
-        ys.append(y)
-        shat.append(blk.state.s_hat[0])
-    return np.array(ys), np.array(shat)
-
-
-def test_block_is_bumpless_and_has_integral_action():
+def test_block_is_bumpless_and_has_integral_action(stick_slip):
     blk = AdaptiveStiction(Kc=2.0, Ti=60.0)
     blk.reset(1.0, 1.0, 0.4)
     assert blk.step(1.0, 1.0) == 0.4
-    ys, _ = _stick_slip_loop(AdaptiveStiction(Kc=2.0, Ti=60.0), S=0.0, J=0.0)
+    ys, _ = stick_slip(AdaptiveStiction(Kc=2.0, Ti=60.0), S=0.0, J=0.0)
     assert abs(ys[-500:].mean() - 1.0) < 2e-3               # no steady offset on a healthy valve
 
 
-def test_stick_band_estimate_follows_the_valve():
+def test_stick_band_estimate_follows_the_valve(stick_slip):
     est = {}
     for S in (0.01, 0.05):
-        _, shat = _stick_slip_loop(AdaptiveStiction(Kc=2.0, Ti=60.0, **dict(zip(PARAM_NAMES, MID))), S, S / 2)
+        _, shat = stick_slip(AdaptiveStiction(Kc=2.0, Ti=60.0, **dict(zip(PARAM_NAMES, MID))), S, S / 2)
         est[S] = shat[-1]
     assert est[0.05] > 2.0 * est[0.01]
 
@@ -274,7 +255,7 @@ def test_integral_dead_zone_in_a_file_is_checked(tmp_path):
         AdaptiveStiction(k_z=-1.0, Kc=1.0, Ti=10.0)
 
 
-def test_integral_dead_zone_breaks_a_stick_slip_cycle_at_the_price_of_an_offset():
+def test_integral_dead_zone_breaks_a_stick_slip_cycle_at_the_price_of_an_offset(stick_slip):
     """On an integrating level with a slip-jump valve the PI's cycle goes with a dead zone sized to it; what is
     left is a steady error inside the band (the trade-off docs/learned.md measures on whole families)."""
     from valve_gym.oscillation import detect_oscillation
@@ -282,7 +263,7 @@ def test_integral_dead_zone_breaks_a_stick_slip_cycle_at_the_price_of_an_offset(
     kw = dict(zip(PARAM_NAMES, MID), Kc=2.0, Ti=60.0)
     found = {}
     for k_z in (0.0, 1.0):
-        ys, _ = _stick_slip_loop(AdaptiveStiction(k_z=k_z, **kw), S=0.04, J=0.03, T=3000)
+        ys, _ = stick_slip(AdaptiveStiction(k_z=k_z, **kw), S=0.04, J=0.03, T=3000)
         e = 1.0 - ys[1500:]
         found[k_z] = (detect_oscillation(e, 1.0).present, abs(e.mean()))
     assert found[0.0][0] and not found[1.0][0]             # the regular cycle is gone
